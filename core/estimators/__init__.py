@@ -1,0 +1,1 @@
+"""Estimators: every one takes its settings in the constructor and returns an Estimate."""

@@ -1,0 +1,70 @@
+"""The estimator interface and the result every estimator returns.
+
+An estimator's constructor only stores its settings. ``run(model, z, u, dt, x0)`` takes the
+measurements ``z`` of shape ``(runs, steps, m)`` at ``t_1 .. t_steps`` and the input ``u``
+of shape ``(steps, p)`` or ``(runs, steps, p)`` on the intervals before them, and an
+optional initial state ``x0`` at ``t_0`` (filters without a state ignore it), and returns an
+:class:`Estimate` for the whole batch.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """Filter output over a Monte Carlo batch.
+
+    Attributes
+    ----------
+    y_hat : ``(runs, steps, m)`` posterior estimate of the measured output.
+    innovation : ``(runs, steps, m)`` prior residual ``z_k - y_hat_{k|k-1}`` (eq 3.84).
+    diverged : ``(runs,)`` runs whose estimate became non-finite or left ``divergence_bound``.
+    x_hat : ``(runs, steps, n)`` posterior state estimate, or ``None`` for output-only filters.
+    P_diag : ``(runs, steps, n)`` diagonal of the posterior covariance, or ``None``.
+    """
+
+    y_hat: np.ndarray
+    innovation: np.ndarray
+    diverged: np.ndarray
+    x_hat: np.ndarray | None = None
+    P_diag: np.ndarray | None = None
+
+
+def batch_input(u: np.ndarray, runs: int) -> np.ndarray:
+    """Broadcast an input of shape ``(steps, p)`` or ``(runs, steps, p)`` to the batch."""
+    u = np.asarray(u, float)
+    if u.ndim == 2:
+        u = u[None]
+    return np.broadcast_to(u, (runs,) + u.shape[1:])
+
+
+def as_matrix(value, n: int, name: str) -> np.ndarray:
+    """A covariance given as a scalar, a diagonal list or a full matrix -> ``(n, n)``."""
+    a = np.asarray(value, float)
+    if a.ndim == 0:
+        return a * np.eye(n)
+    if a.ndim == 1 and a.size == n:
+        return np.diag(a)
+    if a.shape == (n, n):
+        return a
+    raise ValueError(f"{name}: expected a scalar, {n} diagonal entries or an {n}x{n} matrix")
+
+
+def joseph_update(x: np.ndarray, P: np.ndarray, innovation: np.ndarray, H: np.ndarray,
+                  R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Measurement update (eqs A.5-A.7, A.14-A.16) in Joseph form, batched.
+
+    ``x (runs, n)``, ``P (runs, n, n)``, ``innovation (runs, m)``, ``H (runs, m, n)``,
+    ``R (m, m)``. The covariance is ``(I-KH) P (I-KH)^T + K R K^T``, symmetrised.
+    """
+    Ht = np.swapaxes(H, -1, -2)
+    S = H @ P @ Ht + R
+    K = np.swapaxes(np.linalg.solve(S, H @ P), -1, -2)
+    x = x + (K @ innovation[..., None])[..., 0]
+    IKH = np.eye(P.shape[-1]) - K @ H
+    P = IKH @ P @ np.swapaxes(IKH, -1, -2) + K @ R @ np.swapaxes(K, -1, -2)
+    return x, 0.5 * (P + np.swapaxes(P, -1, -2))

@@ -1,0 +1,45 @@
+"""Linear Kalman filter (thesis Appendix A.1, eqs A.1-A.7), batched over Monte Carlo runs."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from core.estimators.base import Estimate, as_matrix, batch_input, joseph_update
+
+
+class KalmanFilter:
+    """``x_k = A x_{k-1} + B u_{k-1} + v``, ``z_k = C x_k + w`` with known ``A, B, C, Q, R``.
+
+    The model argument of :meth:`run` is not used: the matrices are the settings.
+    """
+
+    def __init__(self, A, B, C, Q, R, x0, P0) -> None:
+        self.A = np.atleast_2d(np.asarray(A, float))
+        n = self.A.shape[0]
+        self.B = np.asarray(B, float).reshape(n, -1)
+        self.C = np.atleast_2d(np.asarray(C, float))
+        self.Q = as_matrix(Q, n, "Q")
+        self.R = as_matrix(R, self.C.shape[0], "R")
+        self.x0 = np.asarray(x0, float).reshape(n)
+        self.P0 = as_matrix(P0, n, "P0")
+
+    def run(self, model, z: np.ndarray, u: np.ndarray, dt: float | None = None,
+            x0: np.ndarray | None = None) -> Estimate:
+        runs, steps, m = z.shape
+        n = self.A.shape[0]
+        u = batch_input(u, runs)
+        x = np.broadcast_to(self.x0, (runs, n)).copy()
+        P = np.broadcast_to(self.P0, (runs, n, n)).copy()
+        H = np.broadcast_to(self.C, (runs, m, n))
+        x_hat = np.empty((runs, steps, n))
+        P_diag = np.empty((runs, steps, n))
+        innovation = np.empty((runs, steps, m))
+        for k in range(steps):
+            x = x @ self.A.T + u[:, k, :] @ self.B.T
+            P = self.A @ P @ self.A.T + self.Q
+            innovation[:, k] = z[:, k] - x @ self.C.T
+            x, P = joseph_update(x, P, innovation[:, k], H, self.R)
+            x_hat[:, k] = x
+            P_diag[:, k] = np.diagonal(P, axis1=-2, axis2=-1)
+        return Estimate(y_hat=x_hat @ self.C.T, innovation=innovation,
+                        diverged=np.zeros(runs, bool), x_hat=x_hat, P_diag=P_diag)

@@ -1,0 +1,1 @@
+"""Circuit and field models sharing the interface of :class:`core.models.base.Model`."""

@@ -1,0 +1,20 @@
+"""Names used in configs -> implementations. Adding a model or filter is one line here."""
+
+from __future__ import annotations
+
+from core.estimators.ekf import ExtendedKalmanFilter
+from core.estimators.kf import KalmanFilter
+from core.estimators.rls import RecursiveLeastSquares
+from core.models.mosfet_ekv import MosfetEKV
+
+MODELS = {
+    "mosfet_ekv": MosfetEKV,
+}
+
+ESTIMATORS = {
+    "ekf": ExtendedKalmanFilter,
+    "kf": KalmanFilter,
+    "rls": RecursiveLeastSquares,
+}
+
+ANALYSES = ("estimation",)
