@@ -1,0 +1,1 @@
+"""estim command line (click), a thin layer over :mod:`core`."""

@@ -1,0 +1,219 @@
+"""``estim``: run, reproduce, table, check, validate, list.
+
+Exit codes: 0 ok, 1 a check found differences, 2 a usage or config error.
+"""
+
+from __future__ import annotations
+
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import click
+import matplotlib.pyplot as plt
+import pandas as pd
+
+import core
+from core import io, runner, tables
+from core.config import ConfigError, Experiment, parse
+
+CONFIG_DIR = Path("configs")
+RESULTS_DIR = Path("results")
+
+
+def fail(message: str) -> None:
+    click.echo(f"error: {message}", err=True)
+    sys.exit(2)
+
+
+def load(path: Path) -> Experiment:
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise ConfigError(str(path), "", "no such file") from None
+    except OSError as exc:
+        raise ConfigError(str(path), "", f"cannot read ({exc.strerror})") from None
+    return parse(text, str(path), path.stem)
+
+
+def load_all(paths) -> list[Experiment]:
+    try:
+        exps = [load(Path(p)) for p in paths]
+    except ConfigError as exc:
+        fail(str(exc))
+    names = [e.name for e in exps]
+    dupes = sorted({n for n in names if names.count(n) > 1})
+    if dupes:
+        fail(f"two configs share the name {dupes[0]!r}")
+    return exps
+
+
+def default_configs() -> list[Path]:
+    paths = sorted(CONFIG_DIR.glob("*.yaml"))
+    if not paths:
+        fail(f"no configs found in {CONFIG_DIR}/ (run from the project folder)")
+    return paths
+
+
+def run_one(exp: Experiment, out: Path, runs: int | None, seed: int | None, jobs: int,
+            quiet: bool) -> runner.Result:
+    start = time.perf_counter()
+    total = runner.n_points(exp)
+    if quiet or not sys.stderr.isatty():
+        if not quiet:
+            click.echo(f"{exp.name}: {total} work units ...", err=True)
+        result = runner.execute(exp, runs, seed, jobs)
+    else:
+        with click.progressbar(length=total, label=exp.name, file=sys.stderr) as bar:
+            result = runner.execute(exp, runs, seed, jobs, on_point=lambda: bar.update(1))
+    folder = out / exp.name
+    for metric, df in result.tables.items():
+        io.write_csv(df, folder / f"{metric}.csv")
+    for name, fig in result.figures.items():
+        io.write_figure(fig, folder / "figures" / f"{name}.png")
+        plt.close(fig)
+    mc = exp.spec["monte_carlo"]
+    io.write_manifest(folder, exp.spec, mc["seed"] if seed is None else seed,
+                      mc["runs"] if runs is None else runs, time.perf_counter() - start)
+    return result
+
+
+def summary(result: runner.Result) -> str:
+    df = result.tables.get("rmse")
+    if df is None:
+        return ""
+    view = df.pivot_table(index=["noise_reading", "noise_param", "frequency_hz"],
+                          columns="estimator", values="rmse", sort=False,
+                          dropna=False)
+    return view.to_string(float_format=lambda v: f"{v:.4g}")
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(core.__version__, prog_name="estim")
+def main() -> None:
+    """Reproduce the result tables of Bansal (2019), state estimation in ODE/PDE models."""
+
+
+_out = click.option("--out", type=click.Path(file_okay=False, path_type=Path),
+                    default=RESULTS_DIR, show_default=True, help="Folder for results.")
+_jobs = click.option("--jobs", type=click.IntRange(1), default=1, show_default=True,
+                     help="Worker processes over sweep points.")
+
+
+@main.command()
+@click.argument("configs", nargs=-1, required=True, type=click.Path(path_type=Path))
+@_out
+@click.option("--runs", type=click.IntRange(1), help="Override the Monte Carlo runs.")
+@click.option("--seed", type=click.IntRange(0), help="Override the seed.")
+@_jobs
+@click.option("--quiet", is_flag=True, help="No progress and no summary.")
+def run(configs, out, runs, seed, jobs, quiet) -> None:
+    """Run the experiment(s) of CONFIGS and write OUT/<config name>/."""
+    for exp in load_all(configs):
+        result = run_one(exp, out, runs, seed, jobs, quiet)
+        if not quiet:
+            click.echo(f"{exp.name} -> {out / exp.name}")
+            text = summary(result)
+            if text:
+                click.echo(text)
+
+
+@main.command()
+@_out
+@_jobs
+@click.option("--quiet", is_flag=True)
+def reproduce(out, jobs, quiet) -> None:
+    """Run every config in configs/ (the thesis tables on the default settings)."""
+    for exp in load_all(default_configs()):
+        run_one(exp, out, None, None, jobs, quiet)
+        if not quiet:
+            click.echo(f"{exp.name} -> {out / exp.name}")
+
+
+@main.command()
+@click.argument("metric", type=click.Choice(sorted(tables.METRICS)))
+@click.option("--results", type=click.Path(file_okay=False, path_type=Path),
+              default=RESULTS_DIR, show_default=True)
+@click.option("--format", "fmt", type=click.Choice(["text", "csv", "markdown", "latex"]),
+              default="text", show_default=True)
+@click.option("--thesis", is_flag=True, help="Show the thesis value and ours/thesis beside ours.")
+def table(metric, results, fmt, thesis) -> None:
+    """Print the METRIC tables of every experiment found under RESULTS."""
+    files = sorted(results.glob(f"*/{tables.METRICS[metric]['file']}"))
+    if not files:
+        fail(f"no {tables.METRICS[metric]['file']} under {results}/ (run 'estim reproduce')")
+    for path in files:
+        df = pd.read_csv(path, dtype={"table_id": str}, keep_default_na=False,
+                         na_values=["", "NaN", "nan"])
+        df["table_id"] = df["table_id"].fillna("")
+        if thesis:
+            df = tables.with_thesis(df, metric)
+        if fmt == "text":
+            click.echo(f"== {path.parent.name} (thesis Table {df['table_id'].iloc[0]})")
+        click.echo(tables.render(df, fmt))
+
+
+@main.command()
+@click.argument("configs", nargs=-1, type=click.Path(path_type=Path))
+@click.option("--results", type=click.Path(file_okay=False, path_type=Path),
+              default=RESULTS_DIR, show_default=True)
+@_jobs
+def check(configs, results, jobs) -> None:
+    """Re-run CONFIGS (default: configs/*.yaml) and compare every cell with RESULTS."""
+    exps = load_all(configs or default_configs())
+    differing = 0
+    with tempfile.TemporaryDirectory() as tmp:
+        for exp in exps:
+            stored_dir = results / exp.name
+            if not stored_dir.is_dir():
+                click.echo(f"{exp.name}: no stored results in {stored_dir}")
+                differing += 1
+                continue
+            result = run_one(exp, Path(tmp), None, None, jobs, quiet=True)
+            tol = exp.spec["check"]["tolerances"]
+            for metric, new in result.tables.items():
+                path = stored_dir / f"{metric}.csv"
+                if not path.exists():
+                    click.echo(f"{exp.name}/{metric}.csv: missing from the stored results")
+                    differing += 1
+                    continue
+                stored = pd.read_csv(path, dtype={"table_id": str}, keep_default_na=False,
+                                     na_values=["", "NaN", "nan"])
+                stored["table_id"] = stored["table_id"].fillna("")
+                fresh = pd.read_csv(Path(tmp) / exp.name / f"{metric}.csv",
+                                    dtype={"table_id": str}, keep_default_na=False,
+                                    na_values=["", "NaN", "nan"])
+                fresh["table_id"] = fresh["table_id"].fillna("")
+                diffs = io.compare_tables(stored, fresh, tol)
+                for d in diffs:
+                    click.echo(f"{exp.name}/{metric}.csv row {d['row']} {d['column']}: "
+                               f"obtained {d['obtained']}, expected {d['expected']}, "
+                               f"difference {d['difference']}")
+                differing += len(diffs)
+                if not diffs:
+                    click.echo(f"{exp.name}/{metric}.csv: {len(new)} rows match")
+    if differing:
+        click.echo(f"check: {differing} difference(s)")
+        sys.exit(1)
+    click.echo("check: all tables match")
+
+
+@main.command()
+@click.argument("configs", nargs=-1, required=True, type=click.Path(path_type=Path))
+def validate(configs) -> None:
+    """Check CONFIGS without running them."""
+    for exp in load_all(configs):
+        click.echo(f"{exp.source}: ok ({exp.name})")
+
+
+@main.command(name="list")
+def list_configs() -> None:
+    """Show the configs and the thesis tables each reproduces."""
+    for exp in load_all(default_configs()):
+        click.echo(f"{exp.source:40s} {exp.name:24s} Tables {', '.join(exp.spec['reproduces'])}"
+                   f"  {exp.spec['title']}")
+
+
+if __name__ == "__main__":
+    main()

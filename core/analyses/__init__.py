@@ -1,0 +1,1 @@
+"""Analyses: each turns a validated Experiment into result tables and figure data."""

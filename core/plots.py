@@ -1,0 +1,59 @@
+"""Figures (matplotlib, Agg only). Each function takes figure data and returns a Figure."""
+
+from __future__ import annotations
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
+
+SIZE = (8.0, 6.0)
+DPI = 100
+
+
+def estimates(trace: dict, title: str) -> Figure:
+    """Input (a) and output (b): actual, measured and every estimate (Figs 3.2-3.5)."""
+    fig, (ax_in, ax_out) = plt.subplots(2, 1, figsize=SIZE, sharex=True)
+    t_ms = trace["t"] * 1e3
+    ax_in.plot(t_ms, trace["source"], lw=0.8, label="source (as applied)")
+    ax_in.plot(t_ms, trace["clean"], lw=1.2, label="nominal input")
+    ax_in.set_ylabel("v_in [V]")
+    ax_in.set_title(f"(a) input - {title}")
+    ax_in.legend(loc="upper right", fontsize=8)
+    ax_out.plot(t_ms, trace["z"], ".", ms=2, color="0.6", label="measurement")
+    ax_out.plot(t_ms, trace["actual"], lw=1.6, color="k", label="actual")
+    for label, y in trace["y_hat"].items():
+        ax_out.plot(t_ms, y, lw=1.0, label=label)
+    ax_out.set_xlabel("time [ms]")
+    ax_out.set_ylabel("output [V]")
+    ax_out.set_title("(b) estimated output")
+    ax_out.legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def running_rmse(trace: dict, title: str) -> Figure:
+    """RMSE across Monte Carlo runs at each sample (Fig 3.6)."""
+    fig, ax = plt.subplots(figsize=SIZE)
+    for label, r in trace["running_rmse"].items():
+        ax.plot(trace["t"] * 1e3, r, lw=1.0, label=label)
+    ax.set_xlabel("time [ms]")
+    ax.set_ylabel("RMSE over runs [V]")
+    ax.set_title(title)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def residuals(trace: dict, title: str) -> Figure:
+    """Residual (prior innovation) of one run over time (Fig 3.7)."""
+    fig, ax = plt.subplots(figsize=SIZE)
+    for label, r in trace["innovation"].items():
+        ax.plot(trace["t"] * 1e3, r, lw=0.8, label=label)
+    ax.set_xlabel("time [ms]")
+    ax.set_ylabel("residual [V]")
+    ax.set_title(title)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig

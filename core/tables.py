@@ -1,0 +1,93 @@
+"""Result tables in thesis layout, and the thesis' own tables beside them."""
+
+from __future__ import annotations
+
+from importlib import resources
+
+import numpy as np
+import pandas as pd
+
+KEYS = ["table_id", "s_no", "noise_reading", "noise_param", "noise_sigma", "frequency_hz",
+        "estimator"]
+
+METRICS: dict[str, dict] = {
+    "rmse": {"file": "rmse.csv", "values": ["rmse", "rmse_se", "runs", "diverged"],
+             "thesis": ["rmse"]},
+    "residual": {"file": "residual.csv",
+                 "values": ["residual_mean", "residual_mean_se", "residual_variance",
+                            "residual_variance_se", "runs", "diverged"],
+                 "thesis": ["residual_mean", "residual_variance"]},
+}
+
+
+def thesis_table(table_id: str) -> pd.DataFrame:
+    """A thesis table as printed (shipped in :mod:`core.reference`)."""
+    name = "table_" + table_id.replace(".", "_") + ".csv"
+    with resources.files("core.reference").joinpath(name).open("r") as fh:
+        return pd.read_csv(fh, dtype={"noise_param_value": float, "table_id": str})
+
+
+def _thesis_row_numbers(rows: pd.DataFrame, table_id: str | None) -> pd.Series:
+    if table_id is None:
+        return pd.Series([pd.NA] * len(rows), dtype="Int64")
+    ref = thesis_table(table_id).drop_duplicates("s_no")
+    s_no = []
+    for level, f in zip(rows["noise_param"], rows["frequency_hz"]):
+        hit = ref[np.isclose(ref["noise_param_value"], level) & np.isclose(ref["frequency_hz"], f)]
+        s_no.append(int(hit["s_no"].iloc[0]) if len(hit) else pd.NA)
+    return pd.Series(s_no, dtype="Int64")
+
+
+def result_table(rows: list[dict], metric: str, table_id: str | None) -> pd.DataFrame:
+    """The ``metric`` table from analysis rows, with thesis table id and row number."""
+    df = pd.DataFrame(rows)
+    df.insert(0, "table_id", table_id if table_id else "")
+    df.insert(1, "s_no", _thesis_row_numbers(df, table_id))
+    return df[KEYS + METRICS[metric]["values"]].reset_index(drop=True)
+
+
+def with_thesis(df: pd.DataFrame, metric: str) -> pd.DataFrame:
+    """Add ``thesis_<value>`` and ``ratio_<value>`` (ours / thesis) beside each value."""
+    out = df.copy()
+    for value in METRICS[metric]["thesis"]:
+        out[f"thesis_{value}"] = np.nan
+    for table_id in [t for t in out["table_id"].unique() if t]:
+        ref = thesis_table(table_id)
+        for value in METRICS[metric]["thesis"]:
+            lookup = {(int(s), e): v for s, e, v in zip(ref["s_no"], ref["estimator"], ref[value])}
+            mask = out["table_id"] == table_id
+            out.loc[mask, f"thesis_{value}"] = [
+                lookup.get((int(s), e), np.nan) if pd.notna(s) else np.nan
+                for s, e in zip(out.loc[mask, "s_no"], out.loc[mask, "estimator"])]
+    for value in METRICS[metric]["thesis"]:
+        out[f"ratio_{value}"] = out[value] / out[f"thesis_{value}"]
+    return out
+
+
+def claims(rmse: pd.DataFrame, better: str = "EKF", worse: str = "RLS") -> pd.DataFrame:
+    """The headline claim of Tables 3.1, 3.2, 3.5 row by row: RMSE of ``better`` < ``worse``.
+
+    A row where either estimator diverged in every run has no verdict (``holds`` is NA).
+    """
+    keys = ["noise_reading", "noise_param", "frequency_hz"]
+    a = rmse[rmse["estimator"] == better].set_index(keys)
+    b = rmse[rmse["estimator"] == worse].set_index(keys)
+    joined = a[["s_no", "rmse"]].join(b[["rmse"]], lsuffix=f"_{better}", rsuffix=f"_{worse}",
+                                      how="inner")
+    ra, rb = joined[f"rmse_{better}"], joined[f"rmse_{worse}"]
+    joined["ratio"] = ra / rb
+    joined["holds"] = pd.array([bool(x < y) if np.isfinite(x) and np.isfinite(y) else pd.NA
+                                for x, y in zip(ra, rb)], dtype="boolean")
+    joined.insert(0, "claim", f"{better} RMSE < {worse} RMSE")
+    return joined.reset_index()
+
+
+def render(df: pd.DataFrame, fmt: str) -> str:
+    """Text, CSV, Markdown or LaTeX rendering of a table."""
+    if fmt == "csv":
+        return df.to_csv(index=False)
+    if fmt == "markdown":
+        return df.to_markdown(index=False, floatfmt=".4g")
+    if fmt == "latex":
+        return df.to_latex(index=False, float_format="%.4g", na_rep="--")
+    return df.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="--")
