@@ -5,9 +5,9 @@ trajectory is integrated interval by interval. scipy's ``solve_ivp`` cannot adva
 of independent Monte Carlo runs at once, and on these circuits it needs hundreds of
 function evaluations per interval; so the runs are advanced together with the 3-stage
 Radau IIA collocation method (order 5, L-stable, the method behind ``solve_ivp``'s
-``Radau``) solving the stage equations with full Newton iterations. Each run's step size is controlled
-on its own by step doubling, while all runs advance together in one vectorised loop. ``tests/test_simulate.py`` checks the result against ``solve_ivp``
-at tight tolerance.
+``Radau``) solving the stage equations with full Newton iterations. Each run's step size is
+controlled on its own by step doubling, while all runs advance together in one vectorised
+loop. ``tests/test_simulate.py`` checks the result against ``solve_ivp`` at tight tolerance.
 """
 
 from __future__ import annotations

@@ -32,7 +32,7 @@ def _thesis_row_numbers(rows: pd.DataFrame, table_id: str | None) -> pd.Series:
         return pd.Series([pd.NA] * len(rows), dtype="Int64")
     ref = thesis_table(table_id).drop_duplicates("s_no")
     s_no = []
-    for level, f in zip(rows["noise_param"], rows["frequency_hz"]):
+    for level, f in zip(rows["noise_param"], rows["frequency_hz"], strict=True):
         hit = ref[np.isclose(ref["noise_param_value"], level) & np.isclose(ref["frequency_hz"], f)]
         s_no.append(int(hit["s_no"].iloc[0]) if len(hit) else pd.NA)
     return pd.Series(s_no, dtype="Int64")
@@ -54,11 +54,12 @@ def with_thesis(df: pd.DataFrame, metric: str) -> pd.DataFrame:
     for table_id in [t for t in out["table_id"].unique() if t]:
         ref = thesis_table(table_id)
         for value in METRICS[metric]["thesis"]:
-            lookup = {(int(s), e): v for s, e, v in zip(ref["s_no"], ref["estimator"], ref[value])}
+            lookup = {(int(s), e): v for s, e, v in
+                      zip(ref["s_no"], ref["estimator"], ref[value], strict=True)}
             mask = out["table_id"] == table_id
             out.loc[mask, f"thesis_{value}"] = [
                 lookup.get((int(s), e), np.nan) if pd.notna(s) else np.nan
-                for s, e in zip(out.loc[mask, "s_no"], out.loc[mask, "estimator"])]
+                for s, e in zip(out.loc[mask, "s_no"], out.loc[mask, "estimator"], strict=True)]
     for value in METRICS[metric]["thesis"]:
         out[f"ratio_{value}"] = out[value] / out[f"thesis_{value}"]
     return out
@@ -77,7 +78,7 @@ def claims(rmse: pd.DataFrame, better: str = "EKF", worse: str = "RLS") -> pd.Da
     ra, rb = joined[f"rmse_{better}"], joined[f"rmse_{worse}"]
     joined["ratio"] = ra / rb
     joined["holds"] = pd.array([bool(x < y) if np.isfinite(x) and np.isfinite(y) else pd.NA
-                                for x, y in zip(ra, rb)], dtype="boolean")
+                                for x, y in zip(ra, rb, strict=True)], dtype="boolean")
     joined.insert(0, "claim", f"{better} RMSE < {worse} RMSE")
     return joined.reset_index()
 

@@ -83,7 +83,7 @@ def estimate_point(exp: Experiment, data: dict) -> list:
     """Run every configured estimator on one simulated batch."""
     _, filter_models = _models(exp)
     out = []
-    for est_spec, model in zip(exp.spec["estimators"], filter_models):
+    for est_spec, model in zip(exp.spec["estimators"], filter_models, strict=True):
         est = registry.ESTIMATORS[est_spec["type"]](**est_spec["settings"])
         out.append(est.run(model, data["z"], data["u"], data["dt"], x0=data["x0"]))
     return out
@@ -94,7 +94,7 @@ def run_point(exp: Experiment, point: SweepPoint, runs: int, seed: int) -> list[
     rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(point.index,)))
     data = simulate_point(exp, point.frequency_hz, point.sigma, runs, rng)
     rows = []
-    for est_spec, est in zip(exp.spec["estimators"], estimate_point(exp, data)):
+    for est_spec, est in zip(exp.spec["estimators"], estimate_point(exp, data), strict=True):
         ok = ~est.diverged
         rmse, rmse_se = metrics.mean_and_se(
             metrics.rmse_per_run(data["actual"][ok], est.y_hat[ok]))
@@ -152,10 +152,10 @@ def figure_data(exp: Experiment, seed: int, runs: int) -> dict:
         out[key] = {
             "t": data["t"], "source": data["source"][0, 1:, 0], "clean": data["clean"][1:, 0],
             "actual": data["actual"][0, :, 0], "z": data["z"][0, :, 0],
-            "y_hat": {lab: e.y_hat[0, :, 0] for lab, e in zip(labels, ests)},
-            "innovation": {lab: e.innovation[0, :, 0] for lab, e in zip(labels, ests)},
+            "y_hat": {lab: e.y_hat[0, :, 0] for lab, e in zip(labels, ests, strict=True)},
+            "innovation": {lab: e.innovation[0, :, 0] for lab, e in zip(labels, ests, strict=True)},
             "running_rmse": {lab: metrics.running_rmse(data["actual"][~e.diverged],
                                                        e.y_hat[~e.diverged])
-                             for lab, e in zip(labels, ests)},
+                             for lab, e in zip(labels, ests, strict=True)},
         }
     return out

@@ -122,7 +122,7 @@ class MosfetEKV(Model):
         self._incidence = np.array([0.0, 0.0, 1.0, -1.0])
 
     def drain_current(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Drain-to-source current and its gradient w.r.t. ``x`` (shapes ``(...)``, ``(..., 4)``)."""
+        """Drain-to-source current and its gradient w.r.t. ``x``, shapes ``(...)``, ``(..., 4)``."""
         p = self.params
         vG, vB, vS, vD = np.moveaxis(np.asarray(x, float), -1, 0)
         Is = p.I_0 * p.W_L
