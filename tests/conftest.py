@@ -1,0 +1,43 @@
+import numpy as np
+import pytest
+from scipy import linalg
+
+from core.models.base import Model
+
+
+class LinearModel(Model):
+    """dx/dt = A x + B u, y = C x: a fixture for filter tests."""
+
+    name = "linear"
+
+    def __init__(self, A, B, C):
+        self.A, self.B, self.C = (np.atleast_2d(np.asarray(m, float)) for m in (A, B, C))
+        n = self.A.shape[0]
+        self.state_names = tuple(f"x{i}" for i in range(n))
+        self.input_names = tuple(f"u{i}" for i in range(self.B.shape[1]))
+        self.output_names = tuple(f"y{i}" for i in range(self.C.shape[0]))
+
+    def f(self, x, u, t=0.0):
+        return x @ self.A.T + u @ self.B.T
+
+    def jacobian(self, x, u, t=0.0):
+        return np.broadcast_to(self.A, np.shape(x)[:-1] + self.A.shape)
+
+    def h(self, x):
+        return x @ self.C.T
+
+    def h_jacobian(self, x):
+        return np.broadcast_to(self.C, np.shape(x)[:-1] + self.C.shape)
+
+    def discrete(self, dt):
+        """Exact zero-order-hold discretisation (A_d, B_d)."""
+        n, p = self.B.shape
+        aug = np.zeros((n + p, n + p))
+        aug[:n, :n], aug[:n, n:] = self.A * dt, self.B * dt
+        E = linalg.expm(aug)
+        return E[:n, :n], E[:n, n:]
+
+
+@pytest.fixture
+def oscillator():
+    return LinearModel([[0.0, 1.0], [-4.0, -0.4]], [[0.0], [1.0]], [[1.0, 0.0]])

@@ -1,0 +1,116 @@
+import numpy as np
+import pytest
+from scipy import linalg
+
+from core import discretize, registry
+from core.estimators.base import Estimate
+from core.estimators.ekf import ExtendedKalmanFilter
+from core.estimators.kf import KalmanFilter
+from core.estimators.rls import RecursiveLeastSquares
+from core.models.mosfet_ekv import MosfetEKV
+
+
+def test_kf_reaches_closed_form_steady_state_scalar():
+    a, c, q, r = 0.9, 1.0, 0.04, 0.25
+    kf = KalmanFilter(A=a, B=0.0, C=c, Q=q, R=r, x0=0.0, P0=10.0)
+    z = np.random.default_rng(0).normal(size=(1, 300, 1))
+    est = kf.run(None, z, np.zeros((300, 1)))
+    prior = linalg.solve_discrete_are(np.array([[a]]), np.array([[c]]), np.array([[q]]),
+                                      np.array([[r]]))[0, 0]
+    gain = prior * c / (c * c * prior + r)
+    posterior = (1 - gain * c) * prior
+    assert est.P_diag[0, -1, 0] == pytest.approx(posterior, rel=1e-10)
+    assert est.P_diag[0, 5, 0] != pytest.approx(posterior, rel=1e-3)
+
+
+def test_ekf_on_linear_model_equals_kf(oscillator):
+    dt = 0.05
+    rng = np.random.default_rng(1)
+    z = rng.normal(size=(3, 200, 1))
+    u = rng.normal(size=(200, 1))
+    Ad, Bd = oscillator.discrete(dt)
+    settings = dict(Q=[1e-3, 2e-3], R=0.1, P0=[1.0, 1.0])
+    kf = KalmanFilter(A=Ad, B=Bd, C=oscillator.C, x0=[0.5, 0.0], **settings)
+    ekf = ExtendedKalmanFilter(x0=[0.5, 0.0], discretization="exponential", **settings)
+    a, b = kf.run(oscillator, z, u, dt), ekf.run(oscillator, z, u, dt)
+    np.testing.assert_allclose(b.x_hat, a.x_hat, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(b.P_diag, a.P_diag, rtol=1e-9, atol=1e-14)
+    np.testing.assert_allclose(b.innovation, a.innovation, rtol=1e-9, atol=1e-12)
+
+
+def test_euler_discretisation_is_the_thesis_first_order_form(oscillator):
+    x = np.array([[1.0, -0.5]])
+    u = np.array([[0.2]])
+    xn, F = discretize.step(oscillator, x, u, 0.01, "euler")
+    np.testing.assert_allclose(F[0], np.eye(2) + 0.01 * oscillator.A)
+    np.testing.assert_allclose(xn, x + 0.01 * oscillator.f(x, u))
+
+
+@pytest.mark.parametrize("method", ["rosenbrock", "exponential"])
+def test_stable_discretisations_converge_to_exact_flow(oscillator, method):
+    x = np.array([[1.0, -0.5]])
+    u = np.array([[0.2]])
+    Ad, Bd = oscillator.discrete(0.1)
+    exact = x @ Ad.T + u @ Bd.T
+    coarse = np.abs(discretize.step(oscillator, x, u, 0.1, method, 1)[0] - exact).max()
+    fine = np.abs(discretize.step(oscillator, x, u, 0.1, method, 16)[0] - exact).max()
+    assert fine <= coarse * 0.2 or fine < 1e-12
+
+
+def test_rls_recovers_known_fir_in_noise():
+    rng = np.random.default_rng(2)
+    taps = np.array([0.5, -0.3, 0.2, 0.1])
+    u = rng.normal(size=(2000, 1))
+    y = np.convolve(u[:, 0], taps)[: len(u)]      # z[k] follows the input interval u[k]
+    sigma = 0.1
+    z = (y + sigma * rng.normal(size=y.shape))[None, :, None]
+    rls = RecursiveLeastSquares(order=4, chi=1e9, lambda0=1.0, lambda_min=1.0, bias=False)
+    est = rls.run(None, z, u)
+    err = est.y_hat[0, -500:, 0] - y[-500:]
+    assert np.sqrt(np.mean(err**2)) < 0.1 * sigma
+    assert np.sqrt(np.mean(est.innovation[0, -500:, 0] ** 2)) == pytest.approx(sigma, rel=0.15)
+
+
+def test_batched_and_single_run_filtering_agree():
+    model = MosfetEKV(V_IN=0.435, drain_current="weak_saturation")
+    x0 = model.operating_point()
+    rng = np.random.default_rng(3)
+    z = x0[3] + 0.1 * rng.normal(size=(4, 60, 1))
+    u = 50 * rng.normal(size=(60, 1))
+    for est in (ExtendedKalmanFilter(Q=1e-3, R=0.01, P0=1e-3), RecursiveLeastSquares()):
+        batch = est.run(model, z, u, 1e-4, x0=x0)
+        for r in range(4):
+            one = est.run(model, z[r:r + 1], u, 1e-4, x0=x0)
+            np.testing.assert_allclose(one.y_hat[0], batch.y_hat[r], rtol=1e-12, atol=1e-14)
+            np.testing.assert_allclose(one.innovation[0], batch.innovation[r], rtol=1e-12,
+                                       atol=1e-14)
+
+
+@pytest.mark.parametrize("name", sorted(registry.ESTIMATORS))
+def test_every_estimator_returns_an_estimate(name, oscillator):
+    Ad, Bd = oscillator.discrete(0.1)
+    settings = {"kf": dict(A=Ad, B=Bd, C=oscillator.C, Q=0.01, R=0.1, x0=[0, 0], P0=1.0),
+                "ekf": dict(Q=0.01, R=0.1, P0=1.0, x0=[0.0, 0.0]),
+                "rls": dict(order=3)}[name]
+    z = np.random.default_rng(4).normal(size=(5, 30, 1))
+    est = registry.ESTIMATORS[name](**settings).run(oscillator, z, np.zeros((30, 1)), 0.1)
+    assert isinstance(est, Estimate)
+    assert est.y_hat.shape == z.shape and est.innovation.shape == z.shape
+    assert est.diverged.shape == (5,)
+
+
+def test_joseph_covariance_stays_symmetric_positive(oscillator):
+    ekf = ExtendedKalmanFilter(Q=[1e-6, 1e-6], R=1e-4, P0=[10.0, 10.0], x0=[0.0, 0.0])
+    z = np.random.default_rng(5).normal(size=(2, 400, 1))
+    est = ekf.run(oscillator, z, np.zeros((400, 1)), 0.05)
+    assert np.all(est.P_diag > 0)
+
+
+def test_printed_taylor_model_diverges_and_is_reported():
+    model = MosfetEKV(V_IN=0.435, drain_current="taylor_saturation")
+    x0 = MosfetEKV(V_IN=0.435).operating_point()
+    z = x0[3] + 0.1 * np.random.default_rng(6).normal(size=(3, 50, 1))
+    est = ExtendedKalmanFilter(Q=0.002, R=0.01, P0=0.002).run(model, z, np.zeros((50, 1)),
+                                                               1e-3, x0=x0)
+    assert est.diverged.all()
+    assert np.isnan(est.y_hat[:, -1]).all()

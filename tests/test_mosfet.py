@@ -1,0 +1,102 @@
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from core.models.mosfet_ekv import DRAIN_CURRENT_LAWS, MosfetEKV
+from core.simulate import simulate
+
+
+@pytest.mark.parametrize("law", DRAIN_CURRENT_LAWS)
+def test_jacobian_matches_finite_differences(law):
+    model = MosfetEKV(drain_current=law)
+    x = np.array([[0.43, 0.01, 0.005, 0.4], [0.46, 0.02, 0.01, 0.05]])
+    u = np.array([[3.0], [-1.0]])
+    eps = 1e-7
+    numeric = np.stack([(model.f(x + eps * e, u) - model.f(x - eps * e, u)) / (2 * eps)
+                        for e in np.eye(4)], axis=-1)
+    J = model.jacobian(x, u)
+    assert np.max(np.abs(J - numeric)) <= 1e-6 * np.max(np.abs(J))
+    f2, J2 = model.f_and_jacobian(x, u)
+    np.testing.assert_array_equal(J2, J)
+    np.testing.assert_array_equal(f2, model.f(x, u))
+
+
+def test_weak_inversion_law_is_eq_3_6():
+    m = MosfetEKV(drain_current="weak_inversion", eta=1.3)
+    p = m.params
+    x = np.array([0.42, 0.02, 0.01, 0.05])
+    vG, vB, vS, vD = x
+    expected = p.I_0 * p.W_L * np.exp((vG - vB - p.V_T0) / (p.eta * p.U_T)) * (
+        np.exp(-(vS - vB) / p.U_T) - np.exp(-(vD - vB) / p.U_T))
+    assert m.drain_current(x)[0] == pytest.approx(expected, rel=1e-12)
+
+
+def test_ekv_law_tends_to_weak_inversion_below_threshold():
+    gaps = []
+    for vG in (0.3, 0.2, 0.1):
+        x = np.array([vG, 0.0, 0.0, 0.2])
+        ekv = MosfetEKV(drain_current="ekv").drain_current(x)[0]
+        weak = MosfetEKV(drain_current="weak_inversion").drain_current(x)[0]
+        gaps.append(abs(ekv / weak - 1))
+    assert gaps[0] > gaps[1] > gaps[2]
+    assert gaps[2] < 1e-3
+
+
+def test_literal_circuit_drain_is_the_input_high_passed():
+    """circuit-facts.md: no DC path; v_D follows v_G = the input high-passed by R_in C_GX."""
+    model = MosfetEKV("thesis_literal")
+    f, amp, dt, steps = 1000.0, 0.01, 1e-5, 300
+    t = np.arange(steps + 1) * dt
+    source = (amp * np.sin(2 * np.pi * f * t))[None, :, None]
+    states = simulate(model, np.zeros(4), model.source_to_input(source, dt), dt)
+    vD = states[0, 100:, 3]
+    tau = model.params.R_in * model.params.C_GX
+    assert np.ptp(vD) / 2 == pytest.approx(tau * 2 * np.pi * f * amp, rel=0.01)
+    assert np.ptp(vD) / 2 == pytest.approx(1.885e-6, rel=0.01)
+    np.testing.assert_allclose(states[0, :, :3], states[0, :, 3:4].repeat(3, 1), atol=1e-12)
+    assert np.abs(model.drain_current(states[0])[0]).max() < 1e-15
+
+
+@pytest.mark.parametrize("V_IN, mode", [(0.435, "saturation"), (0.47, "conduction")])
+def test_completed_circuit_works_in_weak_inversion_in_the_stated_mode(V_IN, mode):
+    model = MosfetEKV(V_IN=V_IN)
+    p = model.params
+    vG, vB, vS, vD = model.operating_point()
+    current = model.drain_current(np.array([vG, vB, vS, vD]))[0]
+    assert current / (p.I_0 * p.W_L) < 0.1          # inversion coefficient: weak inversion
+    assert vG - vB < p.V_T0
+    if mode == "saturation":
+        assert vD - vS > 4 * p.U_T
+    else:
+        assert vD - vS < 2 * p.U_T
+    assert current == pytest.approx((p.V_DD - vD) / p.R_D, rel=1e-9)
+
+
+def test_completed_saturation_stage_amplifies():
+    model = MosfetEKV(V_IN=0.435)
+    f, amp, dt, steps = 1000.0, 0.001, 1e-5, 400
+    t = np.arange(steps + 1) * dt
+    source = (amp * np.sin(2 * np.pi * f * t))[None, :, None]
+    x0 = model.operating_point()
+    vD = simulate(model, x0, model.source_to_input(source, dt), dt)[0, 200:, 3]
+    assert np.ptp(vD) / 2 / amp > 5
+
+
+def test_simulator_matches_solve_ivp_radau():
+    model = MosfetEKV(V_IN=0.435)
+    x0 = model.operating_point()
+    dt, steps = 1e-4, 40
+    rng = np.random.default_rng(0)
+    t = np.arange(steps + 1) * dt
+    source = 0.01 * np.sin(2 * np.pi * 1000 * t)[None, :, None] + 0.25 * rng.normal(
+        size=(2, steps + 1, 1))
+    u = model.source_to_input(source, dt)
+    ours = simulate(model, x0, u, dt)
+    for r in range(2):
+        y = x0.copy()
+        for k in range(steps):
+            uk = u[r, k]
+            sol = solve_ivp(lambda _t, x: model.f(x, uk), (0, dt), y, method="Radau",
+                            jac=lambda _t, x: model.jacobian(x, uk), rtol=1e-10, atol=1e-13)
+            y = sol.y[:, -1]
+            np.testing.assert_allclose(ours[r, k], y, atol=2e-5)
