@@ -79,6 +79,15 @@ def run_one(exp: Experiment, out: Path, runs: int | None, seed: int | None, jobs
     return result
 
 
+def read_table(path: Path) -> pd.DataFrame:
+    """A stored result table, with an empty ``table_id`` kept as an empty string."""
+    df = pd.read_csv(path, dtype={"table_id": str}, keep_default_na=False,
+                     na_values=["", "NaN", "nan", "<NA>"])
+    if "table_id" in df:
+        df["table_id"] = df["table_id"].fillna("")
+    return df
+
+
 def summary(result: runner.Result) -> str:
     df = result.tables.get("rmse")
     if df is None:
@@ -144,9 +153,7 @@ def table(metric, results, fmt, thesis) -> None:
     if not files:
         fail(f"no {tables.METRICS[metric]['file']} under {results}/ (run 'estim reproduce')")
     for path in files:
-        df = pd.read_csv(path, dtype={"table_id": str}, keep_default_na=False,
-                         na_values=["", "NaN", "nan"])
-        df["table_id"] = df["table_id"].fillna("")
+        df = read_table(path)
         if thesis:
             df = tables.with_thesis(df, metric)
         if fmt == "text":
@@ -178,13 +185,8 @@ def check(configs, results, jobs) -> None:
                     click.echo(f"{exp.name}/{metric}.csv: missing from the stored results")
                     differing += 1
                     continue
-                stored = pd.read_csv(path, dtype={"table_id": str}, keep_default_na=False,
-                                     na_values=["", "NaN", "nan"])
-                stored["table_id"] = stored["table_id"].fillna("")
-                fresh = pd.read_csv(Path(tmp) / exp.name / f"{metric}.csv",
-                                    dtype={"table_id": str}, keep_default_na=False,
-                                    na_values=["", "NaN", "nan"])
-                fresh["table_id"] = fresh["table_id"].fillna("")
+                stored = read_table(path)
+                fresh = read_table(Path(tmp) / exp.name / f"{metric}.csv")
                 diffs = io.compare_tables(stored, fresh, tol)
                 for d in diffs:
                     click.echo(f"{exp.name}/{metric}.csv row {d['row']} {d['column']}: "

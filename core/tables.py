@@ -71,10 +71,9 @@ def claims(rmse: pd.DataFrame, better: str = "EKF", worse: str = "RLS") -> pd.Da
     A row where either estimator diverged in every run has no verdict (``holds`` is NA).
     """
     keys = ["noise_reading", "noise_param", "frequency_hz"]
-    a = rmse[rmse["estimator"] == better].set_index(keys)
-    b = rmse[rmse["estimator"] == worse].set_index(keys)
-    joined = a[["s_no", "rmse"]].join(b[["rmse"]], lsuffix=f"_{better}", rsuffix=f"_{worse}",
-                                      how="inner")
+    a = rmse.loc[rmse["estimator"] == better, ["s_no", *keys, "rmse"]]
+    b = rmse.loc[rmse["estimator"] == worse, [*keys, "rmse"]]
+    joined = a.merge(b, on=keys, suffixes=(f"_{better}", f"_{worse}")).set_index(keys)
     ra, rb = joined[f"rmse_{better}"], joined[f"rmse_{worse}"]
     joined["ratio"] = ra / rb
     joined["holds"] = pd.array([bool(x < y) if np.isfinite(x) and np.isfinite(y) else pd.NA

@@ -1,0 +1,128 @@
+from pathlib import Path
+
+import pytest
+import yaml
+from click.testing import CliRunner
+
+from cli.main import main
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def tiny_config(**changes) -> dict:
+    """The saturation config shrunk to seconds of work, with ``changes`` applied by key path."""
+    spec = yaml.safe_load((ROOT / "configs" / "mosfet_saturation.yaml").read_text())
+    spec.update(name="tiny")
+    spec["input"].update(frequencies_hz=[1000], periods=2)
+    spec["noise"].update(input_levels=[0.01], readings=["sigma"])
+    spec["monte_carlo"].update(runs=3)
+    spec["figures"].update(noise_level=0.01)
+    for path, value in changes.items():
+        *parents, last = path.split(".")
+        node = spec
+        for key in parents:
+            node = node[int(key)] if isinstance(node, list) else node[key]
+        if value is DELETE:
+            del node[last]
+        else:
+            node[last] = value
+    return spec
+
+
+DELETE = object()
+
+
+def write(tmp_path: Path, spec: dict, name: str = "tiny.yaml") -> Path:
+    path = tmp_path / name
+    path.write_text(yaml.safe_dump(spec))
+    return path
+
+
+@pytest.mark.parametrize("changes, key, expected", [
+    ({"noise.bogus": 1}, "noise.bogus", "unknown key"),
+    ({"input.periods": "ten"}, "input.periods", "integer"),
+    ({"noise.input_levels": [0.1, -0.2]}, "noise.input_levels[1]", "positive number"),
+    ({"noise.input_levels": [0.0]}, "noise.input_levels[0]", "positive number"),
+    ({"input.samples_per_period": 0}, "input.samples_per_period", "integer >= 2"),
+    ({"input.frequencies_hz": []}, "input.frequencies_hz", "non-empty list"),
+    ({"model.name": "bjt_magic"}, "model.name", "mosfet_ekv"),
+    ({"estimators.0.type": "ukf"}, "estimators[0].type", "'ekf', 'kf', 'rls'"),
+    ({"estimators.1.settings": {"orderr": 3}}, "estimators[1].settings.orderr", "order"),
+    ({"model.params": {"V_GG": 1.0}}, "model.params.V_GG", "unknown parameter"),
+    ({"model.params": {"drain_current": "spice"}}, "model.params", "drain_current"),
+    ({"monte_carlo": DELETE}, "monte_carlo", "missing required key"),
+    ({"noise.readings": ["std"]}, "noise.readings[0]", "sigma"),
+])
+def test_config_errors_exit_2_naming_file_and_key(tmp_path, changes, key, expected):
+    path = write(tmp_path, tiny_config(**changes))
+    result = CliRunner().invoke(main, ["validate", str(path)])
+    assert result.exit_code == 2
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1, result.output
+    assert str(path) in lines[0] and f": {key}: " in lines[0] and expected in lines[0]
+    assert "Traceback" not in result.output
+
+
+def test_missing_file_and_bad_yaml_exit_2(tmp_path):
+    result = CliRunner().invoke(main, ["run", str(tmp_path / "nope.yaml")])
+    assert result.exit_code == 2 and "nope.yaml" in result.output and "no such file" in result.output
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("model: [unclosed\n")
+    result = CliRunner().invoke(main, ["validate", str(bad)])
+    assert result.exit_code == 2 and "not valid YAML" in result.output
+
+
+def test_shipped_configs_validate():
+    configs = sorted(str(p) for p in (ROOT / "configs").glob("*.yaml"))
+    result = CliRunner().invoke(main, ["validate", *configs])
+    assert result.exit_code == 0, result.output
+
+
+def test_run_is_deterministic_and_check_detects_drift(tmp_path):
+    path = write(tmp_path, tiny_config())
+    runner = CliRunner()
+    for out in ("a", "b"):
+        result = runner.invoke(main, ["run", str(path), "--out", str(tmp_path / out), "--quiet"])
+        assert result.exit_code == 0, result.output
+    for name in ("rmse.csv", "residual.csv", "claims.csv"):
+        assert (tmp_path / "a/tiny" / name).read_bytes() == (tmp_path / "b/tiny" / name).read_bytes()
+    assert (tmp_path / "a/tiny/figures/fig_3_5.png").stat().st_size > 0
+    manifest = (tmp_path / "a/tiny/manifest.json").read_text()
+    assert '"seed": 2019' in manifest and "rmse.csv" in manifest
+
+    ok = runner.invoke(main, ["check", str(path), "--results", str(tmp_path / "a")])
+    assert ok.exit_code == 0, ok.output
+    stored = tmp_path / "a/tiny/rmse.csv"
+    lines = stored.read_text().splitlines()
+    cells = lines[1].split(",")
+    cells[7] = str(float(cells[7]) * 1.01)
+    stored.write_text("\n".join([lines[0], ",".join(cells), *lines[2:]]) + "\n")
+    drift = runner.invoke(main, ["check", str(path), "--results", str(tmp_path / "a")])
+    assert drift.exit_code == 1
+    assert "rmse.csv row 0 rmse: obtained" in drift.output
+
+
+def test_seed_changes_results(tmp_path):
+    path = write(tmp_path, tiny_config())
+    runner = CliRunner()
+    runner.invoke(main, ["run", str(path), "--out", str(tmp_path / "a"), "--quiet"])
+    runner.invoke(main, ["run", str(path), "--out", str(tmp_path / "b"), "--quiet", "--seed", "7"])
+    assert (tmp_path / "a/tiny/rmse.csv").read_bytes() != (tmp_path / "b/tiny/rmse.csv").read_bytes()
+
+
+def test_table_prints_thesis_beside_ours(tmp_path):
+    path = write(tmp_path, tiny_config(**{"input.frequencies_hz": [100],
+                                          "noise.input_levels": [0.25],
+                                          "figures.noise_level": 0.25,
+                                          "figures.frequency_hz": 100}))
+    runner = CliRunner()
+    runner.invoke(main, ["run", str(path), "--out", str(tmp_path), "--quiet", "--runs", "2"])
+    result = runner.invoke(main, ["table", "rmse", "--results", str(tmp_path), "--thesis",
+                                  "--format", "csv"])
+    assert result.exit_code == 0, result.output
+    header, first = result.output.splitlines()[:2]
+    assert "thesis_rmse" in header and "ratio_rmse" in header
+    assert ",0.4024," in first       # Table 3.2 row 1, EKF
+    for fmt in ("text", "markdown", "latex"):
+        assert runner.invoke(main, ["table", "residual", "--results", str(tmp_path),
+                                    "--format", fmt]).exit_code == 0
