@@ -65,7 +65,8 @@ def test_config_errors_exit_2_naming_file_and_key(tmp_path, changes, key, expect
 
 def test_missing_file_and_bad_yaml_exit_2(tmp_path):
     result = CliRunner().invoke(main, ["run", str(tmp_path / "nope.yaml")])
-    assert result.exit_code == 2 and "nope.yaml" in result.output and "no such file" in result.output
+    assert result.exit_code == 2
+    assert "nope.yaml" in result.output and "no such file" in result.output
     bad = tmp_path / "bad.yaml"
     bad.write_text("model: [unclosed\n")
     result = CliRunner().invoke(main, ["validate", str(bad)])
@@ -85,7 +86,8 @@ def test_run_is_deterministic_and_check_detects_drift(tmp_path):
         result = runner.invoke(main, ["run", str(path), "--out", str(tmp_path / out), "--quiet"])
         assert result.exit_code == 0, result.output
     for name in ("rmse.csv", "residual.csv", "claims.csv"):
-        assert (tmp_path / "a/tiny" / name).read_bytes() == (tmp_path / "b/tiny" / name).read_bytes()
+        first, second = (tmp_path / "a/tiny" / name), (tmp_path / "b/tiny" / name)
+        assert first.read_bytes() == second.read_bytes()
     assert (tmp_path / "a/tiny/figures/fig_3_5.png").stat().st_size > 0
     manifest = (tmp_path / "a/tiny/manifest.json").read_text()
     assert '"seed": 2019' in manifest and "rmse.csv" in manifest
@@ -107,7 +109,8 @@ def test_seed_changes_results(tmp_path):
     runner = CliRunner()
     runner.invoke(main, ["run", str(path), "--out", str(tmp_path / "a"), "--quiet"])
     runner.invoke(main, ["run", str(path), "--out", str(tmp_path / "b"), "--quiet", "--seed", "7"])
-    assert (tmp_path / "a/tiny/rmse.csv").read_bytes() != (tmp_path / "b/tiny/rmse.csv").read_bytes()
+    first, second = (tmp_path / "a/tiny/rmse.csv"), (tmp_path / "b/tiny/rmse.csv")
+    assert first.read_bytes() != second.read_bytes()
 
 
 def test_table_prints_thesis_beside_ours(tmp_path):

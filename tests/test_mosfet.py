@@ -96,7 +96,8 @@ def test_simulator_matches_solve_ivp_radau():
         y = x0.copy()
         for k in range(steps):
             uk = u[r, k]
-            sol = solve_ivp(lambda _t, x: model.f(x, uk), (0, dt), y, method="Radau",
-                            jac=lambda _t, x: model.jacobian(x, uk), rtol=1e-10, atol=1e-13)
+            sol = solve_ivp(lambda _t, x, uk=uk: model.f(x, uk), (0, dt), y, method="Radau",
+                            jac=lambda _t, x, uk=uk: model.jacobian(x, uk), rtol=1e-10,
+                            atol=1e-13)
             y = sol.y[:, -1]
             np.testing.assert_allclose(ours[r, k], y, atol=2e-5)
