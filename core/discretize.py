@@ -15,7 +15,8 @@ the state at the end of the interval and the state-transition Jacobian ``F_k``:
 from __future__ import annotations
 
 import numpy as np
-from scipy import linalg
+
+from core import linalg
 
 METHODS = ("euler", "rosenbrock", "exponential")
 

@@ -1,0 +1,1 @@
+"""The thesis tables as printed (CSV data, read with importlib.resources)."""
