@@ -10,6 +10,10 @@ the state at the end of the interval and the state-transition Jacobian ``F_k``:
 ``exponential``  exponential Euler, ``x + T phi_1(T J) f``, ``F = exp(T J)``: exact for
                  linear models (so the EKF equals the KF with ``A = exp(F T)``), stable for
                  any stiffness; one batched ``expm`` of the augmented matrix per substep.
+``radau``        the continuous-discrete EKF: the state is carried over the interval by the
+                 stiff integrator of :mod:`core.simulate` (accurate for strongly nonlinear
+                 models, where one linearised step overshoots), ``F = exp(T J(x))`` at the
+                 interval's start (eq A.12). A run the integrator cannot carry becomes NaN.
 """
 
 from __future__ import annotations
@@ -18,7 +22,7 @@ import numpy as np
 
 from core import linalg
 
-METHODS = ("euler", "rosenbrock", "exponential")
+METHODS = ("euler", "rosenbrock", "exponential", "radau")
 
 
 def step(model, x: np.ndarray, u: np.ndarray, dt: float, method: str = "exponential",
@@ -30,6 +34,13 @@ def step(model, x: np.ndarray, u: np.ndarray, dt: float, method: str = "exponent
     """
     if method not in METHODS:
         raise ValueError(f"unknown discretisation {method!r}; expected one of {list(METHODS)}")
+    if method == "radau":
+        from core.simulate import simulate
+
+        _, J = model.f_and_jacobian(x, u)
+        x_next = simulate(model, x, np.asarray(u, float)[:, None, :], dt, rtol=1e-6, atol=1e-7,
+                          on_failure="nan")[:, 0, :]
+        return x_next, linalg.expm(dt * J)
     h = dt / substeps
     n = x.shape[-1]
     eye = np.eye(n)
@@ -41,7 +52,7 @@ def step(model, x: np.ndarray, u: np.ndarray, dt: float, method: str = "exponent
             x = x + h * fx
         elif method == "rosenbrock":
             M = eye - h * J
-            sol = np.linalg.solve(M, np.concatenate([fx[..., None], np.broadcast_to(eye, M.shape)],
+            sol = linalg.solve(M, np.concatenate([fx[..., None], np.broadcast_to(eye, M.shape)],
                                                     axis=-1))
             x = x + h * sol[..., 0]
             F = sol[..., 1:]

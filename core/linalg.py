@@ -3,8 +3,8 @@
 ``scipy.linalg.expm`` accepts stacked matrices but treats them one at a time, which on
 the stiff circuit Jacobians of a 1,000-run batch costs far more than the filter itself.
 :func:`expm` applies Higham's scaling-and-squaring with the degree-13 Padé approximant
-(Higham 2005, the algorithm behind scipy's ``expm``) to the whole stack at once, with one
-scaling for the batch. ``tests/test_linalg.py`` compares it with scipy.
+(Higham 2005, the algorithm behind scipy's ``expm``) to the whole stack at once, grouping the
+matrices by their scaling exponent. ``tests/test_linalg.py`` compares it with scipy.
 """
 
 from __future__ import annotations
@@ -17,15 +17,23 @@ _B = (64764752532480000.0, 32382376266240000.0, 7771770303897600.0, 118735379642
 _THETA_13 = 5.371920351148152
 
 
-def expm(A: np.ndarray) -> np.ndarray:
-    """Matrix exponential of every matrix in a stack ``(..., n, n)``."""
-    A = np.asarray(A, float)
-    norm = np.max(np.sum(np.abs(A), axis=-2), axis=-1) if A.size else np.zeros(1)
-    top = float(np.max(norm)) if np.all(np.isfinite(norm)) else np.inf
-    if not np.isfinite(top):
-        return np.full(A.shape, np.nan)
-    s = max(0, int(np.ceil(np.log2(top / _THETA_13)))) if top > _THETA_13 else 0
-    A = A / 2.0**s
+def solve(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Batched ``np.linalg.solve`` where a singular matrix gives NaN for its system only."""
+    try:
+        return np.linalg.solve(A, b)
+    except np.linalg.LinAlgError:
+        out = np.full(np.broadcast_shapes(A.shape[:-2], b.shape[:-2]) + b.shape[-2:], np.nan)
+        A = np.broadcast_to(A, out.shape[:-2] + A.shape[-2:])
+        b = np.broadcast_to(b, out.shape)
+        for i in np.ndindex(out.shape[:-2]):
+            try:
+                out[i] = np.linalg.solve(A[i], b[i])
+            except np.linalg.LinAlgError:
+                pass
+        return out
+
+
+def _pade13(A: np.ndarray) -> np.ndarray:
     eye = np.eye(A.shape[-1])
     A2 = A @ A
     A4 = A2 @ A2
@@ -35,7 +43,30 @@ def expm(A: np.ndarray) -> np.ndarray:
              + b[7] * A6 + b[5] * A4 + b[3] * A2 + b[1] * eye)
     V = (A6 @ (b[12] * A6 + b[10] * A4 + b[8] * A2)
          + b[6] * A6 + b[4] * A4 + b[2] * A2 + b[0] * eye)
-    R = np.linalg.solve(V - U, V + U)
-    for _ in range(s):
-        R = R @ R
-    return R
+    return solve(V - U, V + U)
+
+
+def expm(A: np.ndarray) -> np.ndarray:
+    """Matrix exponential of every matrix in a stack ``(..., n, n)``.
+
+    Each matrix gets its own scaling ``2^-s`` (as in the one-matrix algorithm), so one
+    large matrix in a batch does not cost the others accuracy; matrices sharing ``s`` are
+    processed together. Non-finite matrices give NaN.
+    """
+    A = np.asarray(A, float)
+    shape = A.shape
+    flat = A.reshape((-1,) + shape[-2:])
+    out = np.full(flat.shape, np.nan)
+    with np.errstate(all="ignore"):
+        norm = np.max(np.sum(np.abs(flat), axis=-2), axis=-1)
+        finite = np.isfinite(norm)
+        s = np.zeros(flat.shape[0], int)
+        big = finite & (norm > _THETA_13)
+        s[big] = np.ceil(np.log2(norm[big] / _THETA_13)).astype(int)
+    for value in np.unique(s[finite]):
+        group = np.flatnonzero(finite & (s == value))
+        R = _pade13(flat[group] / 2.0**value)
+        for _ in range(value):
+            R = R @ R
+        out[group] = R
+    return out.reshape(shape)

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from core import linalg
+
 _S6 = np.sqrt(6.0)
 RADAU_A = np.array([
     [(88 - 7 * _S6) / 360, (296 - 169 * _S6) / 1800, (-2 + 3 * _S6) / 225],
@@ -56,7 +58,7 @@ def _radau_step(model, x: np.ndarray, u: np.ndarray, h: np.ndarray, newton_tol: 
             finite = np.all(np.isfinite(M), axis=(1, 2)) & np.all(np.isfinite(G), axis=(1, 2))
             dZ = np.full((idx.size, 3, n), np.nan)
             if finite.any():
-                dZ[finite] = np.linalg.solve(
+                dZ[finite] = linalg.solve(
                     M[finite], -G[finite].reshape(-1, 3 * n, 1)).reshape(-1, 3, n)
         finite &= np.all(np.isfinite(dZ), axis=(1, 2))
         Z[idx[finite]] += dZ[finite]
@@ -70,13 +72,13 @@ def _radau_step(model, x: np.ndarray, u: np.ndarray, h: np.ndarray, newton_tol: 
     with np.errstate(all="ignore"):
         ZE = np.einsum("j,rjn->rn", _E, Z) / h[:, None]
         L = (_MU / h)[:, None, None] * np.eye(n) - J0
-        error = np.linalg.solve(L, (f0 + ZE)[..., None])[..., 0]
+        error = linalg.solve(L, (f0 + ZE)[..., None])[..., 0]
     return x + Z[:, 2, :], done & np.all(np.isfinite(error), axis=1), error
 
 
 def simulate(model, x0: np.ndarray, u: np.ndarray, dt: float, rtol: float = 1e-6,
              atol: float = 1e-7, newton_tol: float = 1e-12, max_newton: int = 20,
-             max_iterations: int = 1_000_000) -> np.ndarray:
+             max_iterations: int = 1_000_000, on_failure: str = "raise") -> np.ndarray:
     """Integrate ``model`` from ``x0`` over ``steps`` intervals of length ``dt``.
 
     Each run has its own step size: a step is accepted when the RMS over states of the
@@ -88,11 +90,15 @@ def simulate(model, x0: np.ndarray, u: np.ndarray, dt: float, rtol: float = 1e-6
     ----------
     x0 : ``(n,)`` or ``(runs, n)`` initial state at ``t_0``.
     u : ``(runs, steps, p)`` input, constant on each interval ``[t_k, t_{k+1})``.
+    on_failure : ``"raise"`` a :class:`SimulationError` when a run's step size underflows,
+        or ``"nan"``: that run's states become NaN from there on and the others go on.
 
     Returns
     -------
     ``(runs, steps, n)`` states at ``t_1 .. t_steps``.
     """
+    if on_failure not in ("raise", "nan"):
+        raise ValueError(f"on_failure {on_failure!r}; expected 'raise' or 'nan'")
     u = np.asarray(u, float)
     runs, steps, _ = u.shape
     x = np.broadcast_to(np.asarray(x0, float), (runs, model.n_states)).copy()
@@ -101,7 +107,7 @@ def simulate(model, x0: np.ndarray, u: np.ndarray, dt: float, rtol: float = 1e-6
     iterations = 0
     for k in range(steps):
         uk = u[:, k, :]
-        t = np.zeros(runs)
+        t = np.where(np.all(np.isfinite(x), axis=1), 0.0, dt)
         while True:
             idx = np.flatnonzero(t < dt * (1 - 1e-12))
             if idx.size == 0:
@@ -125,7 +131,10 @@ def simulate(model, x0: np.ndarray, u: np.ndarray, dt: float, rtol: float = 1e-6
             proposal = hh * factor
             clipped = accept & (hh < h[idx])
             h[idx] = np.minimum(np.where(clipped, np.maximum(proposal, h[idx]), proposal), dt)
-            if np.any(h[idx] < dt * 1e-14):
-                raise SimulationError(f"{model.name}: step size underflow on interval {k}")
+            failed = idx[~(h[idx] >= dt * 1e-14)]
+            if failed.size:
+                if on_failure == "raise":
+                    raise SimulationError(f"{model.name}: step size underflow on interval {k}")
+                x[failed], t[failed], h[failed] = np.nan, dt, dt / 4
         out[:, k, :] = x
     return out

@@ -68,18 +68,23 @@ def with_thesis(df: pd.DataFrame, metric: str) -> pd.DataFrame:
 def claims(rmse: pd.DataFrame, better: str = "EKF", worse: str = "RLS") -> pd.DataFrame:
     """The headline claim of Tables 3.1, 3.2, 3.5 row by row: RMSE of ``better`` < ``worse``.
 
-    A row where either estimator diverged in every run has no verdict (``holds`` is NA).
+    ``holds`` is False where ``better`` beats ``worse`` only on the runs where it did not
+    diverge: a diverged run has an unbounded error, so any divergence fails the claim. It is
+    NA where either estimator has no finite RMSE at all.
     """
     keys = ["noise_reading", "noise_param", "frequency_hz"]
-    a = rmse.loc[rmse["estimator"] == better, ["s_no", *keys, "rmse"]]
-    b = rmse.loc[rmse["estimator"] == worse, [*keys, "rmse"]]
-    joined = a.merge(b, on=keys, suffixes=(f"_{better}", f"_{worse}")).set_index(keys)
+    a = rmse.loc[rmse["estimator"] == better, ["s_no", *keys, "rmse", "diverged"]]
+    b = rmse.loc[rmse["estimator"] == worse, [*keys, "rmse", "diverged"]]
+    joined = a.merge(b, on=keys, suffixes=(f"_{better}", f"_{worse}"))
     ra, rb = joined[f"rmse_{better}"], joined[f"rmse_{worse}"]
+    da, db = joined[f"diverged_{better}"], joined[f"diverged_{worse}"]
     joined["ratio"] = ra / rb
-    joined["holds"] = pd.array([bool(x < y) if np.isfinite(x) and np.isfinite(y) else pd.NA
-                                for x, y in zip(ra, rb, strict=True)], dtype="boolean")
+    joined["holds"] = pd.array(
+        [bool(x < y and p == 0) or (p == 0 and q > 0) if np.isfinite(x) and np.isfinite(y)
+         else pd.NA for x, y, p, q in zip(ra, rb, da, db, strict=True)], dtype="boolean")
     joined.insert(0, "claim", f"{better} RMSE < {worse} RMSE")
-    return joined.reset_index()
+    return joined[["claim", "s_no", *keys, f"rmse_{better}", f"rmse_{worse}", "ratio",
+                   f"diverged_{better}", f"diverged_{worse}", "holds"]]
 
 
 def render(df: pd.DataFrame, fmt: str) -> str:

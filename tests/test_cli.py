@@ -85,7 +85,7 @@ def test_run_is_deterministic_and_check_detects_drift(tmp_path):
     for out in ("a", "b"):
         result = runner.invoke(main, ["run", str(path), "--out", str(tmp_path / out), "--quiet"])
         assert result.exit_code == 0, result.output
-    for name in ("rmse.csv", "residual.csv", "claims.csv"):
+    for name in ("rmse.csv", "residual.csv", "claims.csv", "figures/fig_3_5.png"):
         first, second = (tmp_path / "a/tiny" / name), (tmp_path / "b/tiny" / name)
         assert first.read_bytes() == second.read_bytes()
     assert (tmp_path / "a/tiny/figures/fig_3_5.png").stat().st_size > 0

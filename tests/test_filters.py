@@ -38,6 +38,17 @@ def test_ekf_on_linear_model_equals_kf(oscillator):
     np.testing.assert_allclose(b.innovation, a.innovation, rtol=1e-9, atol=1e-12)
 
 
+def test_continuous_discrete_ekf_on_linear_model_matches_kf(oscillator):
+    dt = 0.05
+    rng = np.random.default_rng(7)
+    z, u = rng.normal(size=(2, 40, 1)), rng.normal(size=(40, 1))
+    Ad, Bd = oscillator.discrete(dt)
+    settings = dict(Q=[1e-3, 2e-3], R=0.1, P0=[1.0, 1.0], x0=[0.5, 0.0])
+    a = KalmanFilter(A=Ad, B=Bd, C=oscillator.C, **settings).run(oscillator, z, u, dt)
+    b = ExtendedKalmanFilter(discretization="radau", **settings).run(oscillator, z, u, dt)
+    np.testing.assert_allclose(b.x_hat, a.x_hat, atol=1e-6)
+
+
 def test_euler_discretisation_is_the_thesis_first_order_form(oscillator):
     x = np.array([[1.0, -0.5]])
     u = np.array([[0.2]])
