@@ -5,6 +5,7 @@ Exit codes: 0 ok, 1 a check found differences, 2 a usage or config error.
 
 from __future__ import annotations
 
+import json
 import sys
 import tempfile
 import time
@@ -34,6 +35,8 @@ def load(path: Path) -> Experiment:
         raise ConfigError(str(path), "", "no such file") from None
     except OSError as exc:
         raise ConfigError(str(path), "", f"cannot read ({exc.strerror})") from None
+    except UnicodeDecodeError:
+        raise ConfigError(str(path), "", "not a UTF-8 text file") from None
     return parse(text, str(path), path.stem)
 
 
@@ -73,10 +76,22 @@ def run_one(exp: Experiment, out: Path, runs: int | None, seed: int | None, jobs
     for name, fig in result.figures.items():
         io.write_figure(fig, folder / "figures" / f"{name}.png")
         plt.close(fig)
+    produced = {f"{metric}.csv" for metric in result.tables}
+    produced |= {f"figures/{name}.png" for name in result.figures}
+    io.remove_stale(folder, produced)
     mc = exp.spec["monte_carlo"]
     io.write_manifest(folder, exp.spec, mc["seed"] if seed is None else seed,
                       mc["runs"] if runs is None else runs, time.perf_counter() - start)
     return result
+
+
+def stored_settings(folder: Path) -> tuple[int | None, int | None]:
+    """Seed and runs recorded in a stored manifest (None: use the config's)."""
+    try:
+        manifest = json.loads((folder / "manifest.json").read_text())
+        return int(manifest["seed"]), int(manifest["runs"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None, None
 
 
 def read_table(path: Path) -> pd.DataFrame:
@@ -98,10 +113,26 @@ def summary(result: runner.Result) -> str:
     return view.to_string(float_format=lambda v: f"{v:.4g}")
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+class Group(click.Group):
+    """Turns a failure inside a command into one line and exit code 3 (1 means drift)."""
+
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except (click.exceptions.Exit, click.ClickException, click.Abort, SystemExit):
+            raise
+        except Exception as exc:  # noqa: BLE001 - last line of defence, reported
+            click.echo(f"error: {type(exc).__name__}: {exc}", err=True)
+            sys.exit(3)
+
+
+@click.group(cls=Group, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(core.__version__, prog_name="estim")
 def main() -> None:
-    """Reproduce the result tables of Bansal (2019), state estimation in ODE/PDE models."""
+    """Reproduce the result tables of Bansal (2019), state estimation in ODE/PDE models.
+
+    Exit codes: 0 ok, 1 check found differences, 2 usage or config error, 3 a run failed.
+    """
 
 
 _out = click.option("--out", type=click.Path(file_okay=False, path_type=Path),
@@ -135,9 +166,12 @@ def run(configs, out, runs, seed, jobs, quiet) -> None:
 def reproduce(out, jobs, quiet) -> None:
     """Run every config in configs/ (the thesis tables on the default settings)."""
     for exp in load_all(default_configs()):
-        run_one(exp, out, None, None, jobs, quiet)
+        result = run_one(exp, out, None, None, jobs, quiet)
         if not quiet:
             click.echo(f"{exp.name} -> {out / exp.name}")
+            text = summary(result)
+            if text:
+                click.echo(text)
 
 
 @main.command()
@@ -177,7 +211,8 @@ def check(configs, results, jobs) -> None:
                 click.echo(f"{exp.name}: no stored results in {stored_dir}")
                 differing += 1
                 continue
-            result = run_one(exp, Path(tmp), None, None, jobs, quiet=True)
+            seed, runs = stored_settings(stored_dir)
+            result = run_one(exp, Path(tmp), runs, seed, jobs, quiet=True)
             tol = exp.spec["check"]["tolerances"]
             for metric, new in result.tables.items():
                 path = stored_dir / f"{metric}.csv"

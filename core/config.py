@@ -9,12 +9,13 @@ from __future__ import annotations
 import dataclasses
 import inspect
 import math
+import re
 from dataclasses import dataclass
 from typing import Any
 
 import yaml
 
-from core import registry
+from core import registry, tables
 from core.models.base import ParameterError
 
 
@@ -170,7 +171,7 @@ def _check_model_params(model_cls, variant, params: dict, source: str, path: str
         raise ConfigError(source, path, str(exc)) from None
 
 
-def _check_settings(est_cls, settings: dict, source: str, path: str) -> None:
+def _check_settings(est_cls, settings: dict, model, source: str, path: str) -> None:
     signature = inspect.signature(est_cls.__init__)
     allowed = [p for p in signature.parameters if p != "self"]
     for key in settings:
@@ -183,7 +184,7 @@ def _check_settings(est_cls, settings: dict, source: str, path: str) -> None:
     if missing:
         raise ConfigError(source, f"{path}.{missing[0]}", "missing required setting")
     try:
-        est_cls(**settings)
+        est_cls(**settings).validate(model)
     except (ValueError, TypeError) as exc:
         raise ConfigError(source, path, str(exc)) from None
 
@@ -213,6 +214,9 @@ def parse(text: str, source: str, default_name: str) -> Experiment:
         raise ConfigError(source, "", "the file is empty")
     spec = _validate(data, SCHEMA, source, "")
     spec["name"] = spec["name"] or default_name
+    if not re.fullmatch(r"[A-Za-z0-9_.-]+", spec["name"]) or spec["name"].strip(".") == "":
+        raise ConfigError(source, "name", "expected letters, digits, '_', '-' or '.' only "
+                          f"(it names the results folder), got {spec['name']!r}")
     model_cls = registry.MODELS[spec["model"]["name"]]
     variant = spec["model"]["variant"]
     if model_cls.variants and variant is not None and variant not in model_cls.variants:
@@ -225,12 +229,17 @@ def parse(text: str, source: str, default_name: str) -> Experiment:
         if est["label"] in labels:
             raise ConfigError(source, f"{path}.label", f"duplicate label {est['label']!r}")
         labels.add(est["label"])
-        _check_model_params(model_cls, variant, {**spec["model"]["params"],
-                                                 **est["model_params"]},
-                            source, f"{path}.model_params")
-        _check_settings(registry.ESTIMATORS[est["type"]], est["settings"], source,
-                        f"{path}.settings")
-    for column, tol in spec["check"]["tolerances"].items():
-        _validate(tol, {"rtol": (_num(minimum=0.0), 0.0), "atol": (_num(minimum=0.0), 0.0)},
-                  source, f"check.tolerances.{column}")
+        params = {**spec["model"]["params"], **est["model_params"]}
+        _check_model_params(model_cls, variant, params, source, f"{path}.model_params")
+        _check_settings(registry.ESTIMATORS[est["type"]], est["settings"],
+                        model_cls(variant, **params), source, f"{path}.settings")
+    for metric, table_id in spec["tables"].items():
+        if table_id is not None and not tables.has_thesis_table(table_id):
+            raise ConfigError(source, f"tables.{metric}",
+                              f"no thesis Table {table_id} ships with estim")
+    tolerances = spec["check"]["tolerances"]
+    for column, tol in tolerances.items():
+        tolerances[column] = _validate(
+            tol, {"rtol": (_num(minimum=0.0), 0.0), "atol": (_num(minimum=0.0), 0.0)},
+            source, f"check.tolerances.{column}")
     return Experiment(name=spec["name"], source=source, spec=spec)

@@ -17,6 +17,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+_UMASK = os.umask(0)
+os.umask(_UMASK)
+
 PACKAGES = ("estim", "numpy", "scipy", "pandas", "matplotlib", "click", "PyYAML")
 
 
@@ -25,12 +28,24 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
+        os.fchmod(fd, 0o666 & ~_UMASK)
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def remove_stale(folder: Path, produced: set[str]) -> None:
+    """Delete tables, figures and temporary files in ``folder`` that this run did not write."""
+    for path in list(folder.rglob("*")):
+        rel = str(path.relative_to(folder))
+        stale = path.suffix in (".csv", ".png") and rel not in produced
+        if path.is_file() and (stale or path.name.endswith(".tmp")):
+            path.unlink()
 
 
 def write_csv(df: pd.DataFrame, path: Path) -> None:

@@ -68,9 +68,9 @@ def with_thesis(df: pd.DataFrame, metric: str) -> pd.DataFrame:
 def claims(rmse: pd.DataFrame, better: str = "EKF", worse: str = "RLS") -> pd.DataFrame:
     """The headline claim of Tables 3.1, 3.2, 3.5 row by row: RMSE of ``better`` < ``worse``.
 
-    ``holds`` is False where ``better`` beats ``worse`` only on the runs where it did not
-    diverge: a diverged run has an unbounded error, so any divergence fails the claim. It is
-    NA where either estimator has no finite RMSE at all.
+    A diverged run has an unbounded error, so any divergence of ``better`` fails the claim
+    and any divergence of ``worse`` (with none of ``better``) makes it hold; otherwise the
+    RMSEs decide.
     """
     keys = ["noise_reading", "noise_param", "frequency_hz"]
     a = rmse.loc[rmse["estimator"] == better, ["s_no", *keys, "rmse", "diverged"]]
@@ -80,11 +80,26 @@ def claims(rmse: pd.DataFrame, better: str = "EKF", worse: str = "RLS") -> pd.Da
     da, db = joined[f"diverged_{better}"], joined[f"diverged_{worse}"]
     joined["ratio"] = ra / rb
     joined["holds"] = pd.array(
-        [bool(x < y and p == 0) or (p == 0 and q > 0) if np.isfinite(x) and np.isfinite(y)
-         else pd.NA for x, y, p, q in zip(ra, rb, da, db, strict=True)], dtype="boolean")
+        [_verdict(x, y, p, q) for x, y, p, q in zip(ra, rb, da, db, strict=True)],
+        dtype="boolean")
     joined.insert(0, "claim", f"{better} RMSE < {worse} RMSE")
     return joined[["claim", "s_no", *keys, f"rmse_{better}", f"rmse_{worse}", "ratio",
                    f"diverged_{better}", f"diverged_{worse}", "holds"]]
+
+
+def _verdict(better: float, worse: float, diverged_better: int, diverged_worse: int):
+    if diverged_better > 0:
+        return False
+    if diverged_worse > 0:
+        return True
+    if np.isfinite(better) and np.isfinite(worse):
+        return bool(better < worse)
+    return pd.NA
+
+
+def has_thesis_table(table_id: str) -> bool:
+    name = "table_" + table_id.replace(".", "_") + ".csv"
+    return resources.files("core.reference").joinpath(name).is_file()
 
 
 def render(df: pd.DataFrame, fmt: str) -> str:

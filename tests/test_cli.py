@@ -52,6 +52,13 @@ def write(tmp_path: Path, spec: dict, name: str = "tiny.yaml") -> Path:
     ({"model.params": {"drain_current": "spice"}}, "model.params", "drain_current"),
     ({"monte_carlo": DELETE}, "monte_carlo", "missing required key"),
     ({"noise.readings": ["std"]}, "noise.readings[0]", "sigma"),
+    ({"estimators.0.settings.Q": [1, 2]}, "estimators[0].settings", "Q: expected"),
+    ({"estimators.0.settings.substeps": 0}, "estimators[0].settings", "substeps"),
+    ({"estimators.1.settings": {"lambda_min": 1.5}}, "estimators[1].settings", "lambda_min"),
+    ({"tables.rmse": "9.9"}, "tables.rmse", "no thesis Table 9.9"),
+    ({"check.tolerances.rmse": {"rtol": None, "atol": "x"}}, "check.tolerances.rmse.atol",
+     "number"),
+    ({"name": "../../tmp/evil"}, "name", "results folder"),
 ])
 def test_config_errors_exit_2_naming_file_and_key(tmp_path, changes, key, expected):
     path = write(tmp_path, tiny_config(**changes))
@@ -71,6 +78,25 @@ def test_missing_file_and_bad_yaml_exit_2(tmp_path):
     bad.write_text("model: [unclosed\n")
     result = CliRunner().invoke(main, ["validate", str(bad)])
     assert result.exit_code == 2 and "not valid YAML" in result.output
+
+
+def test_non_utf8_config_exits_2(tmp_path):
+    path = tmp_path / "latin.yaml"
+    path.write_bytes(b"name: caf\xe9\n")
+    result = CliRunner().invoke(main, ["validate", str(path)])
+    assert result.exit_code == 2 and "UTF-8" in result.output
+
+
+def test_stale_files_are_removed_from_a_result_folder(tmp_path):
+    path = write(tmp_path, tiny_config())
+    stale = tmp_path / "out/tiny/figures/old_name.png"
+    stale.parent.mkdir(parents=True)
+    stale.write_bytes(b"old")
+    result = CliRunner().invoke(main, ["run", str(path), "--out", str(tmp_path / "out"),
+                                       "--quiet", "--runs", "2"])
+    assert result.exit_code == 0, result.output
+    assert not stale.exists()
+    assert "old_name" not in (tmp_path / "out/tiny/manifest.json").read_text()
 
 
 def test_shipped_configs_validate():

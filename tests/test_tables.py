@@ -15,7 +15,8 @@ def test_claim_holds_fails_on_divergence_and_is_na_without_values():
     assert bool(tables.claims(rmse_rows(0.3, 0.6))["holds"].iloc[0]) is True
     assert bool(tables.claims(rmse_rows(0.7, 0.6))["holds"].iloc[0]) is False
     assert bool(tables.claims(rmse_rows(0.3, 0.6, ekf_diverged=2))["holds"].iloc[0]) is False
-    assert pd.isna(tables.claims(rmse_rows(np.nan, 0.6, ekf_diverged=30))["holds"].iloc[0])
+    assert bool(tables.claims(rmse_rows(np.nan, 0.6, ekf_diverged=30))["holds"].iloc[0]) is False
+    assert pd.isna(tables.claims(rmse_rows(0.3, np.nan))["holds"].iloc[0])
 
 
 def test_with_thesis_puts_printed_value_and_ratio_beside_ours():

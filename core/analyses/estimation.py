@@ -2,8 +2,9 @@
 
 For each sweep point (noise reading x noise level x input frequency, in thesis row order):
 
-1. the source is the nominal sine plus white Gaussian noise at every sample (the "Gaussian
-   noise at input source" of Tables 3.1-3.5), piecewise linear between samples;
+1. the source is the nominal sine plus white Gaussian noise at every sample after ``t_0``
+   (the "Gaussian noise at input source" of Tables 3.1-3.5), piecewise linear between
+   samples;
 2. the actual circuit is integrated with the stiff solver (:mod:`core.simulate`) from its DC
    operating point;
 3. measurements are the actual output plus white measurement noise;
@@ -67,7 +68,9 @@ def simulate_point(exp: Experiment, frequency_hz: float, sigma: float, runs: int
     steps = inp["samples_per_period"] * inp["periods"]
     t = np.arange(steps + 1) * dt
     clean = signals.sine(inp["amplitude_v"], frequency_hz, t)
-    source = clean[None] + signals.gaussian(rng, sigma, (runs,) + clean.shape)
+    input_noise = signals.gaussian(rng, sigma, (runs,) + clean.shape)
+    input_noise[:, 0] = 0.0    # the circuit starts at its operating point with v_in(t_0) known
+    source = clean[None] + input_noise
     x0 = truth.operating_point()
     sim = exp.spec["simulation"]
     states = simulate(truth, x0, truth.source_to_input(source, dt), dt, rtol=sim["rtol"],

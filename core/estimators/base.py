@@ -13,6 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from core import linalg
+
 
 @dataclass(frozen=True)
 class Estimate:
@@ -63,7 +65,7 @@ def joseph_update(x: np.ndarray, P: np.ndarray, innovation: np.ndarray, H: np.nd
     """
     Ht = np.swapaxes(H, -1, -2)
     S = H @ P @ Ht + R
-    K = np.swapaxes(np.linalg.solve(S, H @ P), -1, -2)
+    K = np.swapaxes(linalg.solve(S, H @ P), -1, -2)
     x = x + (K @ innovation[..., None])[..., 0]
     IKH = np.eye(P.shape[-1]) - K @ H
     P = IKH @ P @ np.swapaxes(IKH, -1, -2) + K @ R @ np.swapaxes(K, -1, -2)

@@ -37,6 +37,18 @@ class ExtendedKalmanFilter:
         self.substeps = int(substeps)
         self.divergence_bound = float(divergence_bound)
 
+    def validate(self, model) -> None:
+        """Raise ``ValueError`` for settings that cannot run with ``model``."""
+        n, m = model.n_states, model.n_outputs
+        for name, value, size in (("Q", self.Q, n), ("R", self.R, m), ("P0", self.P0, n)):
+            M = as_matrix(value, size, name)
+            if not np.all(np.isfinite(M)) or np.any(np.diag(M) < 0):
+                raise ValueError(f"{name}: entries must be finite and the diagonal >= 0")
+        if self.substeps < 1:
+            raise ValueError(f"substeps must be >= 1, got {self.substeps}")
+        if self.x0 is not None and np.size(self.x0) != n:
+            raise ValueError(f"x0: expected {n} values for {list(model.state_names)}")
+
     def run(self, model, z: np.ndarray, u: np.ndarray, dt: float,
             x0: np.ndarray | None = None) -> Estimate:
         runs, steps, m = z.shape

