@@ -23,8 +23,8 @@ class ExtendedKalmanFilter:
         the actual circuit's DC operating point), else the model's own operating point.
     discretization : one of :data:`core.discretize.METHODS`.
     substeps : discretisation substeps per sample interval.
-    divergence_bound : a run whose estimate leaves ``|x| <= bound`` is marked diverged and
-        frozen (its later estimates are NaN).
+    divergence_bound : a run whose prediction or estimate leaves ``|x| <= bound`` is marked
+        diverged and frozen (from that step on its estimates are NaN).
     """
 
     def __init__(self, Q, R, P0, x0=None, discretization: str = "exponential",
@@ -77,7 +77,8 @@ class ExtendedKalmanFilter:
                 nu = z[idx, k] - model.h(xp)
                 xu, Pu = joseph_update(xp, Pp, nu, model.h_jacobian(xp), R)
             ok = (np.all(np.isfinite(xu), axis=1) & np.all(np.isfinite(Pu), axis=(1, 2))
-                  & np.all(np.abs(xu) <= self.divergence_bound, axis=1))
+                  & np.all(np.abs(xu) <= self.divergence_bound, axis=1)
+                  & np.all(np.abs(xp) <= self.divergence_bound, axis=1))
             alive[idx[~ok]] = False
             keep = idx[ok]
             x[keep], P[keep] = xu[ok], Pu[ok]
