@@ -103,14 +103,16 @@ def read_table(path: Path) -> pd.DataFrame:
     return df
 
 
-def summary(result: runner.Result) -> str:
+def report(exp: Experiment, out: Path, result: runner.Result, quiet: bool) -> None:
+    """Where the results went and, for estimation runs, the RMSE by estimator."""
+    if quiet:
+        return
+    click.echo(f"{exp.name} -> {out / exp.name}")
     df = result.tables.get("rmse")
-    if df is None:
-        return ""
-    view = df.pivot_table(index=["noise_reading", "noise_param", "frequency_hz"],
-                          columns="estimator", values="rmse", sort=False,
-                          dropna=False)
-    return view.to_string(float_format=lambda v: f"{v:.4g}")
+    if df is not None:
+        view = df.pivot_table(index=["noise_reading", "noise_param", "frequency_hz"],
+                              columns="estimator", values="rmse", sort=False, dropna=False)
+        click.echo(view.to_string(float_format=lambda v: f"{v:.4g}"))
 
 
 class Group(click.Group):
@@ -151,12 +153,7 @@ _jobs = click.option("--jobs", type=click.IntRange(1), default=1, show_default=T
 def run(configs, out, runs, seed, jobs, quiet) -> None:
     """Run the experiment(s) of CONFIGS and write OUT/<config name>/."""
     for exp in load_all(configs):
-        result = run_one(exp, out, runs, seed, jobs, quiet)
-        if not quiet:
-            click.echo(f"{exp.name} -> {out / exp.name}")
-            text = summary(result)
-            if text:
-                click.echo(text)
+        report(exp, out, run_one(exp, out, runs, seed, jobs, quiet), quiet)
 
 
 @main.command()
@@ -166,12 +163,7 @@ def run(configs, out, runs, seed, jobs, quiet) -> None:
 def reproduce(out, jobs, quiet) -> None:
     """Run every config in configs/ (the thesis tables on the default settings)."""
     for exp in load_all(default_configs()):
-        result = run_one(exp, out, None, None, jobs, quiet)
-        if not quiet:
-            click.echo(f"{exp.name} -> {out / exp.name}")
-            text = summary(result)
-            if text:
-                click.echo(text)
+        report(exp, out, run_one(exp, out, None, None, jobs, quiet), quiet)
 
 
 @main.command()

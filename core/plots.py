@@ -33,27 +33,23 @@ def estimates(trace: dict, title: str) -> Figure:
     return fig
 
 
-def running_rmse(trace: dict, title: str) -> Figure:
-    """RMSE across Monte Carlo runs at each sample (Fig 3.6)."""
+def _series(trace: dict, key: str, ylabel: str, title: str) -> Figure:
     fig, ax = plt.subplots(figsize=SIZE)
-    for label, r in trace["running_rmse"].items():
-        ax.plot(trace["t"] * 1e3, r, lw=1.0, label=label)
+    for label, values in trace[key].items():
+        ax.plot(trace["t"] * 1e3, values, lw=1.0, label=label)
     ax.set_xlabel("time [ms]")
-    ax.set_ylabel("RMSE over runs [V]")
+    ax.set_ylabel(ylabel)
     ax.set_title(title)
     ax.legend(fontsize=8)
     fig.tight_layout()
     return fig
+
+
+def running_rmse(trace: dict, title: str) -> Figure:
+    """RMSE across Monte Carlo runs at each sample (Fig 3.6)."""
+    return _series(trace, "running_rmse", "RMSE over runs [V]", title)
 
 
 def residuals(trace: dict, title: str) -> Figure:
     """Residual (prior innovation) of one run over time (Fig 3.7)."""
-    fig, ax = plt.subplots(figsize=SIZE)
-    for label, r in trace["innovation"].items():
-        ax.plot(trace["t"] * 1e3, r, lw=0.8, label=label)
-    ax.set_xlabel("time [ms]")
-    ax.set_ylabel("residual [V]")
-    ax.set_title(title)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    return fig
+    return _series(trace, "innovation", "residual [V]", title)
