@@ -5,9 +5,11 @@ from __future__ import annotations
 from core.estimators.ekf import ExtendedKalmanFilter
 from core.estimators.kf import KalmanFilter
 from core.estimators.rls import RecursiveLeastSquares
+from core.models.diffamp_em import DiffAmpEbersMoll
 from core.models.mosfet_ekv import MosfetEKV
 
 MODELS = {
+    "diffamp_em": DiffAmpEbersMoll,
     "mosfet_ekv": MosfetEKV,
 }
 

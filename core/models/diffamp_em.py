@@ -1,0 +1,162 @@
+"""BJT differential amplifier with Ebers-Moll transistors (thesis §3.2, eqs 3.43-3.56).
+
+States ``x = [v_E, q_L, v_C1, v_C2]`` (eq 3.60), inputs the base voltages
+``u = [v_B1, v_B2]``, output ``y = v_C1 - v_C2`` (eq 3.56).
+
+The printed circuit (Fig 3.8) has one capacitor, C_L, so v_E, v_C1 and v_C2 are fixed by
+KCL (3.44-3.46) at every instant; the thesis differentiates those constraints to obtain
+ODEs driven by v_1', v_2' (3.52-3.55, whose r-coefficients carry typos, notes.md item 8).
+Here each of the three nodes carries a small parasitic capacitance ``C_par`` to ground
+(the junction and wiring capacitance every real node has), which turns the index-1 DAE
+into a stiff ODE with the same four states; as ``C_par -> 0`` it tends to the DAE. The
+drift and its Jacobian come from the circuit equations directly:
+
+    C_par v_E'  = (V_EE - v_E)/R_E - I_E1 - I_E2          (3.44)
+    q_L'        = i_L = (v_C1 - v_C2 - q_L/C_L)/R_L        (3.43, 3.47)
+    C_par v_C1' = (V_CC - v_C1)/R_C1 - I_C1 - i_L          (3.45)
+    C_par v_C2' = (V_CC - v_C2)/R_C2 - I_C2 + i_L          (3.46)
+
+with the Ebers-Moll terminal currents of eqs 3.48-3.51 (into the terminals) and
+``V_EE = -12 V`` as a signed supply voltage (notes.md item 3).
+
+Variants: ``completed`` (default) biases the pair where it amplifies, ``R_E = 48.3 kΩ``
+(circuit-facts.md: tail current about 0.25 mA, differential gain about 23.5 dB with R_L);
+``thesis_printed`` keeps the printed ``R_E = 100 Ω`` of §3.2.3, with which both transistors
+saturate.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from core.models.base import Model, param
+
+
+@dataclass(frozen=True)
+class DiffAmpParams:
+    V_CC: float = param(12.0, "V", "collector supply")
+    V_EE: float = param(-12.0, "V", "emitter supply (signed)")
+    R_C1: float = param(8.0e3, "Ohm", "collector resistor of Q1")
+    R_C2: float = param(8.0e3, "Ohm", "collector resistor of Q2")
+    R_E: float = param(48.3e3, "Ohm", "tail resistor")
+    R_L: float = param(10.0e3, "Ohm", "load resistor between the collectors")
+    C_L: float = param(10.0e-6, "F", "load capacitor in series with R_L")
+    C_par: float = param(1.0e-12, "F", "parasitic capacitance of nodes E, C1, C2")
+    V_T: float = param(0.025852, "V", "thermal voltage (300 K)")
+    I_ES: float = param(1.0e-14, "A", "emitter-junction saturation current (both)")
+    alpha_F: float = param(0.99, "-", "forward common-base current gain (both)")
+    alpha_R: float = param(0.5, "-", "reverse common-base current gain (both)")
+
+    def __post_init__(self) -> None:
+        for name in ("R_C1", "R_C2", "R_E", "R_L", "C_L", "C_par", "V_T", "I_ES"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be positive, got {getattr(self, name)!r}")
+        for name in ("alpha_F", "alpha_R"):
+            if not 0 < getattr(self, name) < 1:
+                raise ValueError(f"{name} must be in (0, 1), got {getattr(self, name)!r}")
+
+    @property
+    def I_CS(self) -> float:
+        """Collector-junction saturation current from reciprocity, alpha_F I_ES = alpha_R I_CS."""
+        return self.alpha_F * self.I_ES / self.alpha_R
+
+
+class DiffAmpEbersMoll(Model):
+    """Emitter-coupled BJT pair with an R_L-C_L load between the collectors."""
+
+    name = "diffamp_em"
+    state_names = ("v_E", "q_L", "v_C1", "v_C2")
+    input_names = ("v_B1", "v_B2")
+    output_names = ("v_C1 - v_C2",)
+    Params = DiffAmpParams
+    variants = {"completed": {}, "thesis_printed": {"R_E": 100.0}}
+
+    def _terminal_currents(self, x: np.ndarray, u: np.ndarray):
+        """Ebers-Moll collector and emitter currents of both transistors and their slopes."""
+        p = self.params
+        vE, vC = x[..., 0:1], x[..., 2:4]
+        vB = np.asarray(u, float)[..., 0:2]
+        with np.errstate(over="ignore", invalid="ignore"):
+            eF = np.exp((vB - vE) / p.V_T)
+            eR = np.exp((vB - vC) / p.V_T)
+        fF, fR = p.I_ES * (eF - 1), p.I_CS * (eR - 1)
+        IC = p.alpha_F * fF - fR
+        IE = -fF + p.alpha_R * fR
+        gF, gR = p.I_ES * eF / p.V_T, p.I_CS * eR / p.V_T
+        return IC, IE, gF, gR
+
+    def f_and_jacobian(self, x: np.ndarray, u: np.ndarray,
+                       t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        p = self.params
+        x = np.asarray(x, float)
+        IC, IE, gF, gR = self._terminal_currents(x, u)
+        vE, qL, vC1, vC2 = np.moveaxis(x, -1, 0)
+        iL = (vC1 - vC2 - qL / p.C_L) / p.R_L
+        f = np.stack([
+            ((p.V_EE - vE) / p.R_E - IE[..., 0] - IE[..., 1]) / p.C_par,
+            iL,
+            ((p.V_CC - vC1) / p.R_C1 - IC[..., 0] - iL) / p.C_par,
+            ((p.V_CC - vC2) / p.R_C2 - IC[..., 1] + iL) / p.C_par,
+        ], axis=-1)
+        # slopes: dIC/dvE = -aF gF, dIC/dvC = gR, dIE/dvE = gF, dIE/dvC = -aR gR
+        J = np.zeros(x.shape + (4,))
+        J[..., 0, 0] = (-1 / p.R_E - gF[..., 0] - gF[..., 1]) / p.C_par
+        J[..., 0, 2] = p.alpha_R * gR[..., 0] / p.C_par
+        J[..., 0, 3] = p.alpha_R * gR[..., 1] / p.C_par
+        J[..., 1, 1] = -1 / (p.R_L * p.C_L)
+        J[..., 1, 2] = 1 / p.R_L
+        J[..., 1, 3] = -1 / p.R_L
+        for row, side, sign in ((2, 0, -1.0), (3, 1, 1.0)):
+            J[..., row, 0] = p.alpha_F * gF[..., side] / p.C_par
+            J[..., row, 1] = -sign / (p.R_L * p.C_L * p.C_par)
+            J[..., row, 2 + side] = (-1 / (p.R_C1 if side == 0 else p.R_C2)
+                                     - gR[..., side] - 1 / p.R_L) / p.C_par
+            J[..., row, 3 - side] = 1 / (p.R_L * p.C_par)
+        return f, J
+
+    def f(self, x: np.ndarray, u: np.ndarray, t: float = 0.0) -> np.ndarray:
+        return self.f_and_jacobian(x, u, t)[0]
+
+    def jacobian(self, x: np.ndarray, u: np.ndarray, t: float = 0.0) -> np.ndarray:
+        return self.f_and_jacobian(x, u, t)[1]
+
+    def h(self, x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x)
+        return x[..., 2:3] - x[..., 3:4]
+
+    def h_jacobian(self, x: np.ndarray) -> np.ndarray:
+        H = np.zeros(np.shape(x)[:-1] + (1, 4))
+        H[..., 0, 2], H[..., 0, 3] = 1.0, -1.0
+        return H
+
+    def source_to_input(self, source: np.ndarray, dt: float) -> np.ndarray:
+        """Base voltages on each interval: the mean of the source samples at its two ends."""
+        return 0.5 * (source[..., 1:, :] + source[..., :-1, :])
+
+    def operating_point(self, x_guess: np.ndarray | None = None,
+                        u: np.ndarray | None = None) -> np.ndarray:
+        """DC point for base voltages ``u`` (default 1 V on both bases, as in Chapter 2)."""
+        p = self.params
+        from scipy import optimize
+
+        u = np.array([1.0, 1.0]) if u is None else np.asarray(u, float)
+        guess = (np.array([u[0] - 0.6, 0.0, p.V_CC / 2, p.V_CC / 2]) if x_guess is None
+                 else np.asarray(x_guess, float))
+        def solve(start):
+            return optimize.root(lambda x: self.f(x, u), start,
+                                 jac=lambda x: self.jacobian(x, u), method="hybr",
+                                 options={"xtol": 1e-13})
+
+        sol = solve(guess)
+        if not sol.success:
+            # pseudo-transient: let the fast nodes settle (q_L held by the slow C_L), then Newton
+            from core.simulate import simulate
+
+            steps = np.broadcast_to(u, (1, 20, 2))
+            settled = simulate(self, guess, steps, 1e-6, on_failure="nan")[0, -1]
+            sol = solve(settled)
+        if not sol.success:
+            raise RuntimeError(f"{self.name}: no DC operating point found ({sol.message})")
+        return sol.x
