@@ -110,8 +110,8 @@ def report(exp: Experiment, out: Path, result: runner.Result, quiet: bool) -> No
     click.echo(f"{exp.name} -> {out / exp.name}")
     df = result.tables.get("rmse")
     if df is not None:
-        view = df.pivot_table(index=["noise_reading", "noise_param", "frequency_hz"],
-                              columns="estimator", values="rmse", sort=False, dropna=False)
+        view = df.pivot(index=["noise_reading", "noise_param", "frequency_hz"],
+                        columns="estimator", values="rmse")
         click.echo(view.to_string(float_format=lambda v: f"{v:.4g}"))
 
 

@@ -84,13 +84,18 @@ SCHEMA: dict[str, Any] = {
         "amplitude_v": (_num(minimum=0.0), REQUIRED),
         "frequencies_hz": (_list(_num(positive=True)), REQUIRED),
         "samples_per_period": (_int(2), 10),
-        "periods": (_int(1), REQUIRED),
+        "sample_time_s": (_num(positive=True), None),
+        "periods": (_int(1), None),
+        "duration_s": (_num(positive=True), None),
+        "bias_v": (_list(_num()), [0.0]),
+        "mix": (_list(_num()), [1.0]),
     }, REQUIRED),
     "noise": ({
         "input_levels": (_list(_num(positive=True)), REQUIRED),
         "readings": (_list(_str({"sigma", "variance"})), ["sigma"]),
         "measurement_sigma": (_num(minimum=0.0), REQUIRED),
         "filters_see": (_str({"nominal", "noisy"}), "nominal"),
+        "pairs": (lambda v: None if isinstance(v, bool) else "true or false", False),
     }, REQUIRED),
     "simulation": ({
         "rtol": (_num(positive=True), 1e-6),
@@ -113,6 +118,7 @@ SCHEMA: dict[str, Any] = {
     "figures": ({
         "frequency_hz": (_num(positive=True), None),
         "noise_level": (_num(positive=True), None),
+        "reading": (_str({"sigma", "variance"}), None),
         "names": (_mapping, {}),
     }, {}),
     "check": ({
@@ -223,6 +229,18 @@ def parse(text: str, source: str, default_name: str) -> Experiment:
         raise ConfigError(source, "model.variant",
                           f"expected one of {sorted(model_cls.variants)}, got {variant!r}")
     _check_model_params(model_cls, variant, spec["model"]["params"], source, "model.params")
+    inp, noise = spec["input"], spec["noise"]
+    if (inp["periods"] is None) == (inp["duration_s"] is None):
+        raise ConfigError(source, "input.periods",
+                          "give exactly one of input.periods and input.duration_s")
+    for key in ("bias_v", "mix"):
+        if len(inp[key]) != len(model_cls.input_names):
+            raise ConfigError(source, f"input.{key}",
+                              f"expected {len(model_cls.input_names)} values, one per model "
+                              f"input {list(model_cls.input_names)}")
+    if noise["pairs"] and len(noise["input_levels"]) != len(inp["frequencies_hz"]):
+        raise ConfigError(source, "noise.pairs", "with pairs: true, noise.input_levels and "
+                          "input.frequencies_hz must have the same length")
     labels = set()
     for i, est in enumerate(spec["estimators"]):
         path = f"estimators[{i}]"

@@ -42,8 +42,8 @@ def execute(exp: Experiment, runs: int | None = None, seed: int | None = None, j
             out.tables["claims"] = tables.claims(out.tables["rmse"])
     data = estimation.figure_data(exp, seed, runs)
     names = exp.spec["figures"]["names"]
-    where = (f"{data['frequency_hz']:g} Hz, input noise {data['noise_level']:g} "
-             f"({exp.spec['noise']['readings'][0]})")
+    reading = exp.spec["figures"]["reading"] or exp.spec["noise"]["readings"][0]
+    where = f"{data['frequency_hz']:g} Hz, input noise {data['noise_level']:g} ({reading})"
     figure_makers = {
         "noiseless": lambda: plots.estimates(data["noiseless"], f"{exp.name}, noiseless input"),
         "noisy": lambda: plots.estimates(data["noisy"], f"{exp.name}, {where}"),

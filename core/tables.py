@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 
 KEYS = ["table_id", "s_no", "noise_reading", "noise_param", "noise_sigma", "frequency_hz",
-        "estimator"]
+        "samples_per_period", "estimator"]
 
 METRICS: dict[str, dict] = {
     "rmse": {"file": "rmse.csv", "values": ["rmse", "rmse_se", "runs", "diverged"],

@@ -59,6 +59,9 @@ def write(tmp_path: Path, spec: dict, name: str = "tiny.yaml") -> Path:
     ({"check.tolerances.rmse": {"rtol": None, "atol": "x"}}, "check.tolerances.rmse.atol",
      "number"),
     ({"name": "../../tmp/evil"}, "name", "results folder"),
+    ({"input.mix": [0.5, -0.5]}, "input.mix", "one per model input"),
+    ({"input.duration_s": 0.01}, "input.periods", "exactly one"),
+    ({"noise.pairs": True, "noise.input_levels": [0.01, 0.02]}, "noise.pairs", "same length"),
 ])
 def test_config_errors_exit_2_naming_file_and_key(tmp_path, changes, key, expected):
     path = write(tmp_path, tiny_config(**changes))
@@ -68,6 +71,18 @@ def test_config_errors_exit_2_naming_file_and_key(tmp_path, changes, key, expect
     assert len(lines) == 1, result.output
     assert str(path) in lines[0] and f": {key}: " in lines[0] and expected in lines[0]
     assert "Traceback" not in result.output
+
+
+def test_paired_sweep_follows_the_thesis_rows():
+    from core.analyses.estimation import sweep
+    from core.config import parse
+
+    text = (ROOT / "configs" / "diffamp_ekf.yaml").read_text()
+    points = sweep(parse(text, "diffamp_ekf.yaml", "diffamp_ekf"))
+    pairs = [(p.reading, p.level, p.frequency_hz) for p in points]
+    assert pairs[:5] == [("sigma", 0.005, 100), ("sigma", 0.01, 1000), ("sigma", 0.025, 10000),
+                         ("sigma", 0.05, 100), ("sigma", 0.1, 1000)]
+    assert pairs[5][0] == "variance" and points[6].sigma == 0.1 and len(points) == 10
 
 
 def test_missing_file_and_bad_yaml_exit_2(tmp_path):
@@ -123,7 +138,8 @@ def test_run_is_deterministic_and_check_detects_drift(tmp_path):
     stored = tmp_path / "a/tiny/rmse.csv"
     lines = stored.read_text().splitlines()
     cells = lines[1].split(",")
-    cells[7] = str(float(cells[7]) * 1.01)
+    col = lines[0].split(",").index("rmse")
+    cells[col] = str(float(cells[col]) * 1.01)
     stored.write_text("\n".join([lines[0], ",".join(cells), *lines[2:]]) + "\n")
     drift = runner.invoke(main, ["check", str(path), "--results", str(tmp_path / "a")])
     assert drift.exit_code == 1

@@ -39,15 +39,28 @@ class SweepPoint:
 
 
 def sweep(exp: Experiment) -> list[SweepPoint]:
-    """Sweep points in thesis row order: reading, then noise level, then frequency."""
+    """Sweep points in thesis row order: reading, then noise level, then frequency (or the
+    (level, frequency) pairs in the order given, with ``noise.pairs``)."""
     noise, inp = exp.spec["noise"], exp.spec["input"]
+    if noise["pairs"]:
+        cells = list(zip(noise["input_levels"], inp["frequencies_hz"], strict=True))
+    else:
+        cells = [(level, f) for level in noise["input_levels"] for f in inp["frequencies_hz"]]
     points = []
     for reading in noise["readings"]:
-        for level in noise["input_levels"]:
-            for f in inp["frequencies_hz"]:
-                points.append(SweepPoint(len(points), reading, float(level),
-                                         signals.noise_sigma(level, reading), float(f)))
+        for level, f in cells:
+            points.append(SweepPoint(len(points), reading, float(level),
+                                     signals.noise_sigma(level, reading), float(f)))
     return points
+
+
+def sampling(exp: Experiment, frequency_hz: float) -> tuple[float, int]:
+    """Sample time and number of samples after ``t_0`` for one input frequency."""
+    inp = exp.spec["input"]
+    dt = inp["sample_time_s"] or 1.0 / (inp["samples_per_period"] * frequency_hz)
+    if inp["duration_s"] is not None:
+        return dt, max(1, round(inp["duration_s"] / dt))
+    return dt, max(1, round(inp["periods"] / (frequency_hz * dt)))
 
 
 def _models(exp: Experiment):
@@ -64,14 +77,15 @@ def simulate_point(exp: Experiment, frequency_hz: float, sigma: float, runs: int
     """Actual trajectories and measurements for one frequency and input-noise level."""
     inp, noise = exp.spec["input"], exp.spec["noise"]
     truth, _ = _models(exp)
-    dt = 1.0 / (inp["samples_per_period"] * frequency_hz)
-    steps = inp["samples_per_period"] * inp["periods"]
+    dt, steps = sampling(exp, frequency_hz)
     t = np.arange(steps + 1) * dt
-    clean = signals.sine(inp["amplitude_v"], frequency_hz, t)
-    input_noise = signals.gaussian(rng, sigma, (runs,) + clean.shape)
+    mix, bias = np.asarray(inp["mix"], float), np.asarray(inp["bias_v"], float)
+    clean = bias + signals.sine(inp["amplitude_v"], frequency_hz, t) * mix
+    input_noise = signals.gaussian(rng, sigma, (runs, steps + 1, 1)) * mix
     input_noise[:, 0] = 0.0    # the circuit starts at its operating point with v_in(t_0) known
     source = clean[None] + input_noise
-    x0 = truth.operating_point()
+    rest = truth.source_to_input(np.repeat(clean[None, :1], 2, axis=1), dt)[0, 0]
+    x0 = truth.operating_point(u=rest)
     sim = exp.spec["simulation"]
     states = simulate(truth, x0, truth.source_to_input(source, dt), dt, rtol=sim["rtol"],
                       atol=sim["atol"])
@@ -107,6 +121,7 @@ def run_point(exp: Experiment, point: SweepPoint, runs: int, seed: int) -> list[
         rows.append({
             "noise_reading": point.reading, "noise_param": point.level,
             "noise_sigma": point.sigma, "frequency_hz": point.frequency_hz,
+            "samples_per_period": 1.0 / (point.frequency_hz * data["dt"]),
             "estimator": est_spec["label"], "rmse": rmse, "rmse_se": rmse_se,
             "residual_mean": mean, "residual_mean_se": mean_se,
             "residual_variance": var, "residual_variance_se": var_se,
@@ -145,7 +160,7 @@ def figure_data(exp: Experiment, seed: int, runs: int) -> dict:
     fig = exp.spec["figures"]
     f = fig["frequency_hz"] or exp.spec["input"]["frequencies_hz"][0]
     level = fig["noise_level"] or exp.spec["noise"]["input_levels"][0]
-    sigma = signals.noise_sigma(level, exp.spec["noise"]["readings"][0])
+    sigma = signals.noise_sigma(level, fig["reading"] or exp.spec["noise"]["readings"][0])
     labels = [e["label"] for e in exp.spec["estimators"]]
     out = {"frequency_hz": f, "noise_level": level, "labels": labels}
     for key, s, n in (("noiseless", 0.0, 1), ("noisy", sigma, runs)):

@@ -105,9 +105,10 @@ class Model:
         """
         return source
 
-    def operating_point(self, x_guess: np.ndarray | None = None) -> np.ndarray:
-        """DC operating point: the root of ``f(x, 0) = 0`` near ``x_guess``."""
-        u0 = np.zeros(self.n_inputs)
+    def operating_point(self, x_guess: np.ndarray | None = None,
+                        u: np.ndarray | None = None) -> np.ndarray:
+        """DC operating point: the root of ``f(x, u) = 0`` near ``x_guess`` (``u`` default 0)."""
+        u0 = np.zeros(self.n_inputs) if u is None else np.asarray(u, float)
         guess = np.zeros(self.n_states) if x_guess is None else np.asarray(x_guess, float)
         sol = optimize.root(
             lambda x: self.f(x, u0), guess, jac=lambda x: self.jacobian(x, u0), method="hybr",

@@ -204,7 +204,9 @@ class MosfetEKV(Model):
         """Piecewise-linear source between samples: u on interval k is its slope (eq 3.26)."""
         return np.diff(source, axis=-2) / dt
 
-    def operating_point(self, x_guess: np.ndarray | None = None) -> np.ndarray:
+    def operating_point(self, x_guess: np.ndarray | None = None,
+                        u: np.ndarray | None = None) -> np.ndarray:
+        """DC point (the input is a slope: only ``u = 0`` is a rest state)."""
         p = self.params
         if not np.isfinite(p.R_D) and not np.isfinite(p.R_S) and not np.isfinite(p.R_B):
             return np.full(4, p.V_IN)
