@@ -120,6 +120,11 @@ SCHEMA: dict[str, Any] = {
         "noise_level": (_num(positive=True), None),
         "reading": (_str({"sigma", "variance"}), None),
         "names": (_mapping, {}),
+        "extra_noisy": (_list({
+            "noise_level": (_num(positive=True), REQUIRED),
+            "reading": (_str({"sigma", "variance"}), "sigma"),
+            "name": (_str(), REQUIRED),
+        }, nonempty=False), []),
     }, {}),
     "check": ({
         "tolerances": (_mapping, {}),

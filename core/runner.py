@@ -52,6 +52,10 @@ def execute(exp: Experiment, runs: int | None = None, seed: int | None = None, j
     }
     for kind in FIGURE_KINDS:
         out.figures[names.get(kind, kind)] = figure_makers[kind]()
+    for extra in exp.spec["figures"]["extra_noisy"]:
+        title = (f"{exp.name}, {data['frequency_hz']:g} Hz, input noise "
+                 f"{extra['noise_level']:g} ({extra['reading']})")
+        out.figures[extra["name"]] = plots.estimates(data[extra["name"]], title)
     if on_point:
         on_point()
     return out

@@ -156,15 +156,19 @@ def run(exp: Experiment, runs: int, seed: int, jobs: int = 1,
 
 
 def figure_data(exp: Experiment, seed: int, runs: int) -> dict:
-    """Traces for the figures: a noiseless run and a noisy batch at the figure's point."""
+    """Traces for the figures: a noiseless run, a noisy batch at the figure's point, and one
+    batch for each ``figures.extra_noisy`` case (keyed by its figure name)."""
     fig = exp.spec["figures"]
     f = fig["frequency_hz"] or exp.spec["input"]["frequencies_hz"][0]
     level = fig["noise_level"] or exp.spec["noise"]["input_levels"][0]
     sigma = signals.noise_sigma(level, fig["reading"] or exp.spec["noise"]["readings"][0])
     labels = [e["label"] for e in exp.spec["estimators"]]
     out = {"frequency_hz": f, "noise_level": level, "labels": labels}
-    for key, s, n in (("noiseless", 0.0, 1), ("noisy", sigma, runs)):
-        rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(10_000 + (s > 0),)))
+    cases = [("noiseless", 0.0, 1), ("noisy", sigma, runs)]
+    cases += [(extra["name"], signals.noise_sigma(extra["noise_level"], extra["reading"]), runs)
+              for extra in fig["extra_noisy"]]
+    for i, (key, s, n) in enumerate(cases):
+        rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(10_000 + i,)))
         data = simulate_point(exp, f, s, n, rng)
         ests = estimate_point(exp, data)
         out[key] = {
