@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from core import linalg
+from core.simulate import simulate
 
 METHODS = ("euler", "rosenbrock", "exponential", "radau")
 
@@ -35,8 +36,6 @@ def step(model, x: np.ndarray, u: np.ndarray, dt: float, method: str = "exponent
     if method not in METHODS:
         raise ValueError(f"unknown discretisation {method!r}; expected one of {list(METHODS)}")
     if method == "radau":
-        from core.simulate import simulate
-
         _, J = model.f_and_jacobian(x, u)
         x_next = simulate(model, x, np.asarray(u, float)[:, None, :], dt, rtol=1e-6, atol=1e-7,
                           on_failure="nan")[:, 0, :]

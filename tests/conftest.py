@@ -17,11 +17,9 @@ class LinearModel(Model):
         self.input_names = tuple(f"u{i}" for i in range(self.B.shape[1]))
         self.output_names = tuple(f"y{i}" for i in range(self.C.shape[0]))
 
-    def f(self, x, u, t=0.0):
-        return x @ self.A.T + u @ self.B.T
-
-    def jacobian(self, x, u, t=0.0):
-        return np.broadcast_to(self.A, np.shape(x)[:-1] + self.A.shape)
+    def f_and_jacobian(self, x, u, t=0.0):
+        return (x @ self.A.T + u @ self.B.T,
+                np.broadcast_to(self.A, np.shape(x)[:-1] + self.A.shape))
 
     def h(self, x):
         return x @ self.C.T

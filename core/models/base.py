@@ -16,6 +16,8 @@ from typing import Any
 import numpy as np
 from scipy import optimize
 
+from core.simulate import simulate
+
 
 class ParameterError(ValueError):
     """A parameter override names an unknown parameter or has a bad value."""
@@ -81,16 +83,16 @@ class Model:
     def n_outputs(self) -> int:
         return len(self.output_names)
 
-    def f(self, x: np.ndarray, u: np.ndarray, t: float = 0.0) -> np.ndarray:
-        raise NotImplementedError
-
-    def jacobian(self, x: np.ndarray, u: np.ndarray, t: float = 0.0) -> np.ndarray:
-        raise NotImplementedError
-
     def f_and_jacobian(self, x: np.ndarray, u: np.ndarray,
                        t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-        """Both at once; models override it when the two share work."""
-        return self.f(x, u, t), self.jacobian(x, u, t)
+        """Drift ``f(x, u)`` and its Jacobian ``df/dx``: the one method a model implements."""
+        raise NotImplementedError
+
+    def f(self, x: np.ndarray, u: np.ndarray, t: float = 0.0) -> np.ndarray:
+        return self.f_and_jacobian(x, u, t)[0]
+
+    def jacobian(self, x: np.ndarray, u: np.ndarray, t: float = 0.0) -> np.ndarray:
+        return self.f_and_jacobian(x, u, t)[1]
 
     def h(self, x: np.ndarray) -> np.ndarray:
         raise NotImplementedError
@@ -107,13 +109,23 @@ class Model:
 
     def operating_point(self, x_guess: np.ndarray | None = None,
                         u: np.ndarray | None = None) -> np.ndarray:
-        """DC operating point: the root of ``f(x, u) = 0`` near ``x_guess`` (``u`` default 0)."""
+        """DC operating point: the root of ``f(x, u) = 0`` near ``x_guess`` (``u`` default 0).
+
+        Where Newton fails from the guess (a saturated circuit, say), the circuit is first let
+        settle for 20 us with the stiff integrator and Newton is tried again from there.
+        """
         u0 = np.zeros(self.n_inputs) if u is None else np.asarray(u, float)
         guess = np.zeros(self.n_states) if x_guess is None else np.asarray(x_guess, float)
-        sol = optimize.root(
-            lambda x: self.f(x, u0), guess, jac=lambda x: self.jacobian(x, u0), method="hybr",
-            options={"xtol": 1e-13},
-        )
+
+        def solve(start):
+            return optimize.root(lambda x: self.f(x, u0), start,
+                                 jac=lambda x: self.jacobian(x, u0), method="hybr",
+                                 options={"xtol": 1e-13})
+
+        sol = solve(guess)
+        if not sol.success:
+            held = np.broadcast_to(u0, (1, 20, self.n_inputs))
+            sol = solve(simulate(self, guess, held, 1e-6, on_failure="nan")[0, -1])
         if not sol.success:
             raise RuntimeError(f"{self.name}: no DC operating point found ({sol.message})")
         return sol.x

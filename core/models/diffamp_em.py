@@ -116,12 +116,6 @@ class DiffAmpEbersMoll(Model):
             J[..., row, 3 - side] = 1 / (p.R_L * p.C_par)
         return f, J
 
-    def f(self, x: np.ndarray, u: np.ndarray, t: float = 0.0) -> np.ndarray:
-        return self.f_and_jacobian(x, u, t)[0]
-
-    def jacobian(self, x: np.ndarray, u: np.ndarray, t: float = 0.0) -> np.ndarray:
-        return self.f_and_jacobian(x, u, t)[1]
-
     def h(self, x: np.ndarray) -> np.ndarray:
         x = np.asarray(x)
         return x[..., 2:3] - x[..., 3:4]
@@ -139,24 +133,6 @@ class DiffAmpEbersMoll(Model):
                         u: np.ndarray | None = None) -> np.ndarray:
         """DC point for base voltages ``u`` (default 1 V on both bases, as in Chapter 2)."""
         p = self.params
-        from scipy import optimize
-
         u = np.array([1.0, 1.0]) if u is None else np.asarray(u, float)
-        guess = (np.array([u[0] - 0.6, 0.0, p.V_CC / 2, p.V_CC / 2]) if x_guess is None
-                 else np.asarray(x_guess, float))
-        def solve(start):
-            return optimize.root(lambda x: self.f(x, u), start,
-                                 jac=lambda x: self.jacobian(x, u), method="hybr",
-                                 options={"xtol": 1e-13})
-
-        sol = solve(guess)
-        if not sol.success:
-            # pseudo-transient: let the fast nodes settle (q_L held by the slow C_L), then Newton
-            from core.simulate import simulate
-
-            steps = np.broadcast_to(u, (1, 20, 2))
-            settled = simulate(self, guess, steps, 1e-6, on_failure="nan")[0, -1]
-            sol = solve(settled)
-        if not sol.success:
-            raise RuntimeError(f"{self.name}: no DC operating point found ({sol.message})")
-        return sol.x
+        guess = np.array([u[0] - 0.6, 0.0, p.V_CC / 2, p.V_CC / 2]) if x_guess is None else x_guess
+        return super().operating_point(guess, u)

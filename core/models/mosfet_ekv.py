@@ -171,21 +171,10 @@ class MosfetEKV(Model):
                 grad = np.stack([d, zero, -d, zero], axis=-1)
         return current, grad
 
-    def f(self, x: np.ndarray, u: np.ndarray, t: float = 0.0) -> np.ndarray:
-        """Drift ``C^-1 (i(x) + b u)``: KCL of eqs 3.1-3.4 with the completion."""
-        x = np.asarray(x, float)
-        current, _ = self.drain_current(x)
-        i = x @ self._G.T + self._i0 + current[..., None] * self._incidence
-        return i @ self._Cinv.T + np.asarray(u, float)[..., :1] * self._b
-
-    def jacobian(self, x: np.ndarray, u: np.ndarray, t: float = 0.0) -> np.ndarray:
-        """Analytic ``df/dx`` (replaces the printed eq 3.24)."""
-        _, grad = self.drain_current(x)
-        di = self._G + self._incidence[:, None] * grad[..., None, :]
-        return self._Cinv @ di
-
     def f_and_jacobian(self, x: np.ndarray, u: np.ndarray,
                        t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """Drift ``C^-1 (i(x) + b u)`` (KCL of eqs 3.1-3.4 with the completion) and its
+        analytic Jacobian (in place of the printed eq 3.24)."""
         x = np.asarray(x, float)
         current, grad = self.drain_current(x)
         i = x @ self._G.T + self._i0 + current[..., None] * self._incidence
