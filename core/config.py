@@ -68,6 +68,8 @@ def _list(item, nonempty: bool = True):
 
 REQUIRED = object()
 
+FIGURE_KINDS = ("noiseless", "noisy", "rmse", "residual")
+
 # key -> (check or nested schema or list spec, default). REQUIRED marks mandatory keys.
 SCHEMA: dict[str, Any] = {
     "name": (_str(), None),
@@ -98,6 +100,7 @@ SCHEMA: dict[str, Any] = {
         "pairs": (lambda v: None if isinstance(v, bool) else "true or false", False),
     }, REQUIRED),
     "simulation": ({
+        "solver": (_str({"batched_radau", "scipy"}), "batched_radau"),
         "rtol": (_num(positive=True), 1e-6),
         "atol": (_num(positive=True), 1e-7),
     }, {}),
@@ -260,6 +263,11 @@ def parse(text: str, source: str, default_name: str) -> Experiment:
         if table_id is not None and not tables.has_thesis_table(table_id):
             raise ConfigError(source, f"tables.{metric}",
                               f"no thesis Table {table_id} ships with estim")
+    for kind, name in spec["figures"]["names"].items():
+        if kind not in FIGURE_KINDS:
+            raise ConfigError(source, f"figures.names.{kind}",
+                              f"unknown figure kind; expected one of {list(FIGURE_KINDS)}")
+        _validate(name, _str(), source, f"figures.names.{kind}")
     tolerances = spec["check"]["tolerances"]
     for column, tol in tolerances.items():
         tolerances[column] = _validate(

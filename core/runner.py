@@ -9,9 +9,7 @@ import pandas as pd
 
 from core import plots, tables
 from core.analyses import estimation
-from core.config import Experiment
-
-FIGURE_KINDS = ("noiseless", "noisy", "rmse", "residual")
+from core.config import FIGURE_KINDS, Experiment
 
 
 @dataclass

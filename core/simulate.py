@@ -14,6 +14,7 @@ together in one vectorised loop. ``tests/test_mosfet.py`` checks the result agai
 from __future__ import annotations
 
 import numpy as np
+from scipy.integrate import solve_ivp
 
 from core import linalg
 
@@ -138,3 +139,32 @@ def simulate(model, x0: np.ndarray, u: np.ndarray, dt: float, rtol: float = 1e-6
                 x[failed], t[failed], h[failed] = np.nan, dt, dt / 4
         out[:, k, :] = x
     return out
+
+
+def simulate_scipy(model, x0: np.ndarray, u: np.ndarray, dt: float, rtol: float = 1e-6,
+                   atol: float = 1e-7, method: str = "Radau") -> np.ndarray:
+    """The same integration with scipy's ``solve_ivp``, one run and one interval at a time.
+
+    Slow (a Python loop over runs, hundreds of function evaluations per interval on the
+    circuits here), but independent of :func:`simulate`: the reference it is tested against,
+    and the config's ``simulation.solver: scipy``.
+    """
+    u = np.asarray(u, float)
+    runs, steps, _ = u.shape
+    x0 = np.broadcast_to(np.asarray(x0, float), (runs, model.n_states))
+    out = np.empty((runs, steps, model.n_states))
+    for r in range(runs):
+        y = x0[r]
+        for k in range(steps):
+            uk = u[r, k]
+            sol = solve_ivp(lambda _t, x, uk=uk: model.f(x, uk), (0.0, dt), y, method=method,
+                            jac=lambda _t, x, uk=uk: model.jacobian(x, uk), rtol=rtol, atol=atol)
+            if not sol.success:
+                raise SimulationError(f"{model.name}: solve_ivp failed on run {r}, interval "
+                                      f"{k}: {sol.message}")
+            y = sol.y[:, -1]
+            out[r, k] = y
+    return out
+
+
+SOLVERS = {"batched_radau": simulate, "scipy": simulate_scipy}

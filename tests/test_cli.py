@@ -1,5 +1,7 @@
 from pathlib import Path
 
+import numpy as np
+import pandas as pd
 import pytest
 import yaml
 from click.testing import CliRunner
@@ -62,6 +64,18 @@ def write(tmp_path: Path, spec: dict, name: str = "tiny.yaml") -> Path:
     ({"input.mix": [0.5, -0.5]}, "input.mix", "one per model input"),
     ({"input.duration_s": 0.01}, "input.periods", "exactly one"),
     ({"noise.pairs": True, "noise.input_levels": [0.01, 0.02]}, "noise.pairs", "same length"),
+    ({"noise.pairs": "yes"}, "noise.pairs", "true or false"),
+    ({"input.sample_time_s": -1e-4}, "input.sample_time_s", "positive number"),
+    ({"input.duration_s": "long", "input.periods": DELETE}, "input.duration_s", "number"),
+    ({"input.bias_v": [0.0, 1.0]}, "input.bias_v", "one per model input"),
+    ({"input.mix": ["a"]}, "input.mix[0]", "a number"),
+    ({"simulation.solver": "pspice"}, "simulation.solver", "batched_radau"),
+    ({"figures.reading": "std"}, "figures.reading", "sigma"),
+    ({"figures.extra_noisy": [{"noise_level": 0.1}]}, "figures.extra_noisy[0].name",
+     "missing required key"),
+    ({"figures.extra_noisy": [{"noise_level": 0, "name": "x"}]},
+     "figures.extra_noisy[0].noise_level", "positive number"),
+    ({"figures.names": {"noisey": "fig"}}, "figures.names.noisey", "unknown figure kind"),
 ])
 def test_config_errors_exit_2_naming_file_and_key(tmp_path, changes, key, expected):
     path = write(tmp_path, tiny_config(**changes))
@@ -83,6 +97,20 @@ def test_paired_sweep_follows_the_thesis_rows():
     assert pairs[:5] == [("sigma", 0.005, 100), ("sigma", 0.01, 1000), ("sigma", 0.025, 10000),
                          ("sigma", 0.05, 100), ("sigma", 0.1, 1000)]
     assert pairs[5][0] == "variance" and points[6].sigma == 0.1 and len(points) == 10
+
+
+def test_scipy_solver_backend_gives_the_same_table(tmp_path):
+    fast = tiny_config(**{"monte_carlo.runs": 2, "input.periods": 1})
+    slow = tiny_config(**{"monte_carlo.runs": 2, "input.periods": 1,
+                          "simulation.solver": "scipy"})
+    runner = CliRunner()
+    for name, spec in (("fast", fast), ("slow", slow)):
+        path = write(tmp_path, spec, f"{name}.yaml")
+        result = runner.invoke(main, ["run", str(path), "--out", str(tmp_path / name), "--quiet"])
+        assert result.exit_code == 0, result.output
+    a = pd.read_csv(tmp_path / "fast/tiny/rmse.csv")
+    b = pd.read_csv(tmp_path / "slow/tiny/rmse.csv")
+    np.testing.assert_allclose(a["rmse"], b["rmse"], rtol=1e-3)
 
 
 def test_missing_file_and_bad_yaml_exit_2(tmp_path):

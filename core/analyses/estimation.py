@@ -5,7 +5,8 @@ For each sweep point (noise reading x noise level x input frequency, in thesis r
 1. the source is the nominal sine plus white Gaussian noise at every sample after ``t_0``
    (the "Gaussian noise at input source" of Tables 3.1-3.5), piecewise linear between
    samples;
-2. the actual circuit is integrated with the stiff solver (:mod:`core.simulate`) from its DC
+2. the actual circuit is integrated with a stiff solver (:mod:`core.simulate`; the batched
+   Radau IIA by default, scipy's ``solve_ivp`` with ``simulation.solver: scipy``) from its DC
    operating point;
 3. measurements are the actual output plus white measurement noise;
 4. every estimator sees the measurements and the nominal input (or the noisy one, when
@@ -26,7 +27,7 @@ import numpy as np
 
 from core import metrics, registry, signals
 from core.config import Experiment
-from core.simulate import simulate
+from core.simulate import SOLVERS
 
 
 @dataclass(frozen=True)
@@ -87,8 +88,8 @@ def simulate_point(exp: Experiment, frequency_hz: float, sigma: float, runs: int
     rest = truth.source_to_input(np.repeat(clean[None, :1], 2, axis=1), dt)[0, 0]
     x0 = truth.operating_point(u=rest)
     sim = exp.spec["simulation"]
-    states = simulate(truth, x0, truth.source_to_input(source, dt), dt, rtol=sim["rtol"],
-                      atol=sim["atol"])
+    states = SOLVERS[sim["solver"]](truth, x0, truth.source_to_input(source, dt), dt,
+                                    rtol=sim["rtol"], atol=sim["atol"])
     actual = truth.h(states)
     z = actual + signals.gaussian(rng, noise["measurement_sigma"], actual.shape)
     seen = clean[None] if noise["filters_see"] == "nominal" else source
