@@ -79,7 +79,7 @@ def run_one(exp: Experiment, out: Path, runs: int | None, seed: int | None, jobs
     produced = {f"{metric}.csv" for metric in result.tables}
     produced |= {f"figures/{name}.png" for name in result.figures}
     io.remove_stale(folder, produced)
-    mc = exp.spec["monte_carlo"]
+    mc = exp.spec.get("monte_carlo", {"seed": None, "runs": None})
     io.write_manifest(folder, exp.spec, mc["seed"] if seed is None else seed,
                       mc["runs"] if runs is None else runs, time.perf_counter() - start)
     return result
@@ -178,13 +178,19 @@ def table(metric, results, fmt, thesis) -> None:
     files = sorted(results.glob(f"*/{tables.METRICS[metric]['file']}"))
     if not files:
         fail(f"no {tables.METRICS[metric]['file']} under {results}/ (run 'estim reproduce')")
+    shown = 0
     for path in files:
-        df = read_table(path)
+        df = tables.view(read_table(path), metric)
+        if df.drop(columns=tables.METRICS[metric]["keys"]).isna().all().all():
+            continue
+        shown += 1
         if thesis:
             df = tables.with_thesis(df, metric)
         if fmt == "text":
             click.echo(f"== {path.parent.name} (thesis Table {df['table_id'].iloc[0]})")
         click.echo(tables.render(df, fmt))
+    if not shown:
+        fail(f"no {metric} values under {results}/ (all empty)")
 
 
 @main.command()

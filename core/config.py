@@ -70,17 +70,29 @@ REQUIRED = object()
 
 FIGURE_KINDS = ("noiseless", "noisy", "rmse", "residual")
 
+_SIMULATION = ({
+    "solver": (_str({"batched_radau", "scipy"}), "batched_radau"),
+    "rtol": (_num(positive=True), 1e-6),
+    "atol": (_num(positive=True), 1e-7),
+}, {})
+
+_CHECK = ({
+    "tolerances": (_mapping, {}),
+}, {})
+
+_MODEL = ({
+    "name": (_str(registry.MODELS), REQUIRED),
+    "variant": (_str(), None),
+    "params": (_mapping, {}),
+}, REQUIRED)
+
 # key -> (check or nested schema or list spec, default). REQUIRED marks mandatory keys.
-SCHEMA: dict[str, Any] = {
+ESTIMATION_SCHEMA: dict[str, Any] = {
     "name": (_str(), None),
     "title": (_str(), ""),
     "analysis": (_str(registry.ANALYSES), "estimation"),
     "reproduces": (_list(_str()), REQUIRED),
-    "model": ({
-        "name": (_str(registry.MODELS), REQUIRED),
-        "variant": (_str(), None),
-        "params": (_mapping, {}),
-    }, REQUIRED),
+    "model": _MODEL,
     "input": ({
         "waveform": (_str({"sine"}), "sine"),
         "amplitude_v": (_num(minimum=0.0), REQUIRED),
@@ -99,11 +111,7 @@ SCHEMA: dict[str, Any] = {
         "filters_see": (_str({"nominal", "noisy"}), "nominal"),
         "pairs": (lambda v: None if isinstance(v, bool) else "true or false", False),
     }, REQUIRED),
-    "simulation": ({
-        "solver": (_str({"batched_radau", "scipy"}), "batched_radau"),
-        "rtol": (_num(positive=True), 1e-6),
-        "atol": (_num(positive=True), 1e-7),
-    }, {}),
+    "simulation": _SIMULATION,
     "estimators": (_list({
         "label": (_str(), REQUIRED),
         "type": (_str(registry.ESTIMATORS), REQUIRED),
@@ -129,10 +137,46 @@ SCHEMA: dict[str, Any] = {
             "name": (_str(), REQUIRED),
         }, nonempty=False), []),
     }, {}),
-    "check": ({
-        "tolerances": (_mapping, {}),
-    }, {}),
+    "check": _CHECK,
 }
+
+PERTURBATION_SCHEMA: dict[str, Any] = {
+    "name": (_str(), None),
+    "title": (_str(), ""),
+    "analysis": (_str(registry.ANALYSES), REQUIRED),
+    "reproduces": (_list(_str()), REQUIRED),
+    "model": _MODEL,
+    "excitation": ({
+        "waveform": (_str({"sine", "step"}), REQUIRED),
+        "bias_v": (_list(_num()), REQUIRED),
+        "mix": (_list(_num()), REQUIRED),
+        "samples_per_period": (_int(8), 200),
+        "samples": (_int(2), 2000),
+    }, REQUIRED),
+    "rows": (_list({
+        "s_no": (_int(1), REQUIRED),
+        "amplitude_v": (_num(positive=True), REQUIRED),
+        "frequency_hz": (_num(positive=True), None),
+        "duration_s": (_num(positive=True), None),
+        "params": (_mapping, {}),
+    }), REQUIRED),
+    "simulation": ({
+        "solver": (_str({"batched_radau", "scipy"}), "batched_radau"),
+        "rtol": (_num(positive=True), 1e-8),
+        "atol": (_num(positive=True), 1e-10),
+    }, {}),
+    "tables": ({
+        "distortion": (_str(), REQUIRED),
+    }, REQUIRED),
+    "figures": ({
+        "row": (_int(1), None),
+        "name": (_str(), "perturbation"),
+    }, {}),
+    "check": _CHECK,
+}
+
+SCHEMAS = {"estimation": ESTIMATION_SCHEMA, "perturbation": PERTURBATION_SCHEMA}
+SCHEMA = ESTIMATION_SCHEMA
 
 
 def _validate(value: Any, spec: Any, source: str, path: str) -> Any:
@@ -203,40 +247,7 @@ def _check_settings(est_cls, settings: dict, model, source: str, path: str) -> N
         raise ConfigError(source, path, str(exc)) from None
 
 
-@dataclass(frozen=True)
-class Experiment:
-    """A validated experiment: ``spec`` is the resolved config with every default filled."""
-
-    name: str
-    source: str
-    spec: dict
-
-    def __hash__(self) -> int:
-        return hash((self.name, self.source))
-
-
-def parse(text: str, source: str, default_name: str) -> Experiment:
-    """Validate YAML ``text`` read from ``source`` (a path shown in messages)."""
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f"line {mark.line + 1}" if mark else ""
-        raise ConfigError(source, where, f"not valid YAML ({getattr(exc, 'problem', exc)})") \
-            from None
-    if data is None:
-        raise ConfigError(source, "", "the file is empty")
-    spec = _validate(data, SCHEMA, source, "")
-    spec["name"] = spec["name"] or default_name
-    if not re.fullmatch(r"[A-Za-z0-9_.-]+", spec["name"]) or spec["name"].strip(".") == "":
-        raise ConfigError(source, "name", "expected letters, digits, '_', '-' or '.' only "
-                          f"(it names the results folder), got {spec['name']!r}")
-    model_cls = registry.MODELS[spec["model"]["name"]]
-    variant = spec["model"]["variant"]
-    if model_cls.variants and variant is not None and variant not in model_cls.variants:
-        raise ConfigError(source, "model.variant",
-                          f"expected one of {sorted(model_cls.variants)}, got {variant!r}")
-    _check_model_params(model_cls, variant, spec["model"]["params"], source, "model.params")
+def _check_estimation(spec: dict, model_cls, variant, source: str) -> None:
     inp, noise = spec["input"], spec["noise"]
     if (inp["periods"] is None) == (inp["duration_s"] is None):
         raise ConfigError(source, "input.periods",
@@ -268,6 +279,81 @@ def parse(text: str, source: str, default_name: str) -> Experiment:
             raise ConfigError(source, f"figures.names.{kind}",
                               f"unknown figure kind; expected one of {list(FIGURE_KINDS)}")
         _validate(name, _str(), source, f"figures.names.{kind}")
+
+
+def _check_perturbation(spec: dict, model_cls, variant, source: str) -> None:
+    exc = spec["excitation"]
+    for key in ("bias_v", "mix"):
+        if len(exc[key]) != len(model_cls.input_names):
+            raise ConfigError(source, f"excitation.{key}",
+                              f"expected {len(model_cls.input_names)} values, one per model "
+                              f"input {list(model_cls.input_names)}")
+    if not any(exc["mix"]):
+        raise ConfigError(source, "excitation.mix", "expected at least one non-zero entry")
+    needed = "frequency_hz" if exc["waveform"] == "sine" else "duration_s"
+    seen = set()
+    for i, row in enumerate(spec["rows"]):
+        path = f"rows[{i}]"
+        if row[needed] is None:
+            raise ConfigError(source, f"{path}.{needed}",
+                              f"missing required key (excitation.waveform is {exc['waveform']})")
+        if row["s_no"] in seen:
+            raise ConfigError(source, f"{path}.s_no", f"duplicate row number {row['s_no']}")
+        seen.add(row["s_no"])
+        params = {**spec["model"]["params"], **row["params"]}
+        _check_model_params(model_cls, variant, params, source, f"{path}.params")
+    table_id = spec["tables"]["distortion"]
+    if not tables.has_thesis_table(table_id):
+        raise ConfigError(source, "tables.distortion",
+                          f"no thesis Table {table_id} ships with estim")
+    row = spec["figures"]["row"]
+    if row is not None and row not in seen:
+        raise ConfigError(source, "figures.row",
+                          f"expected the s_no of a row ({sorted(seen)}), got {row}")
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """A validated experiment: ``spec`` is the resolved config with every default filled."""
+
+    name: str
+    source: str
+    spec: dict
+
+    def __hash__(self) -> int:
+        return hash((self.name, self.source))
+
+
+def parse(text: str, source: str, default_name: str) -> Experiment:
+    """Validate YAML ``text`` read from ``source`` (a path shown in messages)."""
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"line {mark.line + 1}" if mark else ""
+        raise ConfigError(source, where, f"not valid YAML ({getattr(exc, 'problem', exc)})") \
+            from None
+    if data is None:
+        raise ConfigError(source, "", "the file is empty")
+    if not isinstance(data, dict):
+        raise ConfigError(source, "", f"expected a mapping, got {type(data).__name__}")
+    analysis = data.get("analysis") or "estimation"
+    _validate(analysis, _str(registry.ANALYSES), source, "analysis")
+    spec = _validate(data, SCHEMAS[analysis], source, "")
+    spec["name"] = spec["name"] or default_name
+    if not re.fullmatch(r"[A-Za-z0-9_.-]+", spec["name"]) or spec["name"].strip(".") == "":
+        raise ConfigError(source, "name", "expected letters, digits, '_', '-' or '.' only "
+                          f"(it names the results folder), got {spec['name']!r}")
+    model_cls = registry.MODELS[spec["model"]["name"]]
+    variant = spec["model"]["variant"]
+    if model_cls.variants and variant is not None and variant not in model_cls.variants:
+        raise ConfigError(source, "model.variant",
+                          f"expected one of {sorted(model_cls.variants)}, got {variant!r}")
+    _check_model_params(model_cls, variant, spec["model"]["params"], source, "model.params")
+    if spec["analysis"] == "estimation":
+        _check_estimation(spec, model_cls, variant, source)
+    else:
+        _check_perturbation(spec, model_cls, variant, source)
     tolerances = spec["check"]["tolerances"]
     for column, tol in tolerances.items():
         tolerances[column] = _validate(

@@ -38,3 +38,40 @@ def running_rmse(actual: np.ndarray, estimate: np.ndarray) -> np.ndarray:
     if actual.shape[0] == 0:
         return np.full(actual.shape[1], np.nan)
     return np.sqrt(np.mean((actual - estimate) ** 2, axis=(0, 2)))
+
+
+def rms(y: np.ndarray, axis: int = -1) -> np.ndarray:
+    """Root mean square along ``axis``."""
+    return np.sqrt(np.mean(np.square(y), axis=axis))
+
+
+def percent_distortion(y0: np.ndarray, y1: np.ndarray, axis: int = -1) -> np.ndarray:
+    """Eq 2.43 reduced to one number: ``100 rms(y1) / rms(y0 + y1)``.
+
+    Eq 2.43 is the ratio ``(v_0 - v_0^(0)) / v_0`` at each instant, with ``v_0`` the linear
+    plus first-order output; it has poles at the zero crossings of ``v_0``, so it is reduced
+    here to the ratio of root-mean-square values over the analysis window (whole periods of
+    the steady state for a periodic input), with outputs taken as deviations from the DC
+    operating point (docs/deviations.md).
+    """
+    return 100.0 * rms(y1, axis) / rms(y0 + y1, axis)
+
+
+def harmonics(y: np.ndarray, count: int = 10) -> np.ndarray:
+    """Amplitudes of harmonics 0..count of ``y (..., N)`` sampled over exactly one period."""
+    n = y.shape[-1]
+    spectrum = np.abs(np.fft.rfft(y, axis=-1)) / n
+    spectrum[..., 1:] *= 2.0
+    return spectrum[..., :count + 1]
+
+
+def thd_percent(y: np.ndarray, count: int = 10) -> np.ndarray:
+    """Total harmonic distortion ``100 sqrt(sum_{k=2..count} A_k^2) / A_1`` of ``y (..., N)``
+    sampled over exactly one period (harmonics above the Nyquist index are not counted)."""
+    a = harmonics(y, min(count, y.shape[-1] // 2 - 1))
+    return 100.0 * np.sqrt(np.sum(a[..., 2:] ** 2, axis=-1)) / a[..., 1]
+
+
+def gain_db(y: np.ndarray, amplitude: float) -> np.ndarray:
+    """``20 log10`` of the fundamental of ``y`` (one period) over the input ``amplitude``."""
+    return 20.0 * np.log10(harmonics(y, 1)[..., 1] / amplitude)

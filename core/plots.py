@@ -53,3 +53,34 @@ def running_rmse(trace: dict, title: str) -> Figure:
 def residuals(trace: dict, title: str) -> Figure:
     """Residual (prior innovation) of one run over time (Fig 3.7)."""
     return _series(trace, "innovation", "residual [V]", title)
+
+
+def perturbation(trace: dict, title: str) -> Figure:
+    """Input (a); zeroth-order, zeroth + first-order and full nonlinear output (b); the
+    first-order output beside the true nonlinear part ``full - zeroth`` (c), on one time
+    axis (Figs 2.2, 2.4, 2.6, 2.8)."""
+    fig, (ax_in, ax_out, ax_nl) = plt.subplots(3, 1, figsize=(8.0, 8.0), sharex=True)
+    t, unit = trace["t"], "s"
+    for scale, name in ((1e3, "ms"), (1e6, "us"), (1e9, "ns")):
+        if t[-1] * scale >= 1.0:
+            t, unit = trace["t"] * scale, name
+            break
+    ax_in.plot(t, trace["input"], lw=1.0, color="C0")
+    ax_in.set_ylabel("input [V]")
+    ax_in.set_title(f"(a) input (deviation from the bias) - {title}")
+    ax_out.plot(t, trace["y_full"], lw=2.4, color="0.75", label="full nonlinear")
+    ax_out.plot(t, trace["y0"], lw=1.0, color="C1", label="zeroth order (linear)")
+    ax_out.plot(t, trace["y0"] + trace["y1"], "--", lw=1.0, color="C2",
+                label="zeroth + first order")
+    ax_out.set_ylabel("output [V]")
+    ax_out.set_title("(b) output (deviation from the operating point)")
+    ax_out.legend(loc="upper right", fontsize=8)
+    ax_nl.plot(t, trace["y_full"] - trace["y0"], lw=2.4, color="0.75",
+               label="full - zeroth order")
+    ax_nl.plot(t, trace["y1"], "--", lw=1.0, color="C3", label="first order")
+    ax_nl.set_xlabel(f"time [{unit}]")
+    ax_nl.set_ylabel("nonlinear part [V]")
+    ax_nl.set_title("(c) first-order output and the true nonlinear part")
+    ax_nl.legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    return fig

@@ -6,10 +6,12 @@ from core.estimators.ekf import ExtendedKalmanFilter
 from core.estimators.kf import KalmanFilter
 from core.estimators.rls import RecursiveLeastSquares
 from core.models.diffamp_em import DiffAmpEbersMoll
+from core.models.diffamp_exp import DiffAmpExponential
 from core.models.mosfet_ekv import MosfetEKV
 
 MODELS = {
     "diffamp_em": DiffAmpEbersMoll,
+    "diffamp_exp": DiffAmpExponential,
     "mosfet_ekv": MosfetEKV,
 }
 
@@ -19,4 +21,4 @@ ESTIMATORS = {
     "rls": RecursiveLeastSquares,
 }
 
-ANALYSES = ("estimation",)
+ANALYSES = ("estimation", "perturbation")

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 import pandas as pd
 
 from core import plots, tables
-from core.analyses import estimation
+from core.analyses import estimation, perturbation
 from core.config import FIGURE_KINDS, Experiment
 
 
@@ -20,12 +20,16 @@ class Result:
 
 def n_points(exp: Experiment) -> int:
     """Work units of the experiment, for progress bars."""
+    if exp.spec["analysis"] == "perturbation":
+        return len(perturbation.rows(exp)) + 1
     return len(estimation.sweep(exp)) + 1
 
 
 def execute(exp: Experiment, runs: int | None = None, seed: int | None = None, jobs: int = 1,
             on_point: Callable[[], None] | None = None) -> Result:
     """Run ``exp``; ``runs`` and ``seed`` override the config's Monte Carlo settings."""
+    if exp.spec["analysis"] == "perturbation":
+        return _execute_perturbation(exp, jobs, on_point)
     mc = exp.spec["monte_carlo"]
     runs = mc["runs"] if runs is None else runs
     seed = mc["seed"] if seed is None else seed
@@ -54,6 +58,25 @@ def execute(exp: Experiment, runs: int | None = None, seed: int | None = None, j
         title = (f"{exp.name}, {data['frequency_hz']:g} Hz, input noise "
                  f"{extra['noise_level']:g} ({extra['reading']})")
         out.figures[extra["name"]] = plots.estimates(data[extra["name"]], title)
+    if on_point:
+        on_point()
+    return out
+
+
+def _execute_perturbation(exp: Experiment, jobs: int,
+                          on_point: Callable[[], None] | None) -> Result:
+    """Chapter 2: the distortion table and the figure of one row (deterministic: no seed)."""
+    rows = perturbation.run(exp, jobs, on_point)
+    out = Result(tables={"distortion": tables.distortion_table(rows,
+                                                               exp.spec["tables"]["distortion"])})
+    data = perturbation.figure_data(exp)
+    row = data["row"]
+    what = f"{row['amplitude_v']:g} V"
+    if row["frequency_hz"] is not None:
+        what += f", {row['frequency_hz']:g} Hz"
+    if row["params"]:
+        what += f", {perturbation.row_params(row)}"
+    out.figures[exp.spec["figures"]["name"]] = plots.perturbation(data, f"{exp.name}, {what}")
     if on_point:
         on_point()
     return out

@@ -10,13 +10,22 @@ import pandas as pd
 KEYS = ["table_id", "s_no", "noise_reading", "noise_param", "noise_sigma", "frequency_hz",
         "samples_per_period", "estimator"]
 
+PERTURBATION_KEYS = ["table_id", "s_no", "amplitude_v", "frequency_hz", "row_params"]
+
 METRICS: dict[str, dict] = {
-    "rmse": {"file": "rmse.csv", "values": ["rmse", "rmse_se", "runs", "diverged"],
-             "thesis": ["rmse"]},
-    "residual": {"file": "residual.csv",
+    "rmse": {"file": "rmse.csv", "keys": KEYS,
+             "values": ["rmse", "rmse_se", "runs", "diverged"], "thesis": ["rmse"]},
+    "residual": {"file": "residual.csv", "keys": KEYS,
                  "values": ["residual_mean", "residual_mean_se", "residual_variance",
                             "residual_variance_se", "runs", "diverged"],
                  "thesis": ["residual_mean", "residual_variance"]},
+    "distortion": {"file": "distortion.csv", "keys": PERTURBATION_KEYS,
+                   "values": ["percent_distortion", "thd_percent", "gain_db", "output_rms",
+                              "err_linear_rms", "err_first_order_rms", "order_linear",
+                              "order_first_order", "shooting_iterations"],
+                   "thesis": ["percent_distortion"]},
+    "gain": {"file": "distortion.csv", "keys": PERTURBATION_KEYS,
+             "values": ["gain_db"], "thesis": ["gain_db"]},
 }
 
 
@@ -46,20 +55,46 @@ def result_table(rows: list[dict], metric: str, table_id: str | None) -> pd.Data
     return df[KEYS + METRICS[metric]["values"]].reset_index(drop=True)
 
 
+def distortion_table(rows: list[dict], table_id: str) -> pd.DataFrame:
+    """``distortion.csv`` of a perturbation analysis, in thesis row order."""
+    df = pd.DataFrame(rows)
+    df.insert(0, "table_id", table_id)
+    return df[PERTURBATION_KEYS + METRICS["distortion"]["values"]].reset_index(drop=True)
+
+
+def view(df: pd.DataFrame, metric: str) -> pd.DataFrame:
+    """The columns of ``metric`` in a stored table (several metrics may share a file)."""
+    columns = METRICS[metric]["keys"] + METRICS[metric]["values"]
+    return df[[c for c in columns if c in df.columns]]
+
+
 def with_thesis(df: pd.DataFrame, metric: str) -> pd.DataFrame:
-    """Add ``thesis_<value>`` and ``ratio_<value>`` (ours / thesis) beside each value."""
-    out = df.copy()
+    """Add ``thesis_<value>`` and ``ratio_<value>`` (ours / thesis) beside each value.
+
+    Rows are matched by thesis row number (``s_no``; ``row_order`` in Table 2.1) and, where
+    both tables have one, by estimator.
+    """
+    out = view(df, metric).copy()
     for value in METRICS[metric]["thesis"]:
         out[f"thesis_{value}"] = np.nan
     for table_id in [t for t in out["table_id"].unique() if t]:
         ref = thesis_table(table_id)
+        row_col = "s_no" if "s_no" in ref else "row_order"
+        by_estimator = "estimator" in ref and "estimator" in out
+        mask = out["table_id"] == table_id
+        ours = [(int(s) if pd.notna(s) else None,
+                 e if by_estimator else None)
+                for s, e in zip(out.loc[mask, "s_no"],
+                                out.loc[mask, "estimator"] if by_estimator
+                                else [None] * int(mask.sum()), strict=True)]
         for value in METRICS[metric]["thesis"]:
-            lookup = {(int(s), e): v for s, e, v in
-                      zip(ref["s_no"], ref["estimator"], ref[value], strict=True)}
-            mask = out["table_id"] == table_id
-            out.loc[mask, f"thesis_{value}"] = [
-                lookup.get((int(s), e), np.nan) if pd.notna(s) else np.nan
-                for s, e in zip(out.loc[mask, "s_no"], out.loc[mask, "estimator"], strict=True)]
+            if value not in ref:
+                continue
+            lookup = {(int(s), e if by_estimator else None): v for s, e, v in
+                      zip(ref[row_col], ref["estimator"] if by_estimator else [None] * len(ref),
+                          ref[value], strict=True)}
+            out.loc[mask, f"thesis_{value}"] = [lookup.get(k, np.nan) if k[0] is not None
+                                                else np.nan for k in ours]
     for value in METRICS[metric]["thesis"]:
         out[f"ratio_{value}"] = out[value] / out[f"thesis_{value}"]
     return out

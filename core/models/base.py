@@ -94,6 +94,44 @@ class Model:
     def jacobian(self, x: np.ndarray, u: np.ndarray, t: float = 0.0) -> np.ndarray:
         return self.f_and_jacobian(x, u, t)[1]
 
+    def input_jacobian(self, x: np.ndarray, u: np.ndarray, t: float = 0.0) -> np.ndarray:
+        """``df/du`` at one point, shape ``(n, p)``; by default central differences with one
+        Richardson step (error O(h^4)). Override where an analytic form is at hand."""
+        x, u = np.asarray(x, float), np.asarray(u, float)
+
+        def central(h):
+            return np.stack([(self.f(x, u + h * e, t) - self.f(x, u - h * e, t)) / (2 * h)
+                             for e in np.eye(self.n_inputs)], axis=-1)
+
+        h = 1e-3 * max(1.0, float(np.max(np.abs(u), initial=0.0)))
+        return (4 * central(h / 2) - central(h)) / 3
+
+    def hessian(self, x: np.ndarray, u: np.ndarray, t: float = 0.0) -> np.ndarray:
+        """Second derivatives of ``f`` w.r.t. ``z = [x, u]`` at one point, shape
+        ``(n, n + p, n + p)``: the quadratic part of the circuit equations used by the
+        perturbation analysis (Chapter 2, the ``b``, ``d`` coefficients of eqs 2.8-2.10).
+
+        By default the mixed central second difference of ``f`` with one Richardson step,
+        on a step of 1 mV in every coordinate (the quadratic part is what matters at the
+        thermal-voltage scale of 26 mV). Override with the analytic form where available.
+        """
+        x, u = np.asarray(x, float), np.asarray(u, float)
+        n, size = self.n_states, self.n_states + self.n_inputs
+        z0 = np.concatenate([x, u])
+
+        def f_at(z):
+            return self.f(z[..., :n], z[..., n:], t)
+
+        def second(h):
+            eye = h * np.eye(size)
+            pp = eye[:, None, :] + eye[None, :, :]
+            pm = eye[:, None, :] - eye[None, :, :]
+            return (f_at(z0 + pp) - f_at(z0 + pm) - f_at(z0 - pm) + f_at(z0 - pp)) / (4 * h * h)
+
+        h = 1e-3
+        H = np.moveaxis((4 * second(h / 2) - second(h)) / 3, -1, 0)
+        return 0.5 * (H + np.swapaxes(H, 1, 2))
+
     def h(self, x: np.ndarray) -> np.ndarray:
         raise NotImplementedError
 

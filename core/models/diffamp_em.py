@@ -35,7 +35,9 @@ from core.models.base import Model, param
 
 
 @dataclass(frozen=True)
-class DiffAmpParams:
+class DiffAmpCircuit:
+    """Circuit elements shared by the Ebers-Moll and the plain-exponential amplifier."""
+
     V_CC: float = param(12.0, "V", "collector supply")
     V_EE: float = param(-12.0, "V", "emitter supply (signed)")
     R_C1: float = param(8.0e3, "Ohm", "collector resistor of Q1")
@@ -45,17 +47,24 @@ class DiffAmpParams:
     C_L: float = param(10.0e-6, "F", "load capacitor in series with R_L")
     C_par: float = param(1.0e-12, "F", "parasitic capacitance of nodes E, C1, C2")
     V_T: float = param(0.025852, "V", "thermal voltage (300 K)")
+
+    def _check(self, positive: tuple[str, ...], unit_interval: tuple[str, ...]) -> None:
+        for name in ("R_C1", "R_C2", "R_E", "R_L", "C_L", "C_par", "V_T", *positive):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be positive, got {getattr(self, name)!r}")
+        for name in unit_interval:
+            if not 0 < getattr(self, name) < 1:
+                raise ValueError(f"{name} must be in (0, 1), got {getattr(self, name)!r}")
+
+
+@dataclass(frozen=True)
+class DiffAmpParams(DiffAmpCircuit):
     I_ES: float = param(1.0e-14, "A", "emitter-junction saturation current (both)")
     alpha_F: float = param(0.99, "-", "forward common-base current gain (both)")
     alpha_R: float = param(0.5, "-", "reverse common-base current gain (both)")
 
     def __post_init__(self) -> None:
-        for name in ("R_C1", "R_C2", "R_E", "R_L", "C_L", "C_par", "V_T", "I_ES"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"{name} must be positive, got {getattr(self, name)!r}")
-        for name in ("alpha_F", "alpha_R"):
-            if not 0 < getattr(self, name) < 1:
-                raise ValueError(f"{name} must be in (0, 1), got {getattr(self, name)!r}")
+        self._check(("I_ES",), ("alpha_F", "alpha_R"))
 
     @property
     def I_CS(self) -> float:
@@ -74,7 +83,8 @@ class DiffAmpEbersMoll(Model):
     variants = {"completed": {}, "thesis_printed": {"R_E": 100.0}}
 
     def _terminal_currents(self, x: np.ndarray, u: np.ndarray):
-        """Ebers-Moll collector and emitter currents of both transistors and their slopes."""
+        """Collector and emitter currents (into the terminals) of both transistors, shape
+        ``(..., 2)``, and their slopes w.r.t. v_BE and v_BC (eqs 3.48-3.51)."""
         p = self.params
         vE, vC = x[..., 0:1], x[..., 2:4]
         vB = np.asarray(u, float)[..., 0:2]
@@ -82,16 +92,16 @@ class DiffAmpEbersMoll(Model):
             eF = np.exp((vB - vE) / p.V_T)
             eR = np.exp((vB - vC) / p.V_T)
         fF, fR = p.I_ES * (eF - 1), p.I_CS * (eR - 1)
+        gF, gR = p.I_ES * eF / p.V_T, p.I_CS * eR / p.V_T
         IC = p.alpha_F * fF - fR
         IE = -fF + p.alpha_R * fR
-        gF, gR = p.I_ES * eF / p.V_T, p.I_CS * eR / p.V_T
-        return IC, IE, gF, gR
+        return IC, IE, p.alpha_F * gF, -gR, -gF, p.alpha_R * gR
 
     def f_and_jacobian(self, x: np.ndarray, u: np.ndarray,
                        t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         p = self.params
         x = np.asarray(x, float)
-        IC, IE, gF, gR = self._terminal_currents(x, u)
+        IC, IE, dIC_be, dIC_bc, dIE_be, dIE_bc = self._terminal_currents(x, u)
         vE, qL, vC1, vC2 = np.moveaxis(x, -1, 0)
         iL = (vC1 - vC2 - qL / p.C_L) / p.R_L
         f = np.stack([
@@ -100,19 +110,19 @@ class DiffAmpEbersMoll(Model):
             ((p.V_CC - vC1) / p.R_C1 - IC[..., 0] - iL) / p.C_par,
             ((p.V_CC - vC2) / p.R_C2 - IC[..., 1] + iL) / p.C_par,
         ], axis=-1)
-        # slopes: dIC/dvE = -aF gF, dIC/dvC = gR, dIE/dvE = gF, dIE/dvC = -aR gR
+        # v_BE = v_B - v_E and v_BC = v_B - v_C: d/dv_E = -d/dv_BE, d/dv_C = -d/dv_BC
         J = np.zeros(x.shape + (4,))
-        J[..., 0, 0] = (-1 / p.R_E - gF[..., 0] - gF[..., 1]) / p.C_par
-        J[..., 0, 2] = p.alpha_R * gR[..., 0] / p.C_par
-        J[..., 0, 3] = p.alpha_R * gR[..., 1] / p.C_par
+        J[..., 0, 0] = (-1 / p.R_E + dIE_be[..., 0] + dIE_be[..., 1]) / p.C_par
+        J[..., 0, 2] = dIE_bc[..., 0] / p.C_par
+        J[..., 0, 3] = dIE_bc[..., 1] / p.C_par
         J[..., 1, 1] = -1 / (p.R_L * p.C_L)
         J[..., 1, 2] = 1 / p.R_L
         J[..., 1, 3] = -1 / p.R_L
         for row, side, sign in ((2, 0, -1.0), (3, 1, 1.0)):
-            J[..., row, 0] = p.alpha_F * gF[..., side] / p.C_par
+            J[..., row, 0] = dIC_be[..., side] / p.C_par
             J[..., row, 1] = -sign / (p.R_L * p.C_L * p.C_par)
             J[..., row, 2 + side] = (-1 / (p.R_C1 if side == 0 else p.R_C2)
-                                     - gR[..., side] - 1 / p.R_L) / p.C_par
+                                     + dIC_bc[..., side] - 1 / p.R_L) / p.C_par
             J[..., row, 3 - side] = 1 / (p.R_L * p.C_par)
         return f, J
 
