@@ -5,11 +5,13 @@ from __future__ import annotations
 from core.estimators.ekf import ExtendedKalmanFilter
 from core.estimators.kf import KalmanFilter
 from core.estimators.rls import RecursiveLeastSquares
+from core.models.cco import CrossCoupledOscillator
 from core.models.diffamp_em import DiffAmpEbersMoll
 from core.models.diffamp_exp import DiffAmpExponential
 from core.models.mosfet_ekv import MosfetEKV
 
 MODELS = {
+    "cco": CrossCoupledOscillator,
     "diffamp_em": DiffAmpEbersMoll,
     "diffamp_exp": DiffAmpExponential,
     "mosfet_ekv": MosfetEKV,

@@ -75,7 +75,7 @@ def _execute_perturbation(exp: Experiment, jobs: int,
     if row["frequency_hz"] is not None:
         what += f", {row['frequency_hz']:g} Hz"
     if row["params"]:
-        what += f", {perturbation.row_params(row)}"
+        what += f"\n{perturbation.row_params(row)}"
     out.figures[exp.spec["figures"]["name"]] = plots.perturbation(data, f"{exp.name}, {what}")
     if on_point:
         on_point()
