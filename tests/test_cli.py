@@ -1,3 +1,4 @@
+from io import StringIO
 from pathlib import Path
 
 import numpy as np
@@ -199,3 +200,60 @@ def test_table_prints_thesis_beside_ours(tmp_path):
     for fmt in ("text", "markdown", "latex"):
         assert runner.invoke(main, ["table", "residual", "--results", str(tmp_path),
                                     "--format", fmt]).exit_code == 0
+
+
+def chapter2_config(**changes) -> dict:
+    """The oscillator config (a step: seconds of work) with ``changes`` applied by key path."""
+    spec = yaml.safe_load((ROOT / "configs" / "cco_distortion.yaml").read_text())
+    spec.update(name="tiny2")
+    spec["excitation"]["samples"] = 300
+    for path, value in changes.items():
+        *parents, last = path.split(".")
+        node = spec
+        for key in parents:
+            node = node[int(key)] if isinstance(node, list) else node[key]
+        if value is DELETE:
+            del node[last]
+        else:
+            node[last] = value
+    return spec
+
+
+@pytest.mark.parametrize("changes, key, expected", [
+    ({"excitation.waveform": "sine"}, "rows[0].frequency_hz", "missing required key"),
+    ({"rows.0.duration_s": DELETE}, "rows[0].duration_s", "missing required key"),
+    ({"rows.0.params": {"L_9": 1.0}}, "rows[0].params.L_9", "unknown parameter"),
+    ({"rows.1.s_no": 1}, "rows[1].s_no", "duplicate row number"),
+    ({"excitation.mix": [1.0, 0.0]}, "excitation.mix", "one per model input"),
+    ({"excitation.mix": [0.0]}, "excitation.mix", "non-zero"),
+    ({"figures.row": 7}, "figures.row", "s_no of a row"),
+    ({"tables.distortion": "2.9"}, "tables.distortion", "no thesis Table 2.9"),
+    ({"rows.0.amplitude_v": -1}, "rows[0].amplitude_v", "positive number"),
+    ({"noise": {"input_levels": [1]}}, "noise", "unknown key"),
+    ({"analysis": "volterra"}, "analysis", "perturbation"),
+])
+def test_bad_chapter2_config_names_key(tmp_path, changes, key, expected):
+    path = write(tmp_path, chapter2_config(**changes))
+    result = CliRunner().invoke(main, ["validate", str(path)])
+    assert result.exit_code == 2, result.output
+    assert f"{path}: {key}:" in result.output and expected in result.output, result.output
+    assert "Traceback" not in result.output
+
+
+def test_distortion_and_gain_tables_beside_thesis(tmp_path):
+    path = write(tmp_path, chapter2_config(), "tiny2.yaml")
+    runner = CliRunner()
+    result = runner.invoke(main, ["run", str(path), "--out", str(tmp_path / "res"), "--quiet"])
+    assert result.exit_code == 0, result.output
+    folder = tmp_path / "res" / "tiny2"
+    assert (folder / "figures" / "fig_2_2.png").stat().st_size > 0
+    shown = runner.invoke(main, ["table", "distortion", "--results", str(tmp_path / "res"),
+                                 "--thesis", "--format", "csv"])
+    assert shown.exit_code == 0, shown.output
+    df = pd.read_csv(StringIO(shown.output))
+    assert list(df["thesis_percent_distortion"]) == [0.333, 0.428]
+    assert np.all(df["err_first_order_rms"] < df["err_linear_rms"])
+    gain = runner.invoke(main, ["table", "gain", "--results", str(tmp_path / "res")])
+    assert gain.exit_code == 2 and "no gain values" in gain.output    # a step has no gain
+    check = runner.invoke(main, ["check", str(path), "--results", str(tmp_path / "res")])
+    assert check.exit_code == 0, check.output
