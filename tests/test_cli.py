@@ -20,6 +20,11 @@ def tiny_config(**changes) -> dict:
     spec["noise"].update(input_levels=[0.01], readings=["sigma"])
     spec["monte_carlo"].update(runs=3)
     spec["figures"].update(noise_level=0.01)
+    return apply_changes(spec, changes)
+
+
+def apply_changes(spec: dict, changes: dict) -> dict:
+    """Set (or with ``DELETE`` remove) each dotted key path of ``changes`` in ``spec``."""
     for path, value in changes.items():
         *parents, last = path.split(".")
         node = spec
@@ -207,16 +212,7 @@ def chapter2_config(**changes) -> dict:
     spec = yaml.safe_load((ROOT / "configs" / "cco_distortion.yaml").read_text())
     spec.update(name="tiny2")
     spec["excitation"]["samples"] = 300
-    for path, value in changes.items():
-        *parents, last = path.split(".")
-        node = spec
-        for key in parents:
-            node = node[int(key)] if isinstance(node, list) else node[key]
-        if value is DELETE:
-            del node[last]
-        else:
-            node[last] = value
-    return spec
+    return apply_changes(spec, changes)
 
 
 @pytest.mark.parametrize("changes, key, expected", [
