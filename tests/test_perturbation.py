@@ -138,3 +138,28 @@ def test_first_order_improves_on_linear_in_every_circuit(name, excitation, close
     assert row["err_first_order_rms"] < closer * row["err_linear_rms"]
     assert row["order_first_order"] == pytest.approx(3.0, abs=0.25)
     assert row["order_first_order"] - row["order_linear"] > 0.5
+
+
+def test_scipy_solver_gives_the_same_row():
+    """The batched Radau integrator against scipy's solve_ivp on a MOSFET row."""
+    rows = {}
+    for solver in ("batched_radau", "scipy"):
+        spec = yaml.safe_load((ROOT / "configs" / "mosfet_distortion.yaml").read_text())
+        spec["rows"], spec["figures"]["row"] = spec["rows"][1:2], 2
+        spec["excitation"]["samples_per_period"] = 48
+        spec["simulation"]["solver"] = solver
+        exp = config.parse(yaml.safe_dump(spec), solver, "mosfet")
+        rows[solver] = analysis.run_row(exp, exp.spec["rows"][0])
+    for key in ("percent_distortion", "thd_percent", "err_linear_rms", "err_first_order_rms"):
+        assert rows["scipy"][key] == pytest.approx(rows["batched_radau"][key], rel=1e-5), key
+
+
+def test_distortion_metrics_on_known_signals():
+    n = 64
+    phase = 2 * np.pi * np.arange(n) / n
+    y = 2.0 * np.sin(phase) + 0.2 * np.sin(2 * phase + 0.3) + 0.1 * np.cos(3 * phase) + 0.5
+    np.testing.assert_allclose(metrics.harmonics(y, 3), [0.5, 2.0, 0.2, 0.1], atol=1e-12)
+    assert metrics.thd_percent(y) == pytest.approx(100 * np.hypot(0.2, 0.1) / 2.0)
+    assert metrics.gain_db(y, 0.2) == pytest.approx(20.0)
+    y0, y1 = np.sin(phase), 0.01 * np.sin(2 * phase)
+    assert metrics.percent_distortion(y0, y1) == pytest.approx(100 * 0.01 / np.hypot(1, 0.01))
