@@ -104,7 +104,7 @@ def read_table(path: Path) -> pd.DataFrame:
 
 
 def report(exp: Experiment, out: Path, result: runner.Result, quiet: bool) -> None:
-    """Where the results went and, for estimation runs, the RMSE by estimator."""
+    """Where the results went, and the RMSE by estimator or the distortion by row."""
     if quiet:
         return
     click.echo(f"{exp.name} -> {out / exp.name}")
@@ -113,6 +113,12 @@ def report(exp: Experiment, out: Path, result: runner.Result, quiet: bool) -> No
         view = df.pivot(index=["noise_reading", "noise_param", "frequency_hz"],
                         columns="estimator", values="rmse")
         click.echo(view.to_string(float_format=lambda v: f"{v:.4g}"))
+    df = result.tables.get("distortion")
+    if df is not None:
+        columns = ["s_no", "amplitude_v", "frequency_hz", "percent_distortion", "thd_percent",
+                   "gain_db", "err_linear_rms", "err_first_order_rms"]
+        click.echo(df[columns].to_string(index=False, float_format=lambda v: f"{v:.4g}",
+                                         na_rep="--"))
 
 
 class Group(click.Group):
