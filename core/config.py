@@ -28,16 +28,25 @@ class ConfigError(ValueError):
         super().__init__(where + message)
 
 
-def _num(positive: bool = False, minimum: float | None = None):
+def _num(positive: bool = False, minimum: float | None = None, below: float | None = None):
     def check(v):
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or math.isnan(v):
-            return "a number"
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            return "a finite number"
         if positive and not v > 0:
             return "a positive number"
         if minimum is not None and v < minimum:
             return f"a number >= {minimum}"
+        if below is not None and not v < below:
+            return f"a number < {below}"
         return None
     return check
+
+
+def _file_name(v):
+    """Names that become files or folders: no path separators, not only dots."""
+    if not isinstance(v, str) or not re.fullmatch(r"[A-Za-z0-9_.-]+", v) or v.strip(".") == "":
+        return "letters, digits, '_', '-' or '.' only (it names a file)"
+    return None
 
 
 def _int(minimum: int = 1):
@@ -72,7 +81,7 @@ FIGURE_KINDS = ("noiseless", "noisy", "rmse", "residual")
 
 _SIMULATION = ({
     "solver": (_str({"batched_radau", "scipy"}), "batched_radau"),
-    "rtol": (_num(positive=True), 1e-6),
+    "rtol": (_num(positive=True, below=0.1), 1e-6),
     "atol": (_num(positive=True), 1e-7),
 }, {})
 
@@ -134,7 +143,7 @@ ESTIMATION_SCHEMA: dict[str, Any] = {
         "extra_noisy": (_list({
             "noise_level": (_num(positive=True), REQUIRED),
             "reading": (_str({"sigma", "variance"}), "sigma"),
-            "name": (_str(), REQUIRED),
+            "name": (_file_name, REQUIRED),
         }, nonempty=False), []),
     }, {}),
     "check": _CHECK,
@@ -151,7 +160,7 @@ PERTURBATION_SCHEMA: dict[str, Any] = {
         "bias_v": (_list(_num()), REQUIRED),
         "mix": (_list(_num()), REQUIRED),
         "samples_per_period": (_int(8), 200),
-        "samples": (_int(2), 2000),
+        "samples": (_int(8), 2000),
     }, REQUIRED),
     "rows": (_list({
         "s_no": (_int(1), REQUIRED),
@@ -162,7 +171,7 @@ PERTURBATION_SCHEMA: dict[str, Any] = {
     }), REQUIRED),
     "simulation": ({
         "solver": (_str({"batched_radau", "scipy"}), "batched_radau"),
-        "rtol": (_num(positive=True), 1e-8),
+        "rtol": (_num(positive=True, below=0.1), 1e-8),
         "atol": (_num(positive=True), 1e-10),
     }, {}),
     "tables": ({
@@ -170,7 +179,7 @@ PERTURBATION_SCHEMA: dict[str, Any] = {
     }, REQUIRED),
     "figures": ({
         "row": (_int(1), None),
-        "name": (_str(), "perturbation"),
+        "name": (_file_name, "perturbation"),
     }, {}),
     "check": _CHECK,
 }
@@ -278,7 +287,7 @@ def _check_estimation(spec: dict, model_cls, variant, source: str) -> None:
         if kind not in FIGURE_KINDS:
             raise ConfigError(source, f"figures.names.{kind}",
                               f"unknown figure kind; expected one of {list(FIGURE_KINDS)}")
-        _validate(name, _str(), source, f"figures.names.{kind}")
+        _validate(name, _file_name, source, f"figures.names.{kind}")
 
 
 def _check_perturbation(spec: dict, model_cls, variant, source: str) -> None:
@@ -290,13 +299,17 @@ def _check_perturbation(spec: dict, model_cls, variant, source: str) -> None:
                               f"input {list(model_cls.input_names)}")
     if not any(exc["mix"]):
         raise ConfigError(source, "excitation.mix", "expected at least one non-zero entry")
-    needed = "frequency_hz" if exc["waveform"] == "sine" else "duration_s"
+    needed, unused = ("frequency_hz", "duration_s") if exc["waveform"] == "sine" else (
+        "duration_s", "frequency_hz")
     seen = set()
     for i, row in enumerate(spec["rows"]):
         path = f"rows[{i}]"
         if row[needed] is None:
             raise ConfigError(source, f"{path}.{needed}",
                               f"missing required key (excitation.waveform is {exc['waveform']})")
+        if row[unused] is not None:
+            raise ConfigError(source, f"{path}.{unused}",
+                              f"not used with excitation.waveform {exc['waveform']}; remove it")
         if row["s_no"] in seen:
             raise ConfigError(source, f"{path}.s_no", f"duplicate row number {row['s_no']}")
         seen.add(row["s_no"])

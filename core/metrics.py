@@ -58,8 +58,11 @@ def percent_distortion(y0: np.ndarray, y1: np.ndarray, axis: int = -1) -> np.nda
 
 
 def harmonics(y: np.ndarray, count: int = 10) -> np.ndarray:
-    """Amplitudes of harmonics 0..count of ``y (..., N)`` sampled over exactly one period."""
+    """Amplitudes of harmonics 0..count of ``y (..., N)`` sampled over exactly one period
+    (``count < N/2``: the Nyquist bin is not a harmonic amplitude)."""
     n = y.shape[-1]
+    if not count < n / 2:
+        raise ValueError(f"harmonics up to {count} need more than {2 * count} samples, got {n}")
     spectrum = np.abs(np.fft.rfft(y, axis=-1)) / n
     spectrum[..., 1:] *= 2.0
     return spectrum[..., :count + 1]
@@ -68,7 +71,7 @@ def harmonics(y: np.ndarray, count: int = 10) -> np.ndarray:
 def thd_percent(y: np.ndarray, count: int = 10) -> np.ndarray:
     """Total harmonic distortion ``100 sqrt(sum_{k=2..count} A_k^2) / A_1`` of ``y (..., N)``
     sampled over exactly one period (harmonics above the Nyquist index are not counted)."""
-    a = harmonics(y, min(count, y.shape[-1] // 2 - 1))
+    a = harmonics(y, min(count, (y.shape[-1] - 1) // 2))
     return 100.0 * np.sqrt(np.sum(a[..., 2:] ** 2, axis=-1)) / a[..., 1]
 
 

@@ -59,8 +59,9 @@ class Expansion:
 def expand(model, x_op: np.ndarray, u_op: np.ndarray) -> Expansion:
     """The linear + quadratic split of ``model`` about ``(x_op, u_op)``."""
     x_op, u_op = np.asarray(x_op, float), np.asarray(u_op, float)
+    H = model.hessian(x_op, u_op)
     return Expansion(x_op=x_op, u_op=u_op, A=model.jacobian(x_op, u_op),
-                     B=model.input_jacobian(x_op, u_op), H=model.hessian(x_op, u_op),
+                     B=model.input_jacobian(x_op, u_op), H=0.5 * (H + np.swapaxes(H, 1, 2)),
                      C=model.h_jacobian(x_op))
 
 
@@ -122,8 +123,9 @@ def respond(model, source: np.ndarray, bias: np.ndarray, dt: float, periodic: bo
     DC point with the sources held at ``bias`` ``(p,)``. With
     ``periodic`` the source must span exactly one period and every response is its periodic
     steady state; otherwise all three start at rest at the operating point.
-    ``shooting_tol`` bounds the full circuit's period mismatch relative to the size of its
-    output swing.
+    ``shooting_tol`` bounds the full circuit's distance from its periodic orbit at the
+    output (the last quasi-Newton correction ``(I - e^{AT})^-1 (x(T) - x(0))``), relative to
+    the zeroth-order output swing.
     """
     integrate = SOLVERS[solver]
     source = np.asarray(source, float)
@@ -156,17 +158,20 @@ def respond(model, source: np.ndarray, bias: np.ndarray, dt: float, periodic: bo
         traj = run_expanded(start)
         x_start = x_op + start[:, :n] + start[:, n:]
         swing = np.max(np.abs(traj[..., :n] @ expansion.C.T), axis=(1, 2))
+        if not np.all(swing > 0):
+            raise SimulationError(f"{model.name}: the input does not reach the output in the "
+                                  "linearised circuit (zero-order output is zero)")
         while True:
             full = _with_start(x_start, integrate(model, x_start, u_in, dt, rtol=rtol,
                                                   atol=atol))
-            mismatch = full[:, -1] - x_start
-            if np.all(np.abs(mismatch @ expansion.C.T).max(axis=-1) <= shooting_tol * swing):
+            step = linalg.lu_solve(lu, (full[:, -1] - x_start).T).T
+            if np.all(np.abs(step @ expansion.C.T).max(axis=-1) <= shooting_tol * swing):
                 break
             iterations += 1
             if iterations > max_shooting:
                 raise SimulationError(f"{model.name}: periodic steady state not found in "
                                       f"{max_shooting} shooting iterations")
-            x_start = x_start + linalg.lu_solve(lu, mismatch.T).T
+            x_start = x_start + step
     else:
         traj = run_expanded(zero)
         x_start = np.broadcast_to(x_op, (runs, n))

@@ -74,7 +74,7 @@ def write(tmp_path: Path, spec: dict, name: str = "tiny.yaml") -> Path:
     ({"input.sample_time_s": -1e-4}, "input.sample_time_s", "positive number"),
     ({"input.duration_s": "long", "input.periods": DELETE}, "input.duration_s", "number"),
     ({"input.bias_v": [0.0, 1.0]}, "input.bias_v", "one per model input"),
-    ({"input.mix": ["a"]}, "input.mix[0]", "a number"),
+    ({"input.mix": ["a"]}, "input.mix[0]", "a finite number"),
     ({"simulation.solver": "pspice"}, "simulation.solver", "batched_radau"),
     ({"figures.reading": "std"}, "figures.reading", "sigma"),
     ({"figures.extra_noisy": [{"noise_level": 0.1}]}, "figures.extra_noisy[0].name",
@@ -227,6 +227,10 @@ def chapter2_config(**changes) -> dict:
     ({"rows.0.amplitude_v": -1}, "rows[0].amplitude_v", "positive number"),
     ({"noise": {"input_levels": [1]}}, "noise", "unknown key"),
     ({"analysis": "volterra"}, "analysis", "perturbation"),
+    ({"rows.0.amplitude_v": float("inf")}, "rows[0].amplitude_v", "finite number"),
+    ({"rows.0.frequency_hz": 1000}, "rows[0].frequency_hz", "not used"),
+    ({"figures.name": "../escape"}, "figures.name", "names a file"),
+    ({"simulation.rtol": 10}, "simulation.rtol", "< 0.1"),
 ])
 def test_bad_chapter2_config_names_key(tmp_path, changes, key, expected):
     path = write(tmp_path, chapter2_config(**changes))
