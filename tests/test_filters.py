@@ -38,6 +38,21 @@ def test_ekf_on_linear_model_equals_kf(oscillator):
     np.testing.assert_allclose(b.innovation, a.innovation, rtol=1e-9, atol=1e-12)
 
 
+def test_kf_and_ekf_start_from_the_x0_given_to_run(oscillator):
+    """Without an ``x0`` setting both filters start from the run's ``x0`` (the analyses pass
+    the actual operating point there) and still agree."""
+    dt = 0.05
+    rng = np.random.default_rng(3)
+    z, u = rng.normal(size=(2, 30, 1)), rng.normal(size=(30, 1))
+    Ad, Bd = oscillator.discrete(dt)
+    settings = dict(Q=[1e-3, 2e-3], R=0.1, P0=[1e-6, 1e-6])
+    start = np.array([2.0, -1.0])
+    a = KalmanFilter(A=Ad, B=Bd, C=oscillator.C, **settings).run(oscillator, z, u, dt, x0=start)
+    b = ExtendedKalmanFilter(**settings).run(oscillator, z, u, dt, x0=start)
+    np.testing.assert_allclose(a.x_hat, b.x_hat, rtol=1e-9, atol=1e-12)
+    assert np.abs(a.x_hat[:, 0, 0] - (Ad @ start + Bd @ u[0])[0]).max() < 1e-3
+
+
 def test_continuous_discrete_ekf_on_linear_model_matches_kf(oscillator):
     dt = 0.05
     rng = np.random.default_rng(7)

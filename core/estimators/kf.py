@@ -10,17 +10,19 @@ from core.estimators.base import Estimate, as_matrix, batch_input, joseph_update
 class KalmanFilter:
     """``x_k = A x_{k-1} + B u_{k-1} + v``, ``z_k = C x_k + w`` with known ``A, B, C, Q, R``.
 
-    The model argument of :meth:`run` is not used: the matrices are the settings.
+    The model argument of :meth:`run` is not used: the matrices are the settings. The
+    initial estimate is the ``x0`` setting; without it, the ``x0`` given to :meth:`run` (the
+    analyses pass the actual operating point, as for the EKF), else zero.
     """
 
-    def __init__(self, A, B, C, Q, R, x0, P0) -> None:
+    def __init__(self, A, B, C, Q, R, P0, x0=None) -> None:
         self.A = np.atleast_2d(np.asarray(A, float))
         n = self.A.shape[0]
         self.B = np.asarray(B, float).reshape(n, -1)
         self.C = np.atleast_2d(np.asarray(C, float))
         self.Q = as_matrix(Q, n, "Q")
         self.R = as_matrix(R, self.C.shape[0], "R")
-        self.x0 = np.asarray(x0, float).reshape(n)
+        self.x0 = None if x0 is None else np.asarray(x0, float).reshape(n)
         self.P0 = as_matrix(P0, n, "P0")
 
     def validate(self, model) -> None:
@@ -31,7 +33,8 @@ class KalmanFilter:
         runs, steps, m = z.shape
         n = self.A.shape[0]
         u = batch_input(u, runs)
-        x = np.broadcast_to(self.x0, (runs, n)).copy()
+        start = self.x0 if self.x0 is not None else (np.zeros(n) if x0 is None else x0)
+        x = np.broadcast_to(np.asarray(start, float), (runs, n)).copy()
         P = np.broadcast_to(self.P0, (runs, n, n)).copy()
         H = np.broadcast_to(self.C, (runs, m, n))
         x_hat = np.empty((runs, steps, n))
