@@ -45,7 +45,7 @@ def test_kf_and_ekf_start_from_the_x0_given_to_run(oscillator):
     rng = np.random.default_rng(3)
     z, u = rng.normal(size=(2, 30, 1)), rng.normal(size=(30, 1))
     Ad, Bd = oscillator.discrete(dt)
-    settings = dict(Q=[1e-3, 2e-3], R=0.1, P0=[1e-6, 1e-6])
+    settings = dict(Q=[1e-9, 1e-9], R=0.1, P0=[1e-9, 1e-9])
     start = np.array([2.0, -1.0])
     a = KalmanFilter(A=Ad, B=Bd, C=oscillator.C, **settings).run(oscillator, z, u, dt, x0=start)
     b = ExtendedKalmanFilter(**settings).run(oscillator, z, u, dt, x0=start)
