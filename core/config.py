@@ -1,7 +1,8 @@
 """YAML experiment configs -> a validated, frozen :class:`Experiment`.
 
 Every error names the file, the key path and what was expected, and is raised before any
-work starts. The schema below is the single description of what a config may contain.
+work starts. The schemas below (one per analysis) are the single description of what a
+config may contain.
 """
 
 from __future__ import annotations
@@ -185,7 +186,6 @@ PERTURBATION_SCHEMA: dict[str, Any] = {
 }
 
 SCHEMAS = {"estimation": ESTIMATION_SCHEMA, "perturbation": PERTURBATION_SCHEMA}
-SCHEMA = ESTIMATION_SCHEMA
 
 
 def _validate(value: Any, spec: Any, source: str, path: str) -> Any:

@@ -45,11 +45,6 @@ class Expansion:
     H: np.ndarray
     C: np.ndarray
 
-    def quadratic(self, dx: np.ndarray, du: np.ndarray) -> np.ndarray:
-        """``q(dx, du) = 1/2 H[z, z]`` on arrays with leading batch axes."""
-        z = np.concatenate([dx, np.broadcast_to(du, dx.shape[:-1] + du.shape[-1:])], axis=-1)
-        return 0.5 * np.einsum("ijk,...j,...k->...i", self.H, z, z)
-
     @property
     def spectral_abscissa(self) -> float:
         """Largest real part of the eigenvalues of ``A``: negative for a stable point."""

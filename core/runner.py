@@ -66,10 +66,11 @@ def execute(exp: Experiment, runs: int | None = None, seed: int | None = None, j
 def _execute_perturbation(exp: Experiment, jobs: int,
                           on_point: Callable[[], None] | None) -> Result:
     """Chapter 2: the distortion table and the figure of one row (deterministic: no seed)."""
-    rows = perturbation.run(exp, jobs, on_point)
+    results = perturbation.run(exp, jobs, on_point)
+    rows = [summary for summary, _ in results]
     out = Result(tables={"distortion": tables.distortion_table(rows,
                                                                exp.spec["tables"]["distortion"])})
-    data = perturbation.figure_data(exp)
+    data = perturbation.figure_data(exp, {s["s_no"]: r for s, r in results})
     row = data["row"]
     what = f"{row['amplitude_v']:g} V"
     if row["frequency_hz"] is not None:

@@ -74,27 +74,18 @@ def with_thesis(df: pd.DataFrame, metric: str) -> pd.DataFrame:
     Rows are matched by thesis row number (``s_no``; ``row_order`` in Table 2.1) and, where
     both tables have one, by estimator.
     """
-    out = view(df, metric).copy()
-    for value in METRICS[metric]["thesis"]:
-        out[f"thesis_{value}"] = np.nan
-    for table_id in [t for t in out["table_id"].unique() if t]:
-        ref = thesis_table(table_id)
-        row_col = "s_no" if "s_no" in ref else "row_order"
-        by_estimator = "estimator" in ref and "estimator" in out
-        mask = out["table_id"] == table_id
-        ours = [(int(s) if pd.notna(s) else None,
-                 e if by_estimator else None)
-                for s, e in zip(out.loc[mask, "s_no"],
-                                out.loc[mask, "estimator"] if by_estimator
-                                else [None] * int(mask.sum()), strict=True)]
-        for value in METRICS[metric]["thesis"]:
-            if value not in ref:
-                continue
-            lookup = {(int(s), e if by_estimator else None): v for s, e, v in
-                      zip(ref[row_col], ref["estimator"] if by_estimator else [None] * len(ref),
-                          ref[value], strict=True)}
-            out.loc[mask, f"thesis_{value}"] = [lookup.get(k, np.nan) if k[0] is not None
-                                                else np.nan for k in ours]
+    named = {value: f"thesis_{value}" for value in METRICS[metric]["thesis"]}
+    parts = []
+    for table_id, part in view(df, metric).groupby("table_id", sort=False):
+        if table_id:
+            ref = thesis_table(table_id).rename(columns={"row_order": "s_no", **named})
+            on = [c for c in ("s_no", "estimator") if c in part and c in ref]
+            ref = ref[on + [c for c in named.values() if c in ref]].drop_duplicates(on)
+            part = part.merge(ref.astype({"s_no": float}), how="left",
+                              on=on).set_index(part.index)
+        parts.append(part.reindex(columns=[*part.columns.drop(named.values(), errors="ignore"),
+                                           *named.values()]))
+    out = pd.concat(parts).sort_index()
     for value in METRICS[metric]["thesis"]:
         out[f"ratio_{value}"] = out[value] / out[f"thesis_{value}"]
     return out

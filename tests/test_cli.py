@@ -231,6 +231,18 @@ def chapter2_config(**changes) -> dict:
     ({"rows.0.frequency_hz": 1000}, "rows[0].frequency_hz", "not used"),
     ({"figures.name": "../escape"}, "figures.name", "names a file"),
     ({"simulation.rtol": 10}, "simulation.rtol", "< 0.1"),
+    ({"excitation.waveform": "square"}, "excitation.waveform", "'sine', 'step'"),
+    ({"excitation.samples": 3}, "excitation.samples", "integer >= 8"),
+    ({"excitation.samples_per_period": 4}, "excitation.samples_per_period", "integer >= 8"),
+    ({"excitation.bias_v": ["high"]}, "excitation.bias_v[0]", "finite number"),
+    ({"excitation": DELETE}, "excitation", "missing required key"),
+    ({"rows": []}, "rows", "non-empty list"),
+    ({"rows.0.s_no": 0}, "rows[0].s_no", "integer >= 1"),
+    ({"rows.0.params": [1, 2]}, "rows[0].params", "a mapping"),
+    ({"tables": {}}, "tables.distortion", "missing required key"),
+    ({"figures.row": "first"}, "figures.row", "integer >= 1"),
+    ({"model.name": "cco2"}, "model.name", "'cco'"),
+    ({"model.params": {"R_E": -1.0}}, "model.params", "R_E must be positive"),
 ])
 def test_bad_chapter2_config_names_key(tmp_path, changes, key, expected):
     path = write(tmp_path, chapter2_config(**changes))

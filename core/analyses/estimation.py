@@ -19,13 +19,13 @@ can be re-run alone and comes out the same.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
-from concurrent.futures import ProcessPoolExecutor
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from core import metrics, registry, signals
+from core.analyses import map_tasks
 from core.config import Experiment
 from core.simulate import SOLVERS
 
@@ -138,22 +138,8 @@ def _run_point_args(args):
 def run(exp: Experiment, runs: int, seed: int, jobs: int = 1,
         on_point: Callable[[], None] | None = None) -> list[dict]:
     """All sweep points; rows in thesis order whatever the number of jobs."""
-    points = sweep(exp)
-    tasks = [(exp, p, runs, seed) for p in points]
-    results: list[list[dict]] = []
-
-    def collect(it: Iterator[list[dict]]) -> None:
-        for rows in it:
-            results.append(rows)
-            if on_point:
-                on_point()
-
-    if jobs > 1 and len(tasks) > 1:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            collect(pool.map(_run_point_args, tasks))
-    else:
-        collect(map(_run_point_args, tasks))
-    return [row for rows in results for row in rows]
+    tasks = [(exp, p, runs, seed) for p in sweep(exp)]
+    return [row for rows in map_tasks(_run_point_args, tasks, jobs, on_point) for row in rows]
 
 
 def figure_data(exp: Experiment, seed: int, runs: int) -> dict:

@@ -18,11 +18,11 @@ steady state (a sine) or over the row's window after a step. The row of ``distor
 from __future__ import annotations
 
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
 from core import metrics, registry
+from core.analyses import map_tasks
 from core.config import Experiment
 from core.perturbation import Response, respond
 
@@ -70,7 +70,11 @@ def row_params(row: dict) -> str:
 
 def run_row(exp: Experiment, row: dict) -> dict:
     """One row of ``distortion.csv``."""
-    r, amplitudes = respond_row(exp, row)
+    return _evaluate((exp, row))[0]
+
+
+def summarize(exp: Experiment, row: dict, r: Response, amplitudes: np.ndarray) -> dict:
+    """The ``distortion.csv`` row of the responses ``r`` at ``amplitudes`` (A, A/2)."""
     periodic = exp.spec["excitation"]["waveform"] == "sine"
     # one period of samples t_0..t_{N-1} (t_N repeats t_0); the whole window after a step
     window = slice(0, -1) if periodic else slice(1, None)
@@ -93,36 +97,27 @@ def run_row(exp: Experiment, row: dict) -> dict:
     }
 
 
-def _run_row_args(args):
-    return run_row(*args)
+def _evaluate(args: tuple[Experiment, dict]) -> tuple[dict, Response]:
+    exp, row = args
+    r, amplitudes = respond_row(exp, row)
+    return summarize(exp, row, r, amplitudes), r
 
 
-def run(exp: Experiment, jobs: int = 1, on_point: Callable[[], None] | None = None) -> list[dict]:
-    """Every row, in thesis order whatever the number of jobs."""
-    tasks = [(exp, row) for row in rows(exp)]
-    out = []
-    if jobs > 1 and len(tasks) > 1:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            results = pool.map(_run_row_args, tasks)
-            for result in results:
-                out.append(result)
-                if on_point:
-                    on_point()
-    else:
-        for task in tasks:
-            out.append(_run_row_args(task))
-            if on_point:
-                on_point()
-    return out
+def run(exp: Experiment, jobs: int = 1,
+        on_point: Callable[[], None] | None = None) -> list[tuple[dict, Response]]:
+    """Every row's ``distortion.csv`` entry and responses, in thesis order whatever the number
+    of jobs."""
+    return map_tasks(_evaluate, [(exp, row) for row in rows(exp)], jobs, on_point)
 
 
-def figure_data(exp: Experiment) -> dict:
-    """Traces of the figure row (``figures.row``, default the first): two periods of the
-    steady state for a sine, the whole window after a step."""
+def figure_data(exp: Experiment, responses: dict[int, Response]) -> dict:
+    """Traces of the figure row (``figures.row``, default the first) from the rows'
+    ``responses`` by ``s_no``: two periods of the steady state for a sine, the whole window
+    after a step."""
     wanted = exp.spec["figures"]["row"]
     row = next((r for r in rows(exp) if r["s_no"] == wanted), rows(exp)[0])
-    r, amplitudes = respond_row(exp, row)
-    src, _ = source(exp, row, amplitudes[:1])
+    r = responses[row["s_no"]]
+    src, _ = source(exp, row, np.array([row["amplitude_v"]]))
     mix = np.asarray(exp.spec["excitation"]["mix"], float)
     drive = (src[0] - np.asarray(exp.spec["excitation"]["bias_v"], float)) @ mix / (mix @ mix)
     traces = {"t": r.t, "input": drive, "y0": r.y0[0], "y1": r.y1[0], "y_full": r.y_full[0]}

@@ -40,6 +40,18 @@ def param(default: Any, unit: str = "-", doc: str = "") -> Any:
     return dataclasses.field(default=default, metadata={"unit": unit, "doc": doc})
 
 
+def check_params(params: Any, positive: tuple[str, ...] = (),
+                 unit_interval: tuple[str, ...] = ()) -> None:
+    """Raise ``ValueError`` naming the first parameter that is not positive, or not in
+    (0, 1), as required; for the ``__post_init__`` of parameter dataclasses."""
+    for name in positive:
+        if not getattr(params, name) > 0:
+            raise ValueError(f"{name} must be positive, got {getattr(params, name)!r}")
+    for name in unit_interval:
+        if not 0 < getattr(params, name) < 1:
+            raise ValueError(f"{name} must be in (0, 1), got {getattr(params, name)!r}")
+
+
 class Model:
     """Base class: subclasses set the names and implement ``f``, ``jacobian`` and ``h``.
 

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.models.base import Model, param
+from core.models.base import Model, check_params, param
 
 NODES = ("C1", "C2", "B1", "B2", "E1", "E2")
 
@@ -55,13 +55,9 @@ class CCOParams:
     alpha_R: float = param(0.5, "-", "reverse common-base current gain (both)")
 
     def __post_init__(self) -> None:
-        for name in ("R_B", "R_E", "R_P", "L_1", "L_4", "C_2", "C_3", "C_o", "C_par", "V_T",
-                     "I_ES"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"{name} must be positive, got {getattr(self, name)!r}")
-        for name in ("alpha_F", "alpha_R"):
-            if not 0 < getattr(self, name) < 1:
-                raise ValueError(f"{name} must be in (0, 1), got {getattr(self, name)!r}")
+        check_params(self, positive=("R_B", "R_E", "R_P", "L_1", "L_4", "C_2", "C_3", "C_o",
+                                     "C_par", "V_T", "I_ES"),
+                     unit_interval=("alpha_F", "alpha_R"))
 
     @property
     def I_CS(self) -> float:

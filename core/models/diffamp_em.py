@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.models.base import Model, param
+from core.models.base import Model, check_params, param
 
 
 @dataclass(frozen=True)
@@ -49,12 +49,8 @@ class DiffAmpCircuit:
     V_T: float = param(0.025852, "V", "thermal voltage (300 K)")
 
     def _check(self, positive: tuple[str, ...], unit_interval: tuple[str, ...]) -> None:
-        for name in ("R_C1", "R_C2", "R_E", "R_L", "C_L", "C_par", "V_T", *positive):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"{name} must be positive, got {getattr(self, name)!r}")
-        for name in unit_interval:
-            if not 0 < getattr(self, name) < 1:
-                raise ValueError(f"{name} must be in (0, 1), got {getattr(self, name)!r}")
+        check_params(self, ("R_C1", "R_C2", "R_E", "R_L", "C_L", "C_par", "V_T", *positive),
+                     unit_interval)
 
 
 @dataclass(frozen=True)

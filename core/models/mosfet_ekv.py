@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.models.base import Model, param
+from core.models.base import Model, check_params, param
 
 DRAIN_CURRENT_LAWS = (
     "ekv",
@@ -71,10 +71,8 @@ class MosfetParams:
             raise ValueError(
                 f"drain_current {self.drain_current!r}; expected one of {list(DRAIN_CURRENT_LAWS)}"
             )
-        for name in ("U_T", "eta", "I_0", "W_L", "R_in", "C_GX", "C_S", "C_D", "C_B",
-                     "C_BS", "C_BD", "R_D", "R_S", "R_B"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"{name} must be positive, got {getattr(self, name)!r}")
+        check_params(self, positive=("U_T", "eta", "I_0", "W_L", "R_in", "C_GX", "C_S", "C_D",
+                                     "C_B", "C_BS", "C_BD", "R_D", "R_S", "R_B"))
 
 
 def _softplus(a: np.ndarray) -> np.ndarray:
