@@ -1,6 +1,6 @@
 """``estim``: run, reproduce, table, check, validate, list.
 
-Exit codes: 0 ok, 1 a check found differences, 2 a usage or config error.
+Exit codes: 0 ok, 1 a check found differences, 2 a usage or config error, 3 a run failed.
 """
 
 from __future__ import annotations
@@ -16,11 +16,12 @@ import matplotlib.pyplot as plt
 import pandas as pd
 
 import core
+from cli import project
 from core import io, runner, tables
-from core.config import ConfigError, Experiment, parse
-
-CONFIG_DIR = Path("configs")
-RESULTS_DIR = Path("results")
+from core.analyses import ANALYSES
+from core.config import apply_overrides, load_yaml, parse_data, spec_hash
+from core.errors import ConfigError, ReferenceJoinError, UsageError
+from core.schema import Experiment
 
 
 def fail(message: str) -> None:
@@ -28,7 +29,7 @@ def fail(message: str) -> None:
     sys.exit(2)
 
 
-def load(path: Path) -> Experiment:
+def load(path: Path, overrides: dict | None = None) -> Experiment:
     try:
         text = path.read_text()
     except FileNotFoundError:
@@ -37,12 +38,15 @@ def load(path: Path) -> Experiment:
         raise ConfigError(str(path), "", f"cannot read ({exc.strerror})") from None
     except UnicodeDecodeError:
         raise ConfigError(str(path), "", "not a UTF-8 text file") from None
-    return parse(text, str(path), path.stem)
+    data = load_yaml(text, str(path))
+    if overrides:
+        data = apply_overrides(data, overrides)
+    return parse_data(data, str(path), path.stem)
 
 
-def load_all(paths) -> list[Experiment]:
+def load_all(paths, overrides: dict | None = None) -> list[Experiment]:
     try:
-        exps = [load(Path(p)) for p in paths]
+        exps = [load(Path(p), overrides) for p in paths]
     except ConfigError as exc:
         fail(str(exc))
     names = [e.name for e in exps]
@@ -52,24 +56,16 @@ def load_all(paths) -> list[Experiment]:
     return exps
 
 
-def default_configs() -> list[Path]:
-    paths = sorted(CONFIG_DIR.glob("*.yaml"))
-    if not paths:
-        fail(f"no configs found in {CONFIG_DIR}/ (run from the project folder)")
-    return paths
-
-
-def run_one(exp: Experiment, out: Path, runs: int | None, seed: int | None, jobs: int,
-            quiet: bool) -> runner.Result:
+def run_one(exp: Experiment, out: Path, jobs: int, quiet: bool) -> runner.Result:
     start = time.perf_counter()
-    total = runner.n_points(exp)
+    total = runner.work_units(exp)
     if quiet or not sys.stderr.isatty():
         if not quiet:
             click.echo(f"{exp.name}: {total} work units ...", err=True)
-        result = runner.execute(exp, runs, seed, jobs)
+        result = runner.execute(exp, jobs)
     else:
         with click.progressbar(length=total, label=exp.name, file=sys.stderr) as bar:
-            result = runner.execute(exp, runs, seed, jobs, on_point=lambda: bar.update(1))
+            result = runner.execute(exp, jobs, on_done=lambda: bar.update(1))
     folder = out / exp.name
     for metric, df in result.tables.items():
         io.write_csv(df, folder / f"{metric}.csv")
@@ -79,19 +75,9 @@ def run_one(exp: Experiment, out: Path, runs: int | None, seed: int | None, jobs
     produced = {f"{metric}.csv" for metric in result.tables}
     produced |= {f"figures/{name}.png" for name in result.figures}
     io.remove_stale(folder, produced)
-    mc = exp.spec.get("monte_carlo", {"seed": None, "runs": None})
-    io.write_manifest(folder, exp.spec, mc["seed"] if seed is None else seed,
-                      mc["runs"] if runs is None else runs, time.perf_counter() - start)
+    io.write_manifest(folder, exp.spec, spec_hash(exp.spec), time.perf_counter() - start,
+                      command=" ".join(["estim", *sys.argv[1:]]))
     return result
-
-
-def stored_settings(folder: Path) -> tuple[int | None, int | None]:
-    """Seed and runs recorded in a stored manifest (None: use the config's)."""
-    try:
-        manifest = json.loads((folder / "manifest.json").read_text())
-        return int(manifest["seed"]), int(manifest["runs"])
-    except (OSError, ValueError, KeyError, TypeError):
-        return None, None
 
 
 def read_table(path: Path) -> pd.DataFrame:
@@ -103,39 +89,55 @@ def read_table(path: Path) -> pd.DataFrame:
     return df
 
 
+def read_manifest(folder: Path) -> dict | None:
+    try:
+        manifest = json.loads((folder / "manifest.json").read_text())
+    except (OSError, ValueError):
+        return None
+    return manifest if isinstance(manifest, dict) else None
+
+
 def report(exp: Experiment, out: Path, result: runner.Result, quiet: bool) -> None:
-    """Where the results went, and the RMSE by estimator or the distortion by row."""
+    """Where the results went, and the analysis' summary."""
     if quiet:
         return
     click.echo(f"{exp.name} -> {out / exp.name}")
-    df = result.tables.get("rmse")
-    if df is not None:
-        view = df.pivot(index=["noise_reading", "noise_param", "frequency_hz"],
-                        columns="estimator", values="rmse")
-        click.echo(view.to_string(float_format=lambda v: f"{v:.4g}"))
-    df = result.tables.get("distortion")
-    if df is not None:
-        columns = ["s_no", "amplitude_v", "frequency_hz", "percent_distortion", "thd_percent",
-                   "gain_db", "err_linear_rms", "err_first_order_rms"]
-        click.echo(df[columns].to_string(index=False, float_format=lambda v: f"{v:.4g}",
-                                         na_rep="--"))
+    text = runner.summary(exp, result)
+    if text:
+        click.echo(text)
+
+
+def config_differences(stored: dict, current: dict, path: str = "") -> list[str]:
+    """Key paths where two resolved configs differ, with both values."""
+    if isinstance(stored, dict) and isinstance(current, dict):
+        out = []
+        for key in sorted(set(stored) | set(current), key=str):
+            sub = f"{path}.{key}" if path else str(key)
+            out += config_differences(stored.get(key), current.get(key), sub)
+        return out
+    if stored != current:
+        return [f"{path or '(config)'}: stored {stored!r}, config {current!r}"]
+    return []
 
 
 class Group(click.Group):
-    """Turns a failure inside a command into one line and exit code 3 (1 means drift)."""
+    """Turns a failure inside a command into one line: exit 2 for a usage error, 3 for a run
+    that failed after starting (1 means drift)."""
 
     def invoke(self, ctx):
         try:
             return super().invoke(ctx)
         except (click.exceptions.Exit, click.ClickException, click.Abort, SystemExit):
             raise
+        except (UsageError, ConfigError) as exc:
+            fail(str(exc))
         except Exception as exc:  # noqa: BLE001 - last line of defence, reported
             click.echo(f"error: {type(exc).__name__}: {exc}", err=True)
             sys.exit(3)
 
 
 @click.group(cls=Group, context_settings={"help_option_names": ["-h", "--help"]})
-@click.version_option(core.__version__, prog_name="estim")
+@click.version_option(core.__version__, "-V", "--version", prog_name="estim")
 def main() -> None:
     """Reproduce the result tables of Bansal (2019), state estimation in ODE/PDE models.
 
@@ -143,101 +145,182 @@ def main() -> None:
     """
 
 
-_out = click.option("--out", type=click.Path(file_okay=False, path_type=Path),
-                    default=RESULTS_DIR, show_default=True, help="Folder for results.")
 _jobs = click.option("--jobs", type=click.IntRange(1), default=1, show_default=True,
-                     help="Worker processes over sweep points.")
+                     help="Worker processes over work units.")
+
+
+def _out_folder(out: Path | None, exps: list[Experiment], overridden: bool,
+                update_baseline: bool, quiet: bool) -> Path:
+    """Where a run writes: the baseline ``results/`` only for the project's own configs run
+    as they are (or with ``--update-baseline``); otherwise the scratch folder."""
+    where = project.locate()
+    own = all(where.is_own_config(Path(e.source)) for e in exps)
+    if out is not None:
+        if where.is_baseline(out) and (overridden or not own) and not update_baseline:
+            why = "overrides its config" if overridden else "is not a config of configs/"
+            raise UsageError(f"{out} holds the stored baseline and this run {why}; pass "
+                             "--update-baseline to replace it, or choose another --out")
+        return out
+    if (overridden or not own) and not update_baseline:
+        if not quiet:
+            why = "overrides the config" if overridden else "uses a config outside configs/"
+            click.echo(f"this run {why}: writing to {where.scratch}/, not the baseline "
+                       f"{where.results}/ (--update-baseline to replace it)", err=True)
+        return where.scratch
+    return where.results
 
 
 @main.command()
 @click.argument("configs", nargs=-1, required=True, type=click.Path(path_type=Path))
-@_out
-@click.option("--runs", type=click.IntRange(1), help="Override the Monte Carlo runs.")
-@click.option("--seed", type=click.IntRange(0), help="Override the seed.")
+@click.option("--out", type=click.Path(file_okay=False, path_type=Path),
+              help="Folder for results [default: the project's results/ for a config of "
+                   "configs/ run as it is, else its scratch/].")
+@click.option("--runs", type=click.IntRange(1), help="Override monte_carlo.runs.")
+@click.option("--seed", type=click.IntRange(0), help="Override monte_carlo.seed.")
+@click.option("--update-baseline", is_flag=True,
+              help="Allow an overridden run to write into the stored results/.")
 @_jobs
 @click.option("--quiet", is_flag=True, help="No progress and no summary.")
-def run(configs, out, runs, seed, jobs, quiet) -> None:
+def run(configs, out, runs, seed, update_baseline, jobs, quiet) -> None:
     """Run the experiment(s) of CONFIGS and write OUT/<config name>/."""
-    for exp in load_all(configs):
-        report(exp, out, run_one(exp, out, runs, seed, jobs, quiet), quiet)
+    overrides = {k: v for k, v in (("monte_carlo.runs", runs), ("monte_carlo.seed", seed))
+                 if v is not None}
+    exps = load_all(configs, overrides)
+    folder = _out_folder(out, exps, bool(overrides), update_baseline, quiet)
+    io.ensure_writable(folder)
+    for exp in exps:
+        report(exp, folder, run_one(exp, folder, jobs, quiet), quiet)
 
 
 @main.command()
-@_out
+@click.option("--out", type=click.Path(file_okay=False, path_type=Path),
+              help="Folder for results [default: the project's results/].")
 @_jobs
 @click.option("--quiet", is_flag=True)
 def reproduce(out, jobs, quiet) -> None:
-    """Run every config in configs/ (the thesis tables on the default settings)."""
-    for exp in load_all(default_configs()):
-        report(exp, out, run_one(exp, out, None, None, jobs, quiet), quiet)
+    """Run every config of configs/ (the thesis tables on the default settings)."""
+    where = project.locate()
+    if not quiet:
+        click.echo(where.describe(), err=True)
+    exps = load_all(where.configs())
+    folder = out or where.results
+    io.ensure_writable(folder)
+    for exp in exps:
+        report(exp, folder, run_one(exp, folder, jobs, quiet), quiet)
+
+
+def _stored_tables(results: Path, metric: str):
+    """``(folder, TableSpec, path)`` of every stored experiment that has ``metric``."""
+    for manifest_path in sorted(results.glob("*/manifest.json")):
+        folder = manifest_path.parent
+        manifest = read_manifest(folder)
+        if manifest is None or not isinstance(manifest.get("config"), dict):
+            raise UsageError(f"{manifest_path}: not a readable estim manifest")
+        analysis = ANALYSES.get(manifest["config"].get("analysis", "estimation"))
+        spec = analysis.TABLES.get(metric) if analysis else None
+        if spec is not None and (folder / spec.file).is_file():
+            yield folder, spec, folder / spec.file
 
 
 @main.command()
-@click.argument("metric", type=click.Choice(sorted(tables.METRICS)))
+@click.argument("metric", type=click.Choice(sorted(runner.table_specs())))
 @click.option("--results", type=click.Path(file_okay=False, path_type=Path),
-              default=RESULTS_DIR, show_default=True)
+              help="Folder of stored results [default: the project's results/].")
 @click.option("--format", "fmt", type=click.Choice(["text", "csv", "markdown", "latex"]),
               default="text", show_default=True)
 @click.option("--thesis", is_flag=True, help="Show the thesis value and ours/thesis beside ours.")
-def table(metric, results, fmt, thesis) -> None:
+@click.option("--partial", is_flag=True,
+              help="With --thesis: allow thesis rows that the results do not cover.")
+def table(metric, results, fmt, thesis, partial) -> None:
     """Print the METRIC tables of every experiment found under RESULTS."""
-    files = sorted(results.glob(f"*/{tables.METRICS[metric]['file']}"))
-    if not files:
-        fail(f"no {tables.METRICS[metric]['file']} under {results}/ (run 'estim reproduce')")
+    results = results or project.locate().results
     shown = 0
-    for path in files:
-        df = tables.view(read_table(path), metric)
-        if df.drop(columns=tables.METRICS[metric]["keys"]).isna().all().all():
+    for folder, spec, path in _stored_tables(results, metric):
+        df = tables.view(read_table(path), spec)
+        if df.drop(columns=list(spec.keys), errors="ignore").isna().all().all():
             continue
         shown += 1
         if thesis:
-            df = tables.with_thesis(df, metric)
+            try:
+                df = tables.with_reference(df, spec, allow_unmatched=partial)
+            except ReferenceJoinError as exc:
+                fail(f"{path}: {exc}")
         if fmt == "text":
-            click.echo(f"== {path.parent.name} (thesis Table {df['table_id'].iloc[0]})")
+            ids = ", ".join(sorted({str(t) for t in df.get("table_id", []) if t}))
+            click.echo(f"== {folder.name}" + (f" (thesis Table {ids})" if ids else ""))
         click.echo(tables.render(df, fmt))
     if not shown:
-        fail(f"no {metric} values under {results}/ (all empty)")
+        fail(f"no {metric} values under {results}/ (run 'estim reproduce')")
 
 
 @main.command()
 @click.argument("configs", nargs=-1, type=click.Path(path_type=Path))
 @click.option("--results", type=click.Path(file_okay=False, path_type=Path),
-              default=RESULTS_DIR, show_default=True)
+              help="Folder of stored results [default: the project's results/].")
 @_jobs
 def check(configs, results, jobs) -> None:
-    """Re-run CONFIGS (default: configs/*.yaml) and compare every cell with RESULTS."""
-    exps = load_all(configs or default_configs())
+    """Re-run CONFIGS (default: configs/*.yaml) as they are and compare every cell with the
+    stored tables under each config's tolerances; the stored manifest must record the same
+    config (runs, seed and every other value)."""
+    where = project.locate()
+    exps = load_all(configs or where.configs())
+    results = results or where.results
     differing = 0
     with tempfile.TemporaryDirectory() as tmp:
         for exp in exps:
-            stored_dir = results / exp.name
-            if not stored_dir.is_dir():
-                click.echo(f"{exp.name}: no stored results in {stored_dir}")
-                differing += 1
-                continue
-            seed, runs = stored_settings(stored_dir)
-            result = run_one(exp, Path(tmp), runs, seed, jobs, quiet=True)
-            tol = exp.spec["check"]["tolerances"]
-            for metric, new in result.tables.items():
-                path = stored_dir / f"{metric}.csv"
-                if not path.exists():
-                    click.echo(f"{exp.name}/{metric}.csv: missing from the stored results")
-                    differing += 1
-                    continue
-                stored = read_table(path)
-                fresh = read_table(Path(tmp) / exp.name / f"{metric}.csv")
-                diffs = io.compare_tables(stored, fresh, tol)
-                for d in diffs:
-                    click.echo(f"{exp.name}/{metric}.csv row {d['row']} {d['column']}: "
-                               f"obtained {d['obtained']}, expected {d['expected']}, "
-                               f"difference {d['difference']}")
-                differing += len(diffs)
-                if not diffs:
-                    click.echo(f"{exp.name}/{metric}.csv: {len(new)} rows match")
+            differing += _check_one(exp, results / exp.name, Path(tmp), jobs)
     if differing:
         click.echo(f"check: {differing} difference(s)")
         sys.exit(1)
     click.echo("check: all tables match")
+
+
+def _check_one(exp: Experiment, stored_dir: Path, tmp: Path, jobs: int) -> int:
+    """Differences between the stored results of ``exp`` and a fresh run of it."""
+    if not stored_dir.is_dir():
+        click.echo(f"{exp.name}: no stored results in {stored_dir}")
+        return 1
+    manifest = read_manifest(stored_dir)
+    if manifest is None:
+        click.echo(f"{exp.name}: {stored_dir / 'manifest.json'} is missing or not JSON")
+        return 1
+    if manifest.get("config_sha256") != spec_hash(exp.spec):
+        changes = config_differences(manifest.get("config"), exp.spec)
+        shown = "; ".join(changes[:5]) + (f"; and {len(changes) - 5} more" if
+                                          len(changes) > 5 else "")
+        click.echo(f"{exp.name}: the stored results were made with another config than "
+                   f"{exp.source}: {shown or 'config hash differs'}")
+        return 1
+    result = run_one(exp, tmp, jobs, quiet=True)
+    tol = exp.spec["check"]["tolerances"]
+    skipped = sorted(c for c, t in tol.items() if t.get("skip"))
+    for column in skipped:
+        click.echo(f"{exp.name}: column {column} not compared ({tol[column]['skip']})")
+    analysis = ANALYSES[exp.analysis]
+    differing = 0
+    for metric, new in result.tables.items():
+        path = stored_dir / f"{metric}.csv"
+        if not path.exists():
+            click.echo(f"{exp.name}/{metric}.csv: missing from the stored results")
+            differing += 1
+            continue
+        stored = read_table(path)
+        diffs = io.compare_tables(stored, read_table(tmp / exp.name / f"{metric}.csv"), tol)
+        for d in diffs:
+            click.echo(f"{exp.name}/{metric}.csv row {d['row']} {d['column']}: "
+                       f"obtained {d['obtained']}, expected {d['expected']}, "
+                       f"difference {d['difference']}")
+        differing += len(diffs)
+        spec = analysis.TABLES.get(metric)
+        if spec is not None and spec.join:
+            try:
+                tables.with_reference(tables.view(stored, spec), spec, allow_unmatched=True)
+            except ReferenceJoinError as exc:
+                click.echo(f"{exp.name}/{metric}.csv: {exc}")
+                differing += 1
+        if not diffs:
+            click.echo(f"{exp.name}/{metric}.csv: {len(new)} rows match")
+    return differing
 
 
 @main.command()
@@ -251,7 +334,9 @@ def validate(configs) -> None:
 @main.command(name="list")
 def list_configs() -> None:
     """Show the configs and the thesis tables each reproduces."""
-    for exp in load_all(default_configs()):
+    where = project.locate()
+    click.echo(where.describe(), err=True)
+    for exp in load_all(where.configs()):
         click.echo(f"{exp.source:40s} {exp.name:24s} Tables {', '.join(exp.spec['reproduces'])}"
                    f"  {exp.spec['title']}")
 

@@ -17,6 +17,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from core.errors import UsageError
+
 _UMASK = os.umask(0)
 os.umask(_UMASK)
 
@@ -74,12 +76,32 @@ def versions() -> dict[str, str]:
     return out
 
 
-def write_manifest(folder: Path, spec: dict, seed: int, runs: int, wall_time_s: float) -> None:
+def ensure_writable(folder: Path) -> None:
+    """Create ``folder`` and prove a file can be written in it, before any work starts.
+
+    Raises :class:`core.errors.UsageError` naming the folder and the reason.
+    """
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(dir=folder, prefix=".estim-probe.", suffix=".tmp")
+        os.close(fd)
+        Path(probe).unlink()
+    except OSError as exc:
+        raise UsageError(f"cannot write to {folder} ({exc.strerror or exc})") from None
+
+
+def write_manifest(folder: Path, spec: dict, config_sha256: str, wall_time_s: float,
+                   command: str = "") -> None:
+    """``manifest.json``: resolved config and its hash, seed and runs, versions, wall time,
+    and the sha256 of every file written beside it."""
     files = sorted(p for p in folder.rglob("*") if p.is_file() and p.name != "manifest.json")
+    mc = spec.get("monte_carlo") or {}
     manifest = {
         "config": spec,
-        "seed": seed,
-        "runs": runs,
+        "config_sha256": config_sha256,
+        "seed": mc.get("seed"),
+        "runs": mc.get("runs"),
+        "command": command,
         "versions": versions(),
         "wall_time_s": round(wall_time_s, 3),
         "files": {str(p.relative_to(folder)): sha256(p) for p in files},
@@ -88,27 +110,63 @@ def write_manifest(folder: Path, spec: dict, seed: int, runs: int, wall_time_s: 
     atomic_write_bytes(folder / "manifest.json", text.encode())
 
 
+def _cell_tolerated(x: float, y: float, i: int, tol: dict, stored: pd.DataFrame,
+                    new: pd.DataFrame, col: str) -> bool:
+    """Whether the new value ``x`` passes against the stored ``y`` (row ``i`` of ``col``)."""
+    if abs(x - y) <= tol.get("atol", 0.0) + tol.get("rtol", 0.0) * abs(y):
+        return True
+    if tol.get("se") is not None:
+        se_col = tol.get("se_column") or f"{col}_se"
+        if se_col in stored and se_col in new:
+            se = np.hypot(float(stored[se_col].iloc[i]), float(new[se_col].iloc[i]))
+            if np.isfinite(se) and abs(x - y) <= tol["se"] * se:
+                return True
+    if tol.get("binomial") is not None:
+        trials = tol.get("trials") or []
+        if trials and all(c in stored for c in trials):
+            n = float(sum(stored[c].iloc[i] for c in trials))
+            p = (x + y) / (2 * n) if n > 0 else 0.0
+            spread = np.sqrt(2 * n * p * (1 - p)) if 0 < p < 1 else 0.0
+            if abs(x - y) <= tol["binomial"] * spread:
+                return True
+    return False
+
+
 def compare_tables(stored: pd.DataFrame, new: pd.DataFrame,
                    tolerances: dict[str, dict]) -> list[dict]:
-    """Cells that differ. Floats use ``|a - b| <= atol + rtol |b|`` (per column, default exact);
-    NaN equals NaN; other columns must match exactly. Shape changes are one difference."""
+    """Cells that differ, under each column's tolerance (default: exact).
+
+    A numeric cell passes when any of its criteria holds:
+
+    * ``|new - stored| <= atol + rtol |stored|``;
+    * ``se: k``: within ``k`` combined standard errors, ``k sqrt(se_stored^2 + se_new^2)``,
+      the standard errors read from column ``se_column`` (default ``<column>_se``) of each
+      table: for Monte Carlo means, which another machine's rounding may move by a run;
+    * ``binomial: k``: a count of runs out of ``n`` (the sum of the ``trials`` columns)
+      within ``k sqrt(2 n p (1 - p))``, ``p`` the pooled fraction: for divergence counts.
+
+    NaN equals NaN. ``skip: reason`` leaves a column out (the reason is shown by the CLI).
+    Non-numeric columns must match exactly. A change of shape is one difference.
+    """
     if list(stored.columns) != list(new.columns) or len(stored) != len(new):
         return [{"row": "-", "column": "(shape)",
                  "expected": f"{len(stored)} rows {list(stored.columns)}",
                  "obtained": f"{len(new)} rows {list(new.columns)}", "difference": ""}]
     diffs = []
     for col in stored.columns:
+        tol = tolerances.get(col, {})
+        if tol.get("skip"):
+            continue
         a, b = new[col], stored[col]
-        numeric = pd.api.types.is_numeric_dtype(a) and pd.api.types.is_numeric_dtype(b)
+        numeric = pd.api.types.is_numeric_dtype(a) and pd.api.types.is_numeric_dtype(b) \
+            and not pd.api.types.is_bool_dtype(a)
         for i in range(len(a)):
             x, y = a.iloc[i], b.iloc[i]
             if numeric:
                 x, y = float(x) if pd.notna(x) else np.nan, float(y) if pd.notna(y) else np.nan
                 if np.isnan(x) and np.isnan(y):
                     continue
-                tol = tolerances.get(col, {})
-                limit = tol.get("atol", 0.0) + tol.get("rtol", 0.0) * abs(y)
-                if not np.isnan(x - y) and abs(x - y) <= limit:
+                if not np.isnan(x - y) and _cell_tolerated(x, y, i, tol, stored, new, col):
                     continue
                 diffs.append({"row": i, "column": col, "expected": y, "obtained": x,
                               "difference": x - y})

@@ -1,4 +1,7 @@
-"""Names used in configs -> implementations. Adding a model or filter is one line here."""
+"""Names used in configs -> implementations. Adding a model or filter is one line here.
+
+Analyses register in :data:`core.analyses.ANALYSES` the same way.
+"""
 
 from __future__ import annotations
 
@@ -22,5 +25,3 @@ ESTIMATORS = {
     "kf": KalmanFilter,
     "rls": RecursiveLeastSquares,
 }
-
-ANALYSES = ("estimation", "perturbation")

@@ -17,6 +17,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from core import linalg
+from core.errors import SimulationError
 
 _S6 = np.sqrt(6.0)
 RADAU_A = np.array([
@@ -24,10 +25,6 @@ RADAU_A = np.array([
     [(296 + 169 * _S6) / 1800, (88 + 7 * _S6) / 360, (-2 - 3 * _S6) / 225],
     [(16 - _S6) / 36, (16 + _S6) / 36, 1 / 9],
 ])
-
-
-class SimulationError(RuntimeError):
-    """The stiff integration failed (no convergence even on the finest allowed step)."""
 
 
 # Embedded error estimate of Radau IIA (Hairer & Wanner, Solving ODEs II, IV.8; as scipy).

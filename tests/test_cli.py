@@ -196,8 +196,11 @@ def test_table_prints_thesis_beside_ours(tmp_path):
                                           "figures.frequency_hz": 100}))
     runner = CliRunner()
     runner.invoke(main, ["run", str(path), "--out", str(tmp_path), "--quiet", "--runs", "2"])
+    strict = runner.invoke(main, ["table", "rmse", "--results", str(tmp_path), "--thesis"])
+    assert strict.exit_code == 2 and "Table 3.2: row 3 (s_no=2, estimator=EKF) matches none" \
+        in strict.output, strict.output
     result = runner.invoke(main, ["table", "rmse", "--results", str(tmp_path), "--thesis",
-                                  "--format", "csv"])
+                                  "--partial", "--format", "csv"])
     assert result.exit_code == 0, result.output
     header, first = result.output.splitlines()[:2]
     assert "thesis_rmse" in header and "ratio_rmse" in header

@@ -9,10 +9,10 @@ import yaml
 
 from core import config, metrics
 from core.analyses import perturbation as analysis
+from core.errors import SimulationError
+from core.expansion import expand, respond
 from core.models.base import Model
 from core.models.diffamp_em import DiffAmpEbersMoll
-from core.perturbation import expand, respond
-from core.simulate import SimulationError
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -1,30 +1,77 @@
 import numpy as np
 import pandas as pd
+import pytest
 
 from core import tables
+from core.analyses import estimation
+from core.analyses.base import TableSpec
+from core.errors import ReferenceJoinError
+
+RMSE = estimation.TABLES["rmse"]
 
 
-def rmse_rows(ekf, rls, ekf_diverged=0):
-    base = {"table_id": "3.2", "s_no": 1, "noise_reading": "sigma", "noise_param": 0.25,
-            "noise_sigma": 0.25, "frequency_hz": 100.0, "rmse_se": 0.0, "runs": 30}
+def rmse_rows(ekf, rls, ekf_diverged=0, s_no=1):
+    base = {"table_id": "3.2", "s_no": s_no, "noise_reading": "sigma", "noise_param": 0.25,
+            "noise_sigma": 0.25, "frequency_hz": 100.0, "samples_per_period": 10.0,
+            "rmse_se": 0.01, "runs": 30}
     return pd.DataFrame([{**base, "estimator": "EKF", "rmse": ekf, "diverged": ekf_diverged},
                          {**base, "estimator": "RLS", "rmse": rls, "diverged": 0}])
 
 
+def holds(df):
+    return estimation.claims(df, "EKF", "RLS")["holds"].iloc[0]
+
+
 def test_claim_holds_fails_on_divergence_and_is_na_without_values():
-    assert bool(tables.claims(rmse_rows(0.3, 0.6))["holds"].iloc[0]) is True
-    assert bool(tables.claims(rmse_rows(0.7, 0.6))["holds"].iloc[0]) is False
-    assert bool(tables.claims(rmse_rows(0.3, 0.6, ekf_diverged=2))["holds"].iloc[0]) is False
-    assert bool(tables.claims(rmse_rows(np.nan, 0.6, ekf_diverged=30))["holds"].iloc[0]) is False
-    assert pd.isna(tables.claims(rmse_rows(0.3, np.nan))["holds"].iloc[0])
+    assert bool(holds(rmse_rows(0.3, 0.6))) is True
+    assert bool(holds(rmse_rows(0.7, 0.6))) is False
+    assert bool(holds(rmse_rows(0.3, 0.6, ekf_diverged=2))) is False
+    assert bool(holds(rmse_rows(np.nan, 0.6, ekf_diverged=30))) is False
+    assert pd.isna(holds(rmse_rows(0.3, np.nan)))
 
 
-def test_with_thesis_puts_printed_value_and_ratio_beside_ours():
-    out = tables.with_thesis(rmse_rows(0.2012, 0.6043), "rmse")
+def test_claim_ratio_carries_its_standard_error():
+    out = estimation.claims(rmse_rows(0.3, 0.6), "EKF", "RLS").iloc[0]
+    assert out["ratio"] == pytest.approx(0.5)
+    assert out["ratio_se"] == pytest.approx(0.5 * np.hypot(0.01 / 0.3, 0.01 / 0.6))
+    assert out["runs"] == 30
+
+
+def all_rows_of_table_3_2(value=0.5):
+    ref = tables.reference_table("3.2")
+    return pd.DataFrame({"table_id": "3.2", "s_no": ref["s_no"], "noise_reading": "sigma",
+                         "noise_param": ref["noise_param_value"], "noise_sigma": 0.0,
+                         "frequency_hz": ref["frequency_hz"], "samples_per_period": 10.0,
+                         "estimator": ref["estimator"], "rmse": value, "rmse_se": 0.0,
+                         "runs": 30, "diverged": 0})
+
+
+def test_with_reference_puts_printed_value_and_ratio_beside_ours():
+    out = tables.with_reference(all_rows_of_table_3_2(), RMSE)
+    assert list(out["thesis_rmse"][:2]) == [0.4024, 0.6043]
+    np.testing.assert_allclose(out["ratio_rmse"][:2], [0.5 / 0.4024, 0.5 / 0.6043])
+
+
+def test_unmatched_reference_row_is_an_error_naming_table_and_row():
+    part = rmse_rows(0.2012, 0.6043)
+    with pytest.raises(ReferenceJoinError, match=r"Table 3.2: row 3 \(s_no=2, estimator=EKF\)"):
+        tables.with_reference(part, RMSE)
+    out = tables.with_reference(part, RMSE, allow_unmatched=True)
     assert list(out["thesis_rmse"]) == [0.4024, 0.6043]
-    np.testing.assert_allclose(out["ratio_rmse"], [0.5, 1.0])
+
+
+def test_a_key_that_repeats_in_the_reference_is_an_error():
+    # Table 4.2 repeats (s_no, estimator) over its W/L columns: joining on it is ambiguous
+    spec = TableSpec("rmse.csv", ("table_id", "s_no", "estimator"), ("rmse",),
+                     reference=("rmse",), join=(("s_no", ("s_no",)), ("estimator",
+                                                                        ("estimator",))))
+    ours = pd.DataFrame({"table_id": ["4.2"], "s_no": [1], "estimator": ["EKF"],
+                         "rmse": [0.001]})
+    with pytest.raises(ReferenceJoinError, match=r"Table 4.2: key \['s_no', 'estimator'\] "
+                                                 r"repeats in row 1"):
+        tables.with_reference(ours, spec)
 
 
 def test_thesis_tables_ship_with_the_package():
-    t = tables.thesis_table("3.1")
+    t = tables.reference_table("3.1")
     assert len(t) == 12 and set(t["estimator"]) == {"EKF", "RLS"}

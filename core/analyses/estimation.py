@@ -23,11 +23,172 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+import pandas as pd
 
-from core import metrics, registry, signals
-from core.analyses import map_tasks
-from core.config import Experiment
+from core import metrics, plots, registry, signals, tables
+from core.analyses.base import Result, TableSpec, map_tasks
+from core.errors import ConfigError
+from core.schema import (
+    REQUIRED,
+    Experiment,
+    boolean,
+    build_estimator,
+    build_model,
+    check_input_vector,
+    file_name,
+    integer,
+    list_of,
+    mapping,
+    model_block,
+    number,
+    simulation_block,
+    text,
+    validate,
+)
 from core.simulate import SOLVERS
+
+FIGURE_KINDS = ("noiseless", "noisy", "rmse", "residual")
+_READING = text({"sigma", "variance"})
+
+SCHEMA: dict = {
+    "model": model_block(registry.MODELS),
+    "input": ({
+        "waveform": (text({"sine"}), "sine"),
+        "amplitude_v": (number(minimum=0.0), REQUIRED),
+        "frequencies_hz": (list_of(number(positive=True)), REQUIRED),
+        "samples_per_period": (integer(2), 10),
+        "sample_time_s": (number(positive=True), None),
+        "periods": (integer(1), None),
+        "duration_s": (number(positive=True), None),
+        "bias_v": (list_of(number()), [0.0]),
+        "mix": (list_of(number()), [1.0]),
+    }, REQUIRED),
+    "noise": ({
+        "input_levels": (list_of(number(positive=True)), REQUIRED),
+        "readings": (list_of(_READING), ["sigma"]),
+        "measurement_sigma": (number(minimum=0.0), REQUIRED),
+        "filters_see": (text({"nominal", "noisy"}), "nominal"),
+        "pairs": (boolean, False),
+    }, REQUIRED),
+    "simulation": simulation_block(rtol=1e-6, atol=1e-7),
+    "estimators": (list_of({
+        "label": (text(), REQUIRED),
+        "type": (text(registry.ESTIMATORS), REQUIRED),
+        "model_params": (mapping, {}),
+        "settings": (mapping, {}),
+    }), REQUIRED),
+    "monte_carlo": ({
+        "runs": (integer(1), REQUIRED),
+        "seed": (integer(0), REQUIRED),
+    }, REQUIRED),
+    "tables": ({
+        "rmse": (text(), None),
+        "residual": (text(), None),
+    }, REQUIRED),
+    "claims": (list_of({
+        "better": (text(), REQUIRED),
+        "worse": (text(), REQUIRED),
+    }, nonempty=False), []),
+    "figures": ({
+        "frequency_hz": (number(positive=True), None),
+        "noise_level": (number(positive=True), None),
+        "reading": (_READING, None),
+        "names": (mapping, {}),
+        "extra_noisy": (list_of({
+            "noise_level": (number(positive=True), REQUIRED),
+            "reading": (_READING, "sigma"),
+            "name": (file_name, REQUIRED),
+        }, nonempty=False), []),
+    }, {}),
+}
+
+_ROW_KEYS = ("table_id", "s_no", "noise_reading", "noise_param", "noise_sigma", "frequency_hz",
+             "samples_per_period", "estimator")
+_JOIN = (("s_no", ("s_no",)), ("estimator", ("estimator",)))
+
+TABLES = {
+    "rmse": TableSpec("rmse.csv", _ROW_KEYS, ("rmse", "rmse_se", "runs", "diverged"),
+                      reference=("rmse",), join=_JOIN, title="RMSE (eq 3.42)"),
+    "residual": TableSpec("residual.csv", _ROW_KEYS,
+                          ("residual_mean", "residual_mean_se", "residual_variance",
+                           "residual_variance_se", "runs", "diverged"),
+                          reference=("residual_mean", "residual_variance"), join=_JOIN,
+                          title="residual (innovation) mean and variance"),
+    "claims": TableSpec("claims.csv",
+                        ("claim", "s_no", "noise_reading", "noise_param", "frequency_hz",
+                         "better", "worse"),
+                        ("rmse_better", "rmse_se_better", "rmse_worse", "rmse_se_worse",
+                         "ratio", "ratio_se", "runs", "diverged_better", "diverged_worse",
+                         "holds"),
+                        title="headline claim, row by row"),
+}
+
+
+@dataclass(frozen=True)
+class Plan:
+    """What an estimation experiment builds once: the actual circuit and, per estimator,
+    its label, the estimator object and the model it filters with."""
+
+    truth: object
+    filters: tuple
+
+
+def prepare(spec: dict, source: str) -> Plan:
+    """Cross-checks beyond the schema; builds the models and estimators once."""
+    model_cls = registry.MODELS[spec["model"]["name"]]
+    variant = spec["model"]["variant"]
+    inp, noise = spec["input"], spec["noise"]
+    if (inp["periods"] is None) == (inp["duration_s"] is None):
+        raise ConfigError(source, "input.periods",
+                          "give exactly one of input.periods and input.duration_s")
+    for key in ("bias_v", "mix"):
+        check_input_vector(inp[key], model_cls, source, f"input.{key}")
+    if noise["pairs"] and len(noise["input_levels"]) != len(inp["frequencies_hz"]):
+        raise ConfigError(source, "noise.pairs", "with pairs: true, noise.input_levels and "
+                          "input.frequencies_hz must have the same length")
+    truth = build_model(model_cls, variant, spec["model"]["params"], source, "model.params")
+    filters, labels = [], []
+    for i, est in enumerate(spec["estimators"]):
+        path = f"estimators[{i}]"
+        if est["label"] in labels:
+            raise ConfigError(source, f"{path}.label", f"duplicate label {est['label']!r}")
+        labels.append(est["label"])
+        model = build_model(model_cls, variant, {**spec["model"]["params"], **est["model_params"]},
+                            source, f"{path}.model_params")
+        estimator = build_estimator(registry.ESTIMATORS[est["type"]], est["settings"], model,
+                                    source, f"{path}.settings")
+        filters.append((est["label"], estimator, model))
+    for metric, table_id in spec["tables"].items():
+        if table_id is not None and not tables.has_reference_table(table_id):
+            raise ConfigError(source, f"tables.{metric}",
+                              f"no thesis Table {table_id} ships with estim")
+    for i, claim in enumerate(spec["claims"]):
+        for side in ("better", "worse"):
+            if claim[side] not in labels:
+                raise ConfigError(source, f"claims[{i}].{side}",
+                                  f"expected an estimator label {labels}, got {claim[side]!r}")
+        if spec["tables"]["rmse"] is None:
+            raise ConfigError(source, "claims", "claims compare RMSEs: set tables.rmse")
+    for kind, name in spec["figures"]["names"].items():
+        if kind not in FIGURE_KINDS:
+            raise ConfigError(source, f"figures.names.{kind}",
+                              f"unknown figure kind; expected one of {list(FIGURE_KINDS)}")
+        validate(name, file_name, source, f"figures.names.{kind}")
+    return Plan(truth=truth, filters=tuple(filters))
+
+
+def tiny(spec: dict) -> dict:
+    """Seconds of work: one frequency, one noise level and reading, two periods, 3 runs."""
+    spec["input"].update(frequencies_hz=spec["input"]["frequencies_hz"][:1])
+    if spec["input"].get("periods") is not None:
+        spec["input"]["periods"] = 2
+    else:
+        spec["input"]["duration_s"] = 2.0 / spec["input"]["frequencies_hz"][0]
+    spec["noise"].update(input_levels=spec["noise"]["input_levels"][:1],
+                         readings=spec["noise"].get("readings", ["sigma"])[:1])
+    spec["monte_carlo"]["runs"] = 3
+    spec["figures"] = {"names": spec.get("figures", {}).get("names", {})}
+    return spec
 
 
 @dataclass(frozen=True)
@@ -55,6 +216,10 @@ def sweep(exp: Experiment) -> list[SweepPoint]:
     return points
 
 
+def work_units(exp: Experiment) -> int:
+    return len(sweep(exp)) + 1
+
+
 def sampling(exp: Experiment, frequency_hz: float) -> tuple[float, int]:
     """Sample time and number of samples after ``t_0`` for one input frequency."""
     inp = exp.spec["input"]
@@ -64,20 +229,11 @@ def sampling(exp: Experiment, frequency_hz: float) -> tuple[float, int]:
     return dt, max(1, round(inp["periods"] / (frequency_hz * dt)))
 
 
-def _models(exp: Experiment):
-    spec = exp.spec["model"]
-    cls = registry.MODELS[spec["name"]]
-    truth = cls(spec["variant"], **spec["params"])
-    filter_models = [cls(spec["variant"], **{**spec["params"], **e["model_params"]})
-                     for e in exp.spec["estimators"]]
-    return truth, filter_models
-
-
 def simulate_point(exp: Experiment, frequency_hz: float, sigma: float, runs: int,
                    rng: np.random.Generator) -> dict:
     """Actual trajectories and measurements for one frequency and input-noise level."""
     inp, noise = exp.spec["input"], exp.spec["noise"]
-    truth, _ = _models(exp)
+    truth = exp.plan.truth
     dt, steps = sampling(exp, frequency_hz)
     t = np.arange(steps + 1) * dt
     mix, bias = np.asarray(inp["mix"], float), np.asarray(inp["bias_v"], float)
@@ -99,20 +255,17 @@ def simulate_point(exp: Experiment, frequency_hz: float, sigma: float, runs: int
 
 def estimate_point(exp: Experiment, data: dict) -> list:
     """Run every configured estimator on one simulated batch."""
-    _, filter_models = _models(exp)
-    out = []
-    for est_spec, model in zip(exp.spec["estimators"], filter_models, strict=True):
-        est = registry.ESTIMATORS[est_spec["type"]](**est_spec["settings"])
-        out.append(est.run(model, data["z"], data["u"], data["dt"], x0=data["x0"]))
-    return out
+    return [est.run(model, data["z"], data["u"], data["dt"], x0=data["x0"])
+            for _, est, model in exp.plan.filters]
 
 
-def run_point(exp: Experiment, point: SweepPoint, runs: int, seed: int) -> list[dict]:
+def run_point(exp: Experiment, point: SweepPoint) -> list[dict]:
     """Table rows (one per estimator) for one sweep point."""
-    rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(point.index,)))
-    data = simulate_point(exp, point.frequency_hz, point.sigma, runs, rng)
+    mc = exp.spec["monte_carlo"]
+    rng = np.random.default_rng(np.random.SeedSequence(mc["seed"], spawn_key=(point.index,)))
+    data = simulate_point(exp, point.frequency_hz, point.sigma, mc["runs"], rng)
     rows = []
-    for est_spec, est in zip(exp.spec["estimators"], estimate_point(exp, data), strict=True):
+    for (label, _, _), est in zip(exp.plan.filters, estimate_point(exp, data), strict=True):
         ok = ~est.diverged
         rmse, rmse_se = metrics.mean_and_se(
             metrics.rmse_per_run(data["actual"][ok], est.y_hat[ok]))
@@ -123,7 +276,7 @@ def run_point(exp: Experiment, point: SweepPoint, runs: int, seed: int) -> list[
             "noise_reading": point.reading, "noise_param": point.level,
             "noise_sigma": point.sigma, "frequency_hz": point.frequency_hz,
             "samples_per_period": 1.0 / (point.frequency_hz * data["dt"]),
-            "estimator": est_spec["label"], "rmse": rmse, "rmse_se": rmse_se,
+            "estimator": label, "rmse": rmse, "rmse_se": rmse_se,
             "residual_mean": mean, "residual_mean_se": mean_se,
             "residual_variance": var, "residual_variance_se": var_se,
             "runs": int(ok.sum()), "diverged": int((~ok).sum()),
@@ -135,27 +288,93 @@ def _run_point_args(args):
     return run_point(*args)
 
 
-def run(exp: Experiment, runs: int, seed: int, jobs: int = 1,
-        on_point: Callable[[], None] | None = None) -> list[dict]:
-    """All sweep points; rows in thesis order whatever the number of jobs."""
-    tasks = [(exp, p, runs, seed) for p in sweep(exp)]
-    return [row for rows in map_tasks(_run_point_args, tasks, jobs, on_point) for row in rows]
+def thesis_row_numbers(rows: pd.DataFrame, table_id: str | None) -> pd.Series:
+    """The thesis row (``s_no``) of each of our rows: same noise number and frequency."""
+    if table_id is None:
+        return pd.Series([pd.NA] * len(rows), dtype="Int64")
+    ref = tables.reference_table(table_id).drop_duplicates("s_no")
+    s_no = []
+    for level, f in zip(rows["noise_param"], rows["frequency_hz"], strict=True):
+        hit = ref[np.isclose(ref["noise_param_value"], level) & np.isclose(ref["frequency_hz"], f)]
+        s_no.append(int(hit["s_no"].iloc[0]) if len(hit) else pd.NA)
+    return pd.Series(s_no, dtype="Int64")
 
 
-def figure_data(exp: Experiment, seed: int, runs: int) -> dict:
+def result_table(rows: list[dict], metric: str, table_id: str | None) -> pd.DataFrame:
+    """The ``metric`` table from the sweep's rows, with thesis table id and row number."""
+    df = pd.DataFrame(rows)
+    df.insert(0, "table_id", table_id if table_id else "")
+    df.insert(1, "s_no", thesis_row_numbers(df, table_id))
+    return df[TABLES[metric].columns].reset_index(drop=True)
+
+
+def claims(rmse: pd.DataFrame, better: str, worse: str) -> pd.DataFrame:
+    """A headline claim row by row: RMSE of ``better`` below that of ``worse``.
+
+    A diverged run has an unbounded error, so any divergence of ``better`` fails the claim
+    and any divergence of ``worse`` (with none of ``better``) makes it hold; otherwise the
+    RMSEs decide. ``ratio_se`` is the delta-method standard error of the ratio.
+    """
+    keys = ["noise_reading", "noise_param", "frequency_hz"]
+    a = rmse.loc[rmse["estimator"] == better, ["s_no", *keys, "rmse", "rmse_se", "runs",
+                                                "diverged"]]
+    b = rmse.loc[rmse["estimator"] == worse, [*keys, "rmse", "rmse_se", "diverged"]]
+    j = a.merge(b, on=keys, suffixes=("_better", "_worse"))
+    j["runs"] = j["runs"] + j["diverged_better"]
+    ra, rb = j["rmse_better"], j["rmse_worse"]
+    j["ratio"] = ra / rb
+    j["ratio_se"] = j["ratio"].abs() * np.hypot(j["rmse_se_better"] / ra, j["rmse_se_worse"] / rb)
+    j["holds"] = pd.array([_verdict(*v) for v in zip(ra, rb, j["diverged_better"],
+                                                     j["diverged_worse"], strict=True)],
+                          dtype="boolean")
+    j.insert(0, "claim", f"{better} RMSE < {worse} RMSE")
+    j["better"], j["worse"] = better, worse
+    return j[TABLES["claims"].columns]
+
+
+def _verdict(better: float, worse: float, diverged_better: int, diverged_worse: int):
+    if diverged_better > 0:
+        return False
+    if diverged_worse > 0:
+        return True
+    if np.isfinite(better) and np.isfinite(worse):
+        return bool(better < worse)
+    return pd.NA
+
+
+def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = None) -> Result:
+    """All sweep points (rows in thesis order whatever the number of jobs), the claims and
+    the figures."""
+    tasks = [(exp, p) for p in sweep(exp)]
+    rows = [row for part in map_tasks(_run_point_args, tasks, jobs, on_done) for row in part]
+    out = Result(tables={})
+    for metric, table_id in exp.spec["tables"].items():
+        if table_id is not None:
+            out.tables[metric] = result_table(rows, metric, table_id)
+    if exp.spec["claims"]:
+        out.tables["claims"] = pd.concat(
+            [claims(out.tables["rmse"], c["better"], c["worse"]) for c in exp.spec["claims"]],
+            ignore_index=True)
+    out.figures = figures(exp)
+    if on_done:
+        on_done()
+    return out
+
+
+def figure_data(exp: Experiment) -> dict:
     """Traces for the figures: a noiseless run, a noisy batch at the figure's point, and one
     batch for each ``figures.extra_noisy`` case (keyed by its figure name)."""
-    fig = exp.spec["figures"]
+    fig, mc = exp.spec["figures"], exp.spec["monte_carlo"]
     f = fig["frequency_hz"] or exp.spec["input"]["frequencies_hz"][0]
     level = fig["noise_level"] or exp.spec["noise"]["input_levels"][0]
     sigma = signals.noise_sigma(level, fig["reading"] or exp.spec["noise"]["readings"][0])
-    labels = [e["label"] for e in exp.spec["estimators"]]
+    labels = [label for label, _, _ in exp.plan.filters]
     out = {"frequency_hz": f, "noise_level": level, "labels": labels}
-    cases = [("noiseless", 0.0, 1), ("noisy", sigma, runs)]
-    cases += [(extra["name"], signals.noise_sigma(extra["noise_level"], extra["reading"]), runs)
-              for extra in fig["extra_noisy"]]
+    cases = [("noiseless", 0.0, 1), ("noisy", sigma, mc["runs"])]
+    cases += [(extra["name"], signals.noise_sigma(extra["noise_level"], extra["reading"]),
+               mc["runs"]) for extra in fig["extra_noisy"]]
     for i, (key, s, n) in enumerate(cases):
-        rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(10_000 + i,)))
+        rng = np.random.default_rng(np.random.SeedSequence(mc["seed"], spawn_key=(10_000 + i,)))
         data = simulate_point(exp, f, s, n, rng)
         ests = estimate_point(exp, data)
         out[key] = {
@@ -168,3 +387,34 @@ def figure_data(exp: Experiment, seed: int, runs: int) -> dict:
                              for lab, e in zip(labels, ests, strict=True)},
         }
     return out
+
+
+def figures(exp: Experiment) -> dict:
+    """Figs 3.2-3.7, 3.9-3.11: estimates without and with input noise, running RMSE and
+    residuals, under the names of ``figures.names``."""
+    data = figure_data(exp)
+    names = exp.spec["figures"]["names"]
+    reading = exp.spec["figures"]["reading"] or exp.spec["noise"]["readings"][0]
+    where = f"{data['frequency_hz']:g} Hz, input noise {data['noise_level']:g} ({reading})"
+    makers = {
+        "noiseless": lambda: plots.estimates(data["noiseless"], f"{exp.name}, noiseless input"),
+        "noisy": lambda: plots.estimates(data["noisy"], f"{exp.name}, {where}"),
+        "rmse": lambda: plots.running_rmse(data["noisy"], f"{exp.name}: RMSE, {where}"),
+        "residual": lambda: plots.residuals(data["noisy"], f"{exp.name}: residual, {where}"),
+    }
+    out = {names.get(kind, kind): makers[kind]() for kind in FIGURE_KINDS}
+    for extra in exp.spec["figures"]["extra_noisy"]:
+        title = (f"{exp.name}, {data['frequency_hz']:g} Hz, input noise "
+                 f"{extra['noise_level']:g} ({extra['reading']})")
+        out[extra["name"]] = plots.estimates(data[extra["name"]], title)
+    return out
+
+
+def summary(result: Result) -> str:
+    """RMSE by estimator (columns) and sweep point (rows)."""
+    df = result.tables.get("rmse")
+    if df is None:
+        return ""
+    view = df.pivot(index=["noise_reading", "noise_param", "frequency_hz"],
+                    columns="estimator", values="rmse")
+    return view.to_string(float_format=lambda v: f"{v:.4g}")

@@ -20,20 +20,114 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+import pandas as pd
 
-from core import metrics, registry
-from core.analyses import map_tasks
-from core.config import Experiment
-from core.perturbation import Response, respond
+from core import metrics, plots, registry, signals, tables
+from core.analyses.base import Result, TableSpec, map_tasks
+from core.errors import ConfigError
+from core.expansion import Response, respond
+from core.schema import (
+    REQUIRED,
+    Experiment,
+    build_model,
+    check_input_vector,
+    file_name,
+    integer,
+    list_of,
+    mapping,
+    model_block,
+    number,
+    simulation_block,
+    text,
+)
+
+SCHEMA: dict = {
+    "model": model_block(registry.MODELS),
+    "excitation": ({
+        "waveform": (text({"sine", "step"}), REQUIRED),
+        "bias_v": (list_of(number()), REQUIRED),
+        "mix": (list_of(number()), REQUIRED),
+        "samples_per_period": (integer(8), 200),
+        "samples": (integer(8), 2000),
+    }, REQUIRED),
+    "rows": (list_of({
+        "s_no": (integer(1), REQUIRED),
+        "amplitude_v": (number(positive=True), REQUIRED),
+        "frequency_hz": (number(positive=True), None),
+        "duration_s": (number(positive=True), None),
+        "params": (mapping, {}),
+    }), REQUIRED),
+    "simulation": simulation_block(rtol=1e-8, atol=1e-10),
+    "tables": ({
+        "distortion": (text(), REQUIRED),
+    }, REQUIRED),
+    "figures": ({
+        "row": (integer(1), None),
+        "name": (file_name, "perturbation"),
+    }, {}),
+}
+
+_KEYS = ("table_id", "s_no", "amplitude_v", "frequency_hz", "row_params")
+_VALUES = ("percent_distortion", "thd_percent", "gain_db", "output_rms", "err_linear_rms",
+           "err_first_order_rms", "order_linear", "order_first_order", "shooting_iterations")
+_JOIN = (("s_no", ("s_no", "row_order")),)
+
+TABLES = {
+    "distortion": TableSpec("distortion.csv", _KEYS, _VALUES,
+                            reference=("percent_distortion",), join=_JOIN,
+                            title="percent distortion (eq 2.43), THD, gain, expansion errors"),
+    "gain": TableSpec("distortion.csv", _KEYS, ("gain_db",), reference=("gain_db",),
+                      join=_JOIN, title="gain of the full circuit"),
+}
 
 
-def rows(exp: Experiment) -> list[dict]:
-    return exp.spec["rows"]
+def prepare(spec: dict, source: str) -> dict:
+    """Cross-checks beyond the schema; the model of every row, built once (by ``s_no``)."""
+    model_cls = registry.MODELS[spec["model"]["name"]]
+    variant = spec["model"]["variant"]
+    build_model(model_cls, variant, spec["model"]["params"], source, "model.params")
+    exc = spec["excitation"]
+    for key in ("bias_v", "mix"):
+        check_input_vector(exc[key], model_cls, source, f"excitation.{key}")
+    if not any(exc["mix"]):
+        raise ConfigError(source, "excitation.mix", "expected at least one non-zero entry")
+    needed, unused = ("frequency_hz", "duration_s") if exc["waveform"] == "sine" else (
+        "duration_s", "frequency_hz")
+    models = {}
+    for i, row in enumerate(spec["rows"]):
+        path = f"rows[{i}]"
+        if row[needed] is None:
+            raise ConfigError(source, f"{path}.{needed}",
+                              f"missing required key (excitation.waveform is {exc['waveform']})")
+        if row[unused] is not None:
+            raise ConfigError(source, f"{path}.{unused}",
+                              f"not used with excitation.waveform {exc['waveform']}; remove it")
+        if row["s_no"] in models:
+            raise ConfigError(source, f"{path}.s_no", f"duplicate row number {row['s_no']}")
+        models[row["s_no"]] = build_model(model_cls, variant,
+                                          {**spec["model"]["params"], **row["params"]},
+                                          source, f"{path}.params")
+    table_id = spec["tables"]["distortion"]
+    if not tables.has_reference_table(table_id):
+        raise ConfigError(source, "tables.distortion",
+                          f"no thesis Table {table_id} ships with estim")
+    row = spec["figures"]["row"]
+    if row is not None and row not in models:
+        raise ConfigError(source, "figures.row",
+                          f"expected the s_no of a row ({sorted(models)}), got {row}")
+    return models
 
 
-def build_model(exp: Experiment, row: dict):
-    spec = exp.spec["model"]
-    return registry.MODELS[spec["name"]](spec["variant"], **{**spec["params"], **row["params"]})
+def tiny(spec: dict) -> dict:
+    """Seconds of work: the first row only, at 32 samples a period (or 64 after a step)."""
+    spec["rows"] = spec["rows"][:1]
+    spec["excitation"].update(samples_per_period=32, samples=64)
+    spec["figures"] = {"name": spec.get("figures", {}).get("name", "perturbation")}
+    return spec
+
+
+def work_units(exp: Experiment) -> int:
+    return len(exp.spec["rows"]) + 1
 
 
 def source(exp: Experiment, row: dict, amplitudes: np.ndarray) -> tuple[np.ndarray, float]:
@@ -43,7 +137,7 @@ def source(exp: Experiment, row: dict, amplitudes: np.ndarray) -> tuple[np.ndarr
     if exc["waveform"] == "sine":
         steps = exc["samples_per_period"]
         dt = 1.0 / (row["frequency_hz"] * steps)
-        shape = np.sin(2 * np.pi * np.arange(steps + 1) / steps)
+        shape = signals.sine(1.0, row["frequency_hz"], np.arange(steps + 1) * dt)[:, 0]
     else:
         steps = exc["samples"]
         dt = row["duration_s"] / steps
@@ -58,7 +152,7 @@ def respond_row(exp: Experiment, row: dict) -> tuple[Response, np.ndarray]:
     amplitudes = np.array([row["amplitude_v"], row["amplitude_v"] / 2])
     src, dt = source(exp, row, amplitudes)
     sim = exp.spec["simulation"]
-    response = respond(build_model(exp, row), src, np.asarray(exp.spec["excitation"]["bias_v"]),
+    response = respond(exp.plan[row["s_no"]], src, np.asarray(exp.spec["excitation"]["bias_v"]),
                        dt, periodic=exp.spec["excitation"]["waveform"] == "sine",
                        solver=sim["solver"], rtol=sim["rtol"], atol=sim["atol"])
     return response, amplitudes
@@ -103,11 +197,32 @@ def _evaluate(args: tuple[Experiment, dict]) -> tuple[dict, Response]:
     return summarize(exp, row, r, amplitudes), r
 
 
-def run(exp: Experiment, jobs: int = 1,
-        on_point: Callable[[], None] | None = None) -> list[tuple[dict, Response]]:
-    """Every row's ``distortion.csv`` entry and responses, in thesis order whatever the number
-    of jobs."""
-    return map_tasks(_evaluate, [(exp, row) for row in rows(exp)], jobs, on_point)
+def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = None) -> Result:
+    """``distortion.csv`` (rows in thesis order whatever the number of jobs) and the figure
+    of one row (deterministic: no seed)."""
+    results = map_tasks(_evaluate, [(exp, row) for row in exp.spec["rows"]], jobs, on_done)
+    df = pd.DataFrame([summary_row for summary_row, _ in results])
+    df.insert(0, "table_id", exp.spec["tables"]["distortion"])
+    out = Result(tables={"distortion": df[TABLES["distortion"].columns].reset_index(drop=True)})
+    data = figure_data(exp, {s["s_no"]: r for s, r in results})
+    row = data["row"]
+    what = f"{row['amplitude_v']:g} V"
+    if row["frequency_hz"] is not None:
+        what += f", {row['frequency_hz']:g} Hz"
+    if row["params"]:
+        what += f"\n{row_params(row)}"
+    out.figures[exp.spec["figures"]["name"]] = plots.perturbation(data, f"{exp.name}, {what}")
+    if on_done:
+        on_done()
+    return out
+
+
+def summary(result: Result) -> str:
+    """The distortion table's main columns."""
+    columns = ["s_no", "amplitude_v", "frequency_hz", "percent_distortion", "thd_percent",
+               "gain_db", "err_linear_rms", "err_first_order_rms"]
+    return result.tables["distortion"][columns].to_string(
+        index=False, float_format=lambda v: f"{v:.4g}", na_rep="--")
 
 
 def figure_data(exp: Experiment, responses: dict[int, Response]) -> dict:
@@ -115,7 +230,7 @@ def figure_data(exp: Experiment, responses: dict[int, Response]) -> dict:
     ``responses`` by ``s_no``: two periods of the steady state for a sine, the whole window
     after a step."""
     wanted = exp.spec["figures"]["row"]
-    row = next((r for r in rows(exp) if r["s_no"] == wanted), rows(exp)[0])
+    row = next((r for r in exp.spec["rows"] if r["s_no"] == wanted), exp.spec["rows"][0])
     r = responses[row["s_no"]]
     src, _ = source(exp, row, np.array([row["amplitude_v"]]))
     mix = np.asarray(exp.spec["excitation"]["mix"], float)

@@ -16,11 +16,8 @@ from typing import Any
 import numpy as np
 from scipy import optimize
 
+from core.errors import ParameterError
 from core.simulate import simulate
-
-
-class ParameterError(ValueError):
-    """A parameter override names an unknown parameter or has a bad value."""
 
 
 def parameter_table(params_cls: type) -> dict[str, tuple[Any, str, str]]:

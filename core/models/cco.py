@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from core.devices import ebers_moll
 from core.models.base import Model, check_params, param
 
 NODES = ("C1", "C2", "B1", "B2", "E1", "E2")
@@ -111,17 +112,10 @@ class CrossCoupledOscillator(Model):
             i[..., node] = -v[..., node] / p.R_E
             G[..., node, node] = -1 / p.R_E
         for b, c, e in _TRANSISTORS:
-            with np.errstate(over="ignore", invalid="ignore"):
-                eF = np.exp((v[..., b] - v[..., e]) / p.V_T)
-                eR = np.exp((v[..., b] - v[..., c]) / p.V_T)
-            fF, fR = p.I_ES * (eF - 1), p.I_CS * (eR - 1)
-            gF, gR = p.I_ES * eF / p.V_T, p.I_CS * eR / p.V_T
-            terminals = (
-                (c, p.alpha_F * fF - fR, p.alpha_F * gF, -gR),
-                (e, -fF + p.alpha_R * fR, -gF, p.alpha_R * gR),
-                (b, (1 - p.alpha_F) * fF + (1 - p.alpha_R) * fR, (1 - p.alpha_F) * gF,
-                 (1 - p.alpha_R) * gR),
-            )
+            tc = ebers_moll.currents(v[..., b] - v[..., e], v[..., b] - v[..., c], p.I_ES,
+                                     p.I_CS, p.alpha_F, p.alpha_R, p.V_T)
+            terminals = ((c, tc.I_C, tc.dIC_be, tc.dIC_bc), (e, tc.I_E, tc.dIE_be, tc.dIE_bc),
+                         (b, tc.I_B, tc.dIB_be, tc.dIB_bc))
             for node, current, d_be, d_bc in terminals:
                 i[..., node] -= current
                 G[..., node, b] -= d_be + d_bc

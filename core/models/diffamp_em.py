@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from core.devices import ebers_moll
 from core.models.base import Model, check_params, param
 
 
@@ -84,14 +85,8 @@ class DiffAmpEbersMoll(Model):
         p = self.params
         vE, vC = x[..., 0:1], x[..., 2:4]
         vB = np.asarray(u, float)[..., 0:2]
-        with np.errstate(over="ignore", invalid="ignore"):
-            eF = np.exp((vB - vE) / p.V_T)
-            eR = np.exp((vB - vC) / p.V_T)
-        fF, fR = p.I_ES * (eF - 1), p.I_CS * (eR - 1)
-        gF, gR = p.I_ES * eF / p.V_T, p.I_CS * eR / p.V_T
-        IC = p.alpha_F * fF - fR
-        IE = -fF + p.alpha_R * fR
-        return IC, IE, p.alpha_F * gF, -gR, -gF, p.alpha_R * gR
+        tc = ebers_moll.currents(vB - vE, vB - vC, p.I_ES, p.I_CS, p.alpha_F, p.alpha_R, p.V_T)
+        return tc.I_C, tc.I_E, tc.dIC_be, tc.dIC_bc, tc.dIE_be, tc.dIE_bc
 
     def f_and_jacobian(self, x: np.ndarray, u: np.ndarray,
                        t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:

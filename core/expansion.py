@@ -31,7 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import linalg
 
-from core.simulate import SOLVERS, SimulationError
+from core.errors import SimulationError
+from core.simulate import SOLVERS
 
 
 @dataclass(frozen=True)

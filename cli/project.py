@@ -1,0 +1,71 @@
+"""Where the configs and results are: the project folder, found from the working folder.
+
+The project is the nearest folder at or above the working folder that has a ``configs/``
+folder beside a ``pyproject.toml`` of the distribution ``estim``. Outside a project the
+configs shipped inside the package are used and results go to ``./results``.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+
+def _is_project(folder: Path) -> bool:
+    pyproject = folder / "pyproject.toml"
+    if not (pyproject.is_file() and (folder / "configs").is_dir()):
+        return False
+    try:
+        text = pyproject.read_text()
+    except (OSError, UnicodeDecodeError):
+        return False
+    return re.search(r'^name\s*=\s*"estim"\s*$', text, re.MULTILINE) is not None
+
+
+@dataclass(frozen=True)
+class Where:
+    root: Path | None       # the project folder, or None outside one
+    base: Path              # the project folder, or the working folder
+
+    @property
+    def results(self) -> Path:
+        return self.base / "results"
+
+    @property
+    def scratch(self) -> Path:
+        return self.base / "scratch"
+
+    @property
+    def config_dir(self) -> Path:
+        if self.root is not None:
+            return self.root / "configs"
+        return Path(str(resources.files("cli").joinpath("configs")))
+
+    def configs(self) -> list[Path]:
+        return sorted(self.config_dir.glob("*.yaml"))
+
+    def is_own_config(self, path: Path) -> bool:
+        try:
+            return path.resolve().parent == self.config_dir.resolve()
+        except OSError:
+            return False
+
+    def is_baseline(self, folder: Path) -> bool:
+        return folder.resolve() == self.results.resolve()
+
+    def describe(self) -> str:
+        if self.root is not None:
+            return (f"project {self.root}: configs from {self.config_dir}/, "
+                    f"results in {self.results}/")
+        return (f"no estim project at or above {self.base}: using the configs shipped with "
+                f"estim ({self.config_dir}/), results in {self.results}/")
+
+
+def locate(start: Path | None = None) -> Where:
+    start = (start or Path.cwd()).resolve()
+    for folder in (start, *start.parents):
+        if _is_project(folder):
+            return Where(root=folder, base=folder)
+    return Where(root=None, base=start)

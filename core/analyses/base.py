@@ -1,0 +1,89 @@
+"""What every analysis module provides, and what the runner, the CLI and ``estim check`` use.
+
+An analysis is a module registered by one line in :data:`core.analyses.ANALYSES`. It owns:
+
+``SCHEMA``      its config keys beyond the common ones of :mod:`core.config` (a schema of
+                :mod:`core.schema`; it may re-declare a common key, e.g. make ``model``
+                required)
+``TABLES``      ``{metric: TableSpec}``: every table it writes, its columns and the key that
+                joins a row to the reference (thesis or paper) table
+``prepare(spec, source) -> plan``   cross-checks beyond the schema (raising ``ConfigError``
+                with the key path) and the objects built once per experiment (models,
+                estimators); stored as ``Experiment.plan``
+``work_units(exp) -> int``          for progress reports
+``run(exp, jobs, on_done) -> Result``  tables (one DataFrame per metric) and figures
+``summary(result) -> str``          what ``estim run`` prints after a run
+``tiny(spec) -> spec``              the experiment shrunk to seconds (contract tests)
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import pandas as pd
+
+
+@dataclass(frozen=True)
+class TableSpec:
+    """A result table: ``file`` holds ``keys + values`` in this order.
+
+    ``reference`` names the value columns the reference table prints under the same name;
+    ``join`` pairs each of our key columns with the reference column (or the first present of
+    several accepted names) it matches. Each of our rows must match at most one reference
+    row, and every reference row must be matched (:func:`core.tables.with_reference`).
+    """
+
+    file: str
+    keys: tuple[str, ...]
+    values: tuple[str, ...]
+    reference: tuple[str, ...] = ()
+    join: tuple[tuple[str, tuple[str, ...]], ...] = ()
+    title: str = ""
+
+    @property
+    def columns(self) -> list[str]:
+        return [*self.keys, *self.values]
+
+
+@dataclass
+class Result:
+    tables: dict[str, pd.DataFrame]
+    figures: dict[str, Any] = field(default_factory=dict)
+
+
+class Analysis(Protocol):
+    SCHEMA: dict
+    TABLES: dict[str, TableSpec]
+
+    def prepare(self, spec: dict, source: str) -> Any: ...
+
+    def work_units(self, exp) -> int: ...
+
+    def run(self, exp, jobs: int = 1, on_done: Callable[[], None] | None = None) -> Result: ...
+
+    def summary(self, result: Result) -> str: ...
+
+    def tiny(self, spec: dict) -> dict: ...
+
+
+def map_tasks(fn: Callable[[Any], Any], tasks: Iterable, jobs: int = 1,
+              on_done: Callable[[], None] | None = None) -> list:
+    """``[fn(t) for t in tasks]``, in ``jobs`` processes when more than one; results keep the
+    order of ``tasks`` and ``on_done`` is called once per finished task."""
+    tasks = list(tasks)
+    out = []
+    if jobs > 1 and len(tasks) > 1:
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            for result in pool.map(fn, tasks):
+                out.append(result)
+                if on_done:
+                    on_done()
+    else:
+        for task in tasks:
+            out.append(fn(task))
+            if on_done:
+                on_done()
+    return out

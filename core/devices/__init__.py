@@ -1,0 +1,1 @@
+"""Device laws shared by the circuit models (one module per device)."""

@@ -1,0 +1,36 @@
+"""Every error class of the project.
+
+``EstimError`` is the root: the CLI turns a ``ConfigError`` (or ``UsageError``) into one line
+and exit 2, anything else raised after a run started into one line and exit 3.
+"""
+
+from __future__ import annotations
+
+
+class EstimError(Exception):
+    """Root of estim's own errors."""
+
+
+class ConfigError(EstimError, ValueError):
+    """A config is malformed; the message is one line naming the file and key path."""
+
+    def __init__(self, source: str, path: str, message: str) -> None:
+        self.source, self.path, self.message = source, path, message
+        where = f"{source}: {path}: " if path else f"{source}: "
+        super().__init__(where + message)
+
+
+class UsageError(EstimError):
+    """A command cannot do what was asked (a folder it may not write, a missing baseline)."""
+
+
+class ParameterError(EstimError, ValueError):
+    """A model parameter override names an unknown parameter or has a bad value."""
+
+
+class SimulationError(EstimError, RuntimeError):
+    """The stiff integration or the steady-state search failed."""
+
+
+class ReferenceJoinError(EstimError, ValueError):
+    """Our table and the reference table do not join one-to-one on the declared key."""

@@ -1,0 +1,191 @@
+"""Config validation: checks of single values, nested schemas, and the frozen Experiment.
+
+A schema is a mapping ``key -> (spec, default)`` where ``spec`` is a check function (returns
+``None`` or what was expected), a nested schema, or :func:`list_of` an item spec; ``REQUIRED``
+as default marks a mandatory key. Every error is a :class:`ConfigError` naming the file and
+the key path. Each analysis module declares its own schema with these pieces.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+import math
+import re
+from dataclasses import dataclass
+from typing import Any
+
+from core.errors import ConfigError, ParameterError
+
+REQUIRED = object()
+
+
+def number(positive: bool = False, minimum: float | None = None, below: float | None = None):
+    """A finite number (not a boolean), optionally positive, ``>= minimum``, ``< below``."""
+    def check(v):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            return "a finite number"
+        if positive and not v > 0:
+            return "a positive number"
+        if minimum is not None and v < minimum:
+            return f"a number >= {minimum}"
+        if below is not None and not v < below:
+            return f"a number < {below}"
+        return None
+    return check
+
+
+def integer(minimum: int = 1):
+    def check(v):
+        if isinstance(v, bool) or not isinstance(v, int) or v < minimum:
+            return f"an integer >= {minimum}"
+        return None
+    return check
+
+
+def text(choices=None):
+    """A non-empty string, optionally one of ``choices``."""
+    def check(v):
+        if not isinstance(v, str) or not v:
+            return "a non-empty string"
+        if choices is not None and v not in choices:
+            return f"one of {sorted(choices)}"
+        return None
+    return check
+
+
+def boolean(v):
+    return None if isinstance(v, bool) else "true or false"
+
+
+def mapping(v):
+    return None if isinstance(v, dict) else "a mapping"
+
+
+def file_name(v):
+    """Names that become files or folders: no path separators, not only dots."""
+    if not isinstance(v, str) or not re.fullmatch(r"[A-Za-z0-9_.-]+", v) or v.strip(".") == "":
+        return "letters, digits, '_', '-' or '.' only (it names a file)"
+    return None
+
+
+def list_of(item, nonempty: bool = True):
+    return ("list", item, nonempty)
+
+
+def validate(value: Any, spec: Any, source: str, path: str) -> Any:
+    """``value`` checked against ``spec``, with every default of a nested schema filled in."""
+    if isinstance(spec, dict):
+        if not isinstance(value, dict):
+            raise ConfigError(source, path, f"expected a mapping, got {type(value).__name__}")
+        unknown = sorted((k for k in value if k not in spec), key=str)
+        if unknown:
+            key = f"{path}.{unknown[0]}" if path else str(unknown[0])
+            raise ConfigError(source, key, f"unknown key; expected one of {sorted(spec)}")
+        out = {}
+        for key, (sub, default) in spec.items():
+            sub_path = f"{path}.{key}" if path else key
+            if key not in value or value[key] is None:
+                if default is REQUIRED:
+                    raise ConfigError(source, sub_path, "missing required key")
+                out[key] = validate(default, sub, source, sub_path) if isinstance(
+                    sub, dict) and default is not None else default
+                continue
+            out[key] = validate(value[key], sub, source, sub_path)
+        return out
+    if isinstance(spec, tuple) and spec[0] == "list":
+        _, item, nonempty = spec
+        if not isinstance(value, list):
+            raise ConfigError(source, path, f"expected a list, got {type(value).__name__}")
+        if nonempty and not value:
+            raise ConfigError(source, path, "expected a non-empty list")
+        return [validate(v, item, source, f"{path}[{i}]") for i, v in enumerate(value)]
+    problem = spec(value)
+    if problem:
+        raise ConfigError(source, path, f"expected {problem}, got {value!r}")
+    return value
+
+
+def simulation_block(rtol: float, atol: float) -> tuple[dict, dict]:
+    """The ``simulation`` schema (stiff solver for the actual signal) with an analysis'
+    default tolerances."""
+    return ({
+        "solver": (text({"batched_radau", "scipy"}), "batched_radau"),
+        "rtol": (number(positive=True, below=0.1), rtol),
+        "atol": (number(positive=True), atol),
+    }, {})
+
+
+def model_block(models: dict) -> tuple[dict, Any]:
+    """The ``model`` schema: a registered model, its variant and parameter overrides."""
+    return ({
+        "name": (text(models), REQUIRED),
+        "variant": (text(), None),
+        "params": (mapping, {}),
+    }, REQUIRED)
+
+
+def build_model(model_cls, variant, params: dict, source: str, path: str):
+    """``model_cls(variant, **params)``, with each bad parameter named at ``path``."""
+    fields = {f.name: f for f in dataclasses.fields(model_cls.Params)}
+    for key, value in params.items():
+        if key not in fields:
+            raise ConfigError(source, f"{path}.{key}",
+                              f"unknown parameter of {model_cls.name}; expected one of "
+                              f"{sorted(fields)}")
+        expected = type(fields[key].default)
+        if expected is float and (isinstance(value, bool) or not isinstance(value, (int, float))):
+            raise ConfigError(source, f"{path}.{key}", f"expected a number, got {value!r}")
+        if expected is str and not isinstance(value, str):
+            raise ConfigError(source, f"{path}.{key}", f"expected a string, got {value!r}")
+    try:
+        return model_cls(variant, **params)
+    except (ParameterError, ValueError, TypeError) as exc:
+        raise ConfigError(source, path, str(exc)) from None
+
+
+def build_estimator(est_cls, settings: dict, model, source: str, path: str):
+    """``est_cls(**settings)`` checked against ``model``; unknown or missing settings named."""
+    signature = inspect.signature(est_cls.__init__)
+    allowed = [p for p in signature.parameters if p != "self"]
+    for key in settings:
+        if key not in allowed:
+            raise ConfigError(source, f"{path}.{key}",
+                              f"unknown setting; expected one of {sorted(allowed)}")
+    missing = [p.name for p in signature.parameters.values()
+               if p.name != "self" and p.default is inspect.Parameter.empty
+               and p.name not in settings]
+    if missing:
+        raise ConfigError(source, f"{path}.{missing[0]}", "missing required setting")
+    try:
+        est = est_cls(**settings)
+        est.validate(model)
+    except (ValueError, TypeError) as exc:
+        raise ConfigError(source, path, str(exc)) from None
+    return est
+
+
+def check_input_vector(values: list, model_cls, source: str, path: str) -> None:
+    """One value per model input."""
+    if len(values) != len(model_cls.input_names):
+        raise ConfigError(source, path, f"expected {len(model_cls.input_names)} values, one per "
+                          f"model input {list(model_cls.input_names)}")
+
+
+@dataclass(frozen=True, eq=False)
+class Experiment:
+    """A validated experiment.
+
+    ``spec`` is the resolved config with every default filled (what the manifest records);
+    ``plan`` holds what the analysis built from it once at parse time (models, estimators),
+    so no work unit rebuilds or re-validates them.
+    """
+
+    name: str
+    source: str
+    spec: dict
+    plan: Any = None
+
+    @property
+    def analysis(self) -> str:
+        return self.spec["analysis"]
