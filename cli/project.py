@@ -41,7 +41,7 @@ class Where:
     def config_dir(self) -> Path:
         if self.root is not None:
             return self.root / "configs"
-        return Path(str(resources.files("cli").joinpath("configs")))
+        return shipped_configs()
 
     def configs(self) -> list[Path]:
         return sorted(self.config_dir.glob("*.yaml"))
@@ -61,6 +61,15 @@ class Where:
                     f"results in {self.results}/")
         return (f"no estim project at or above {self.base}: using the configs shipped with "
                 f"estim ({self.config_dir}/), results in {self.results}/")
+
+
+def shipped_configs() -> Path:
+    """The configs inside the installed package (``cli.configs``); in an editable install,
+    which maps no such package, the ``configs/`` of the source tree beside ``cli/``."""
+    try:
+        return Path(str(resources.files("cli.configs")))
+    except ModuleNotFoundError:
+        return Path(__file__).resolve().parents[1] / "configs"
 
 
 def locate(start: Path | None = None) -> Where:

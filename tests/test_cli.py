@@ -272,3 +272,54 @@ def test_distortion_and_gain_tables_beside_thesis(tmp_path):
     assert gain.exit_code == 2 and "no gain values" in gain.output    # a step has no gain
     check = runner.invoke(main, ["check", str(path), "--results", str(tmp_path / "res")])
     assert check.exit_code == 0, check.output
+
+
+def fake_project(tmp_path: Path, monkeypatch) -> Path:
+    """A project folder with the tiny config in configs/, as the working folder."""
+    root = tmp_path / "proj"
+    (root / "configs").mkdir(parents=True)
+    (root / "pyproject.toml").write_text('[project]\nname = "estim"\n')
+    (root / "configs" / "tiny.yaml").write_text(yaml.safe_dump(tiny_config()))
+    (root / "sub").mkdir()
+    monkeypatch.chdir(root / "sub")
+    return root
+
+
+def test_overridden_run_never_writes_the_baseline(tmp_path, monkeypatch):
+    root = fake_project(tmp_path, monkeypatch)
+    config = str(root / "configs" / "tiny.yaml")
+    runner = CliRunner()
+    result = runner.invoke(main, ["run", config, "--runs", "2"])
+    assert result.exit_code == 0, result.output
+    assert f"writing to {root / 'scratch'}/" in result.output
+    assert (root / "scratch/tiny/rmse.csv").is_file() and not (root / "results").exists()
+    refused = runner.invoke(main, ["run", config, "--runs", "2", "--out", str(root / "results")])
+    assert refused.exit_code == 2 and "--update-baseline" in refused.output
+    assert not (root / "results").exists()
+    forced = runner.invoke(main, ["run", config, "--runs", "2", "--update-baseline", "--quiet"])
+    assert forced.exit_code == 0 and (root / "results/tiny/rmse.csv").is_file()
+    # the stored 2-run baseline is not what the config says: check fails, naming the key
+    check = runner.invoke(main, ["check"])
+    assert check.exit_code == 1
+    assert "monte_carlo.runs: stored 2, config 3" in check.output
+    plain = runner.invoke(main, ["run", config, "--quiet"])
+    assert plain.exit_code == 0
+    assert runner.invoke(main, ["check"]).exit_code == 0
+
+
+def test_unwritable_out_fails_before_any_work(tmp_path):
+    path = write(tmp_path, tiny_config())
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    result = CliRunner().invoke(main, ["run", str(path), "--out", str(blocker / "sub")])
+    assert result.exit_code == 2
+    assert f"cannot write to {blocker / 'sub'}" in result.output
+    assert "work units" not in result.output
+
+
+def test_list_outside_a_project_uses_the_shipped_configs(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    result = CliRunner().invoke(main, ["list"])
+    assert result.exit_code == 0, result.output
+    assert "configs shipped with estim" in result.output
+    assert "mosfet_saturation" in result.output
