@@ -7,9 +7,9 @@ configs shipped inside the package are used and results go to ``./results``.
 
 from __future__ import annotations
 
+import importlib.util
 import re
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 
 
@@ -67,9 +67,12 @@ def shipped_configs() -> Path:
     """The configs inside the installed package (``cli.configs``); in an editable install,
     which maps no such package, the ``configs/`` of the source tree beside ``cli/``."""
     try:
-        return Path(str(resources.files("cli.configs")))
+        spec = importlib.util.find_spec("cli.configs")
     except ModuleNotFoundError:
-        return Path(__file__).resolve().parents[1] / "configs"
+        spec = None
+    if spec is not None and spec.submodule_search_locations:
+        return Path(list(spec.submodule_search_locations)[0])
+    return Path(__file__).resolve().parents[1] / "configs"
 
 
 def locate(start: Path | None = None) -> Where:

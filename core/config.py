@@ -15,31 +15,31 @@ from typing import Any
 
 import yaml
 
-from core import registry
+from core import registry, tables
 from core.analyses import ANALYSES
 from core.errors import ConfigError
 from core.schema import Experiment, integer, list_of, mapping, model_block, number, text, validate
 
 TOLERANCE: dict = {
-    "rtol": (number(minimum=0.0), 0.0),
+    "rtol": (number(minimum=0.0, maximum=1.0), 0.0),
     "atol": (number(minimum=0.0), 0.0),
-    "se": (number(positive=True), None),
-    "se_column": (text(), None),
-    "binomial": (number(positive=True), None),
-    "trials": (list_of(text()), None),
+    "se": (number(positive=True, maximum=10.0), None),
+    "se_column": (text(max_length=100), None),
+    "binomial": (number(positive=True, maximum=10.0), None),
+    "trials": (list_of(text(max_length=100), max_length=4), None),
     "skip": (text(), None),
 }
 """How ``estim check`` compares one column (see :func:`core.io.compare_tables`)."""
 
 COMMON: dict = {
-    "name": (text(), None),
+    "name": (text(max_length=100), None),
     "title": (text(), ""),
     "analysis": (text(ANALYSES), "estimation"),
-    "reproduces": (list_of(text()), []),
+    "reproduces": (list_of(text(max_length=20), max_length=50), []),
     "model": (model_block(registry.MODELS)[0], None),
     "monte_carlo": ({
-        "runs": (integer(1), 1),
-        "seed": (integer(0), 0),
+        "runs": (integer(1, 1_000_000), 1),
+        "seed": (integer(0, 2**63 - 1), 0),
     }, None),
     "check": ({
         "tolerances": (mapping, {}),
@@ -60,28 +60,104 @@ def spec_hash(spec: dict) -> str:
     return hashlib.sha256(text_.encode()).hexdigest()
 
 
+MAX_WORK = 50_000_000
+"""Default bound on an experiment's work (state-samples, ``work_size`` of its analysis);
+``--max-work`` raises it."""
+
+MAX_ALIASES = 64
+MAX_DEPTH = 32
+MAX_VALUES = 100_000
+"""Bounds on a YAML config: anchors/aliases, nesting depth, values after alias expansion."""
+
+
+class _ConfigLoader(yaml.SafeLoader):
+    """PyYAML's safe loader that refuses duplicate keys and bounds aliases and depth."""
+
+    def __init__(self, stream) -> None:
+        super().__init__(stream)
+        self._aliases = 0
+        self._depth = 0
+
+    def compose_node(self, parent, index):
+        if self.check_event(yaml.AliasEvent):
+            self._aliases += 1
+            if self._aliases > MAX_ALIASES:
+                raise _Refused(self.peek_event().start_mark,
+                               f"more than {MAX_ALIASES} YAML aliases")
+        self._depth += 1
+        try:
+            if self._depth > MAX_DEPTH:
+                raise _Refused(self.peek_event().start_mark,
+                               f"nested deeper than {MAX_DEPTH} levels")
+            return super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
+
+    def construct_mapping(self, node, deep=False):
+        seen = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=True)
+            try:
+                duplicate = key in seen
+            except TypeError:
+                raise _Refused(key_node.start_mark, "a key that is not a plain value") from None
+            if duplicate:
+                raise _Refused(key_node.start_mark, f"duplicate key {key!r}")
+            seen.add(key)
+        return super().construct_mapping(node, deep=deep)
+
+
+class _Refused(Exception):
+    def __init__(self, mark, message: str) -> None:
+        super().__init__(message)
+        self.mark, self.message = mark, message
+
+
+def _count_values(data: Any, source: str) -> None:
+    """Refuse a config that expands (through aliases) to more than ``MAX_VALUES`` values."""
+    stack, seen = [data], 0
+    while stack:
+        node = stack.pop()
+        seen += 1
+        if seen > MAX_VALUES:
+            raise ConfigError(source, "", f"the config expands to more than {MAX_VALUES} "
+                              "values (YAML aliases?)")
+        if isinstance(node, dict):
+            stack.extend(node.keys())
+            stack.extend(node.values())
+        elif isinstance(node, list):
+            stack.extend(node)
+
+
 def load_yaml(text_: str, source: str) -> dict:
+    """The mapping in YAML ``text_``; every problem a one-line :class:`ConfigError`."""
     try:
-        data = yaml.safe_load(text_)
+        data = yaml.load(text_, Loader=_ConfigLoader)  # noqa: S506 - a SafeLoader subclass
+    except _Refused as exc:
+        raise ConfigError(source, f"line {exc.mark.line + 1}", exc.message) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}" if mark else ""
-        raise ConfigError(source, where, f"not valid YAML ({getattr(exc, 'problem', exc)})") \
-            from None
+        problem = str(getattr(exc, "problem", None) or exc).splitlines()[0]
+        raise ConfigError(source, where, f"not valid YAML ({problem})") from None
+    except RecursionError:
+        raise ConfigError(source, "", f"nested deeper than {MAX_DEPTH} levels") from None
     if data is None:
         raise ConfigError(source, "", "the file is empty")
     if not isinstance(data, dict):
         raise ConfigError(source, "", f"expected a mapping, got {type(data).__name__}")
+    _count_values(data, source)
     return data
 
 
-def parse(text_: str, source: str, default_name: str) -> Experiment:
+def parse(text_: str, source: str, default_name: str, max_work: int = MAX_WORK) -> Experiment:
     """Validate YAML ``text_`` read from ``source`` (a path shown in messages)."""
-    return parse_data(load_yaml(text_, source), source, default_name)
+    return parse_data(load_yaml(text_, source), source, default_name, max_work)
 
 
-def parse_data(data: dict, source: str, default_name: str) -> Experiment:
-    """Validate an already loaded config mapping."""
+def parse_data(data: dict, source: str, default_name: str,
+               max_work: int = MAX_WORK) -> Experiment:
+    """Validate an already loaded config mapping; ``max_work`` bounds its work size."""
     data = copy.deepcopy(data)
     analysis = data.get("analysis") or "estimation"
     validate(analysis, text(ANALYSES), source, "analysis")
@@ -97,11 +173,49 @@ def parse_data(data: dict, source: str, default_name: str) -> Experiment:
         if model_cls.variants and variant is not None and variant not in model_cls.variants:
             raise ConfigError(source, "model.variant",
                               f"expected one of {sorted(model_cls.variants)}, got {variant!r}")
-    plan = ANALYSES[analysis].prepare(spec, source)
+    module = ANALYSES[analysis]
+    _check_table_ids(spec, module, source)
+    work = module.work_size(spec)
+    if work > max_work:
+        raise ConfigError(source, "", f"the experiment computes about {work:.3g} state-samples, "
+                          f"more than the limit {max_work:.3g} (raise it with --max-work)")
+    plan = module.prepare(spec, source)
+    _check_tolerances(spec, module, source)
+    return Experiment(name=spec["name"], source=source, spec=spec, plan=plan)
+
+
+def _check_table_ids(spec: dict, module, source: str) -> None:
+    """Each ``tables.<metric>`` names a shipped reference table this metric may join."""
+    for metric, table_id in (spec.get("tables") or {}).items():
+        table = module.TABLES.get(metric)
+        if table_id is None or table is None:
+            continue
+        if table.reference_ids and table_id not in table.reference_ids:
+            raise ConfigError(source, f"tables.{metric}", f"expected one of "
+                              f"{list(table.reference_ids)} for a {metric} table, got "
+                              f"{table_id!r}")
+        if not tables.has_reference_table(table_id):
+            raise ConfigError(source, f"tables.{metric}",
+                              f"no thesis Table {table_id} ships with estim")
+
+
+def _check_tolerances(spec: dict, module, source: str) -> None:
+    """Tolerances are for columns the analysis writes, and name columns that exist."""
+    columns = {c for table in module.TABLES.values() for c in table.columns}
     tolerances = spec["check"]["tolerances"]
     for column, tol in tolerances.items():
-        tolerances[column] = validate(tol, TOLERANCE, source, f"check.tolerances.{column}")
-    return Experiment(name=spec["name"], source=source, spec=spec, plan=plan)
+        path = f"check.tolerances.{column}"
+        if column not in columns:
+            raise ConfigError(source, path, f"no table of a {spec['analysis']} analysis has "
+                              f"this column; expected one of {sorted(columns)}")
+        tolerances[column] = tol = validate(tol, TOLERANCE, source, path)
+        named = [tol["se_column"]] if tol["se_column"] else []
+        for other in named + (tol["trials"] or []):
+            if other not in columns:
+                raise ConfigError(source, path, f"no column {other!r}")
+        if tol["binomial"] is not None and not tol["trials"]:
+            raise ConfigError(source, f"{path}.trials", "binomial needs the columns whose sum "
+                              "is the number of runs")
 
 
 def apply_overrides(data: dict, overrides: dict[str, Any]) -> dict:

@@ -9,7 +9,6 @@ the key path. Each analysis module declares its own schema with these pieces.
 from __future__ import annotations
 
 import dataclasses
-import inspect
 import math
 import re
 from dataclasses import dataclass
@@ -19,35 +18,46 @@ from core.errors import ConfigError, ParameterError
 
 REQUIRED = object()
 
+MAX_VOLTS = 1e3
+"""Bound on every voltage and noise level of a config: far above any circuit here, far below
+what overflows the device laws."""
 
-def number(positive: bool = False, minimum: float | None = None, below: float | None = None):
-    """A finite number (not a boolean), optionally positive, ``>= minimum``, ``< below``."""
+
+def number(positive: bool = False, minimum: float | None = None, below: float | None = None,
+           maximum: float | None = None):
+    """A finite number (not a boolean), optionally positive, ``>= minimum``, ``< below``,
+    ``<= maximum``."""
     def check(v):
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
             return "a finite number"
         if positive and not v > 0:
             return "a positive number"
         if minimum is not None and v < minimum:
-            return f"a number >= {minimum}"
+            return f"a number >= {minimum:g}"
         if below is not None and not v < below:
-            return f"a number < {below}"
+            return f"a number < {below:g}"
+        if maximum is not None and v > maximum:
+            return f"a number <= {maximum:g}"
         return None
     return check
 
 
-def integer(minimum: int = 1):
+def integer(minimum: int = 1, maximum: int = 10**9):
     def check(v):
-        if isinstance(v, bool) or not isinstance(v, int) or v < minimum:
-            return f"an integer >= {minimum}"
+        if isinstance(v, bool) or not isinstance(v, int) or not minimum <= v <= maximum:
+            return f"an integer from {minimum} to {maximum}"
         return None
     return check
 
 
-def text(choices=None):
-    """A non-empty string, optionally one of ``choices``."""
+def text(choices=None, max_length: int = 200):
+    """A non-empty string of at most ``max_length`` characters, optionally one of
+    ``choices``."""
     def check(v):
         if not isinstance(v, str) or not v:
             return "a non-empty string"
+        if len(v) > max_length:
+            return f"a string of at most {max_length} characters"
         if choices is not None and v not in choices:
             return f"one of {sorted(choices)}"
         return None
@@ -62,15 +72,36 @@ def mapping(v):
     return None if isinstance(v, dict) else "a mapping"
 
 
+MAX_NAME = 100
+
+
 def file_name(v):
-    """Names that become files or folders: no path separators, not only dots."""
-    if not isinstance(v, str) or not re.fullmatch(r"[A-Za-z0-9_.-]+", v) or v.strip(".") == "":
-        return "letters, digits, '_', '-' or '.' only (it names a file)"
+    """Names that become files or folders: no path separators, not only dots, bounded."""
+    if not isinstance(v, str) or not re.fullmatch(r"[A-Za-z0-9_.-]+", v) or v.strip(".") == "" \
+            or len(v) > MAX_NAME:
+        return (f"letters, digits, '_', '-' or '.' only, at most {MAX_NAME} characters "
+                "(it names a file)")
     return None
 
 
-def list_of(item, nonempty: bool = True):
-    return ("list", item, nonempty)
+def matrix(v):
+    """A covariance or system matrix: a number, a list of numbers (the diagonal) or a list of
+    rows, all finite, at most 64 x 64."""
+    ok = number()
+    if ok(v) is None:
+        return None
+    if isinstance(v, list) and 0 < len(v) <= 64:
+        if all(ok(x) is None for x in v):
+            return None
+        if all(isinstance(r, list) and len(r) == len(v[0]) and 0 < len(r) <= 64
+               and all(ok(x) is None for x in r) for r in v):
+            return None
+    return "a finite number, a list of finite numbers or a list of equal-length rows"
+
+
+def list_of(item, nonempty: bool = True, max_length: int = 100, unique: bool = False):
+    """A list of ``item``; at most ``max_length`` entries; with ``unique``, no repeats."""
+    return ("list", item, nonempty, max_length, unique)
 
 
 def validate(value: Any, spec: Any, source: str, path: str) -> Any:
@@ -78,7 +109,11 @@ def validate(value: Any, spec: Any, source: str, path: str) -> Any:
     if isinstance(spec, dict):
         if not isinstance(value, dict):
             raise ConfigError(source, path, f"expected a mapping, got {type(value).__name__}")
-        unknown = sorted((k for k in value if k not in spec), key=str)
+        odd = [k for k in value if not isinstance(k, str)]
+        if odd:
+            raise ConfigError(source, path or "(top level)",
+                              f"key {odd[0]!r} is not a string; expected one of {sorted(spec)}")
+        unknown = sorted(k for k in value if k not in spec)
         if unknown:
             key = f"{path}.{unknown[0]}" if path else str(unknown[0])
             raise ConfigError(source, key, f"unknown key; expected one of {sorted(spec)}")
@@ -94,12 +129,20 @@ def validate(value: Any, spec: Any, source: str, path: str) -> Any:
             out[key] = validate(value[key], sub, source, sub_path)
         return out
     if isinstance(spec, tuple) and spec[0] == "list":
-        _, item, nonempty = spec
+        _, item, nonempty, max_length, unique = spec
         if not isinstance(value, list):
             raise ConfigError(source, path, f"expected a list, got {type(value).__name__}")
         if nonempty and not value:
             raise ConfigError(source, path, "expected a non-empty list")
-        return [validate(v, item, source, f"{path}[{i}]") for i, v in enumerate(value)]
+        if len(value) > max_length:
+            raise ConfigError(source, path, f"expected at most {max_length} entries, got "
+                              f"{len(value)}")
+        out = [validate(v, item, source, f"{path}[{i}]") for i, v in enumerate(value)]
+        if unique:
+            for i, v in enumerate(out):
+                if v in out[:i]:
+                    raise ConfigError(source, f"{path}[{i}]", f"repeats {v!r}")
+        return out
     problem = spec(value)
     if problem:
         raise ConfigError(source, path, f"expected {problem}, got {value!r}")
@@ -145,22 +188,17 @@ def build_model(model_cls, variant, params: dict, source: str, path: str):
 
 
 def build_estimator(est_cls, settings: dict, model, source: str, path: str):
-    """``est_cls(**settings)`` checked against ``model``; unknown or missing settings named."""
-    signature = inspect.signature(est_cls.__init__)
-    allowed = [p for p in signature.parameters if p != "self"]
-    for key in settings:
-        if key not in allowed:
-            raise ConfigError(source, f"{path}.{key}",
-                              f"unknown setting; expected one of {sorted(allowed)}")
-    missing = [p.name for p in signature.parameters.values()
-               if p.name != "self" and p.default is inspect.Parameter.empty
-               and p.name not in settings]
-    if missing:
-        raise ConfigError(source, f"{path}.{missing[0]}", "missing required setting")
+    """``est_cls(**settings)`` checked against its ``SETTINGS`` schema and ``model``.
+
+    ``SETTINGS`` marks required settings with ``REQUIRED`` and optional ones with ``None``:
+    the defaults belong to the estimator's constructor, so an unset key is not passed.
+    """
+    checked = validate(settings, est_cls.SETTINGS, source, path)
+    settings = {k: v for k, v in checked.items() if k in settings}
     try:
         est = est_cls(**settings)
         est.validate(model)
-    except (ValueError, TypeError) as exc:
+    except (ValueError, TypeError, OverflowError) as exc:
         raise ConfigError(source, path, str(exc)) from None
     return est
 

@@ -11,6 +11,7 @@ An analysis is a module registered by one line in :data:`core.analyses.ANALYSES`
                 with the key path) and the objects built once per experiment (models,
                 estimators); stored as ``Experiment.plan``
 ``work_units(exp) -> int``          for progress reports
+``work_size(spec) -> int``          state-samples the run computes, bounded by ``--max-work``
 ``run(exp, jobs, on_done) -> Result``  tables (one DataFrame per metric) and figures
 ``summary(result) -> str``          what ``estim run`` prints after a run
 ``tiny(spec) -> spec``              the experiment shrunk to seconds (contract tests)
@@ -42,6 +43,8 @@ class TableSpec:
     reference: tuple[str, ...] = ()
     join: tuple[tuple[str, tuple[str, ...]], ...] = ()
     title: str = ""
+    reference_ids: tuple[str, ...] = ()
+    """The reference tables a config may name for this table (``tables.<metric>``)."""
 
     @property
     def columns(self) -> list[str]:
@@ -61,6 +64,8 @@ class Analysis(Protocol):
     def prepare(self, spec: dict, source: str) -> Any: ...
 
     def work_units(self, exp) -> int: ...
+
+    def work_size(self, spec: dict) -> int: ...
 
     def run(self, exp, jobs: int = 1, on_done: Callable[[], None] | None = None) -> Result: ...
 

@@ -29,6 +29,7 @@ from core import metrics, plots, registry, signals, tables
 from core.analyses.base import Result, TableSpec, map_tasks
 from core.errors import ConfigError
 from core.schema import (
+    MAX_VOLTS,
     REQUIRED,
     Experiment,
     boolean,
@@ -54,51 +55,51 @@ SCHEMA: dict = {
     "model": model_block(registry.MODELS),
     "input": ({
         "waveform": (text({"sine"}), "sine"),
-        "amplitude_v": (number(minimum=0.0), REQUIRED),
-        "frequencies_hz": (list_of(number(positive=True)), REQUIRED),
-        "samples_per_period": (integer(2), 10),
-        "sample_time_s": (number(positive=True), None),
-        "periods": (integer(1), None),
-        "duration_s": (number(positive=True), None),
-        "bias_v": (list_of(number()), [0.0]),
-        "mix": (list_of(number()), [1.0]),
+        "amplitude_v": (number(minimum=0.0, maximum=MAX_VOLTS), REQUIRED),
+        "frequencies_hz": (list_of(number(minimum=1e-3, maximum=1e9)), REQUIRED),
+        "samples_per_period": (integer(2, 10_000), 10),
+        "sample_time_s": (number(minimum=1e-12, maximum=1e3), None),
+        "periods": (integer(1, 100_000), None),
+        "duration_s": (number(minimum=1e-9, maximum=1e4), None),
+        "bias_v": (list_of(number(minimum=-MAX_VOLTS, maximum=MAX_VOLTS)), [0.0]),
+        "mix": (list_of(number(minimum=-1e3, maximum=1e3)), [1.0]),
     }, REQUIRED),
     "noise": ({
-        "input_levels": (list_of(number(positive=True)), REQUIRED),
-        "readings": (list_of(_READING), ["sigma"]),
-        "measurement_sigma": (number(minimum=0.0), REQUIRED),
+        "input_levels": (list_of(number(positive=True, maximum=MAX_VOLTS)), REQUIRED),
+        "readings": (list_of(_READING, unique=True), ["sigma"]),
+        "measurement_sigma": (number(minimum=0.0, maximum=MAX_VOLTS), REQUIRED),
         "filters_see": (text({"nominal", "noisy"}), "nominal"),
         "pairs": (boolean, False),
     }, REQUIRED),
     "simulation": simulation_block(rtol=1e-6, atol=1e-7),
     "estimators": (list_of({
-        "label": (text(), REQUIRED),
+        "label": (text(max_length=60), REQUIRED),
         "type": (text(registry.ESTIMATORS), REQUIRED),
         "model_params": (mapping, {}),
         "settings": (mapping, {}),
-    }), REQUIRED),
+    }, max_length=20), REQUIRED),
     "monte_carlo": ({
-        "runs": (integer(1), REQUIRED),
-        "seed": (integer(0), REQUIRED),
+        "runs": (integer(1, 1_000_000), REQUIRED),
+        "seed": (integer(0, 2**63 - 1), REQUIRED),
     }, REQUIRED),
     "tables": ({
         "rmse": (text(), None),
         "residual": (text(), None),
     }, REQUIRED),
     "claims": (list_of({
-        "better": (text(), REQUIRED),
-        "worse": (text(), REQUIRED),
-    }, nonempty=False), []),
+        "better": (text(max_length=60), REQUIRED),
+        "worse": (text(max_length=60), REQUIRED),
+    }, nonempty=False, max_length=20), []),
     "figures": ({
-        "frequency_hz": (number(positive=True), None),
-        "noise_level": (number(positive=True), None),
+        "frequency_hz": (number(minimum=1e-3, maximum=1e9), None),
+        "noise_level": (number(positive=True, maximum=MAX_VOLTS), None),
         "reading": (_READING, None),
         "names": (mapping, {}),
         "extra_noisy": (list_of({
-            "noise_level": (number(positive=True), REQUIRED),
+            "noise_level": (number(positive=True, maximum=MAX_VOLTS), REQUIRED),
             "reading": (_READING, "sigma"),
             "name": (file_name, REQUIRED),
-        }, nonempty=False), []),
+        }, nonempty=False, max_length=20), []),
     }, {}),
 }
 
@@ -108,12 +109,14 @@ _JOIN = (("s_no", ("s_no",)), ("estimator", ("estimator",)))
 
 TABLES = {
     "rmse": TableSpec("rmse.csv", _ROW_KEYS, ("rmse", "rmse_se", "runs", "diverged"),
-                      reference=("rmse",), join=_JOIN, title="RMSE (eq 3.42)"),
+                      reference=("rmse",), join=_JOIN, title="RMSE (eq 3.42)",
+                      reference_ids=("3.1", "3.2", "3.5")),
     "residual": TableSpec("residual.csv", _ROW_KEYS,
                           ("residual_mean", "residual_mean_se", "residual_variance",
                            "residual_variance_se", "runs", "diverged"),
                           reference=("residual_mean", "residual_variance"), join=_JOIN,
-                          title="residual (innovation) mean and variance"),
+                          title="residual (innovation) mean and variance",
+                          reference_ids=("3.3", "3.4")),
     "claims": TableSpec("claims.csv",
                         ("claim", "s_no", "noise_reading", "noise_param", "frequency_hz",
                          "better", "worse"),
@@ -143,9 +146,21 @@ def prepare(spec: dict, source: str) -> Plan:
                           "give exactly one of input.periods and input.duration_s")
     for key in ("bias_v", "mix"):
         check_input_vector(inp[key], model_cls, source, f"input.{key}")
-    if noise["pairs"] and len(noise["input_levels"]) != len(inp["frequencies_hz"]):
-        raise ConfigError(source, "noise.pairs", "with pairs: true, noise.input_levels and "
-                          "input.frequencies_hz must have the same length")
+    if noise["pairs"]:
+        if len(noise["input_levels"]) != len(inp["frequencies_hz"]):
+            raise ConfigError(source, "noise.pairs", "with pairs: true, noise.input_levels and "
+                              "input.frequencies_hz must have the same length")
+        cells = list(zip(noise["input_levels"], inp["frequencies_hz"], strict=True))
+        for i, cell in enumerate(cells):
+            if cell in cells[:i]:
+                raise ConfigError(source, f"input.frequencies_hz[{i}]",
+                                  f"repeats the (noise level, frequency) pair {cell}")
+    else:
+        for key, values in (("noise.input_levels", noise["input_levels"]),
+                            ("input.frequencies_hz", inp["frequencies_hz"])):
+            for i, v in enumerate(values):
+                if v in values[:i]:
+                    raise ConfigError(source, f"{key}[{i}]", f"repeats {v!r}")
     truth = build_model(model_cls, variant, spec["model"]["params"], source, "model.params")
     filters, labels = [], []
     for i, est in enumerate(spec["estimators"]):
@@ -158,10 +173,9 @@ def prepare(spec: dict, source: str) -> Plan:
         estimator = build_estimator(registry.ESTIMATORS[est["type"]], est["settings"], model,
                                     source, f"{path}.settings")
         filters.append((est["label"], estimator, model))
-    for metric, table_id in spec["tables"].items():
-        if table_id is not None and not tables.has_reference_table(table_id):
-            raise ConfigError(source, f"tables.{metric}",
-                              f"no thesis Table {table_id} ships with estim")
+    if not any(spec["tables"].values()):
+        raise ConfigError(source, "tables", "expected at least one of tables.rmse and "
+                          "tables.residual")
     for i, claim in enumerate(spec["claims"]):
         for side in ("better", "worse"):
             if claim[side] not in labels:
@@ -169,12 +183,43 @@ def prepare(spec: dict, source: str) -> Plan:
                                   f"expected an estimator label {labels}, got {claim[side]!r}")
         if spec["tables"]["rmse"] is None:
             raise ConfigError(source, "claims", "claims compare RMSEs: set tables.rmse")
-    for kind, name in spec["figures"]["names"].items():
+    names = spec["figures"]["names"]
+    for kind, name in names.items():
         if kind not in FIGURE_KINDS:
             raise ConfigError(source, f"figures.names.{kind}",
                               f"unknown figure kind; expected one of {list(FIGURE_KINDS)}")
         validate(name, file_name, source, f"figures.names.{kind}")
+    used = {names.get(kind, kind): f"figures.names.{kind}" for kind in FIGURE_KINDS}
+    if len(used) < len(FIGURE_KINDS):
+        raise ConfigError(source, "figures.names", "two figure kinds share one file name")
+    for i, extra in enumerate(spec["figures"]["extra_noisy"]):
+        if extra["name"] in used:
+            raise ConfigError(source, f"figures.extra_noisy[{i}].name",
+                              f"{extra['name']!r} is already the file of {used[extra['name']]}")
+        used[extra["name"]] = f"figures.extra_noisy[{i}].name"
+    dt = inp["sample_time_s"]
+    if dt is not None and dt * max(inp["frequencies_hz"]) > 10:
+        raise ConfigError(source, "input.sample_time_s",
+                          f"{dt:g} s samples the highest input frequency "
+                          f"{max(inp['frequencies_hz']):g} Hz fewer than once in ten periods")
     return Plan(truth=truth, filters=tuple(filters))
+
+
+def work_size(spec: dict) -> int:
+    """State-samples of the actual signal over every sweep point and figure batch."""
+    n = len(registry.MODELS[spec["model"]["name"]].state_names)
+    inp, mc = spec["input"], spec["monte_carlo"]
+    per_freq = 0
+    for f in inp["frequencies_hz"]:
+        dt = inp["sample_time_s"] or 1.0 / (inp["samples_per_period"] * f)
+        span = inp["duration_s"] if inp["duration_s"] is not None else (
+            (inp["periods"] or 1) / f)
+        per_freq += span / dt
+    batches = len(spec["noise"]["readings"]) * len(spec["noise"]["input_levels"])
+    if spec["noise"]["pairs"]:
+        batches = len(spec["noise"]["readings"])
+    figures = 2 + len(spec["figures"]["extra_noisy"])
+    return int(mc["runs"] * n * (per_freq * batches + figures * per_freq))
 
 
 def tiny(spec: dict) -> dict:

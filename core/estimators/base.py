@@ -56,6 +56,22 @@ def as_matrix(value, n: int, name: str) -> np.ndarray:
     raise ValueError(f"{name}: expected a scalar, {n} diagonal entries or an {n}x{n} matrix")
 
 
+def check_covariance(value, n: int, name: str, definite: bool = False) -> np.ndarray:
+    """``value`` as an ``(n, n)`` covariance; ``ValueError`` unless finite, symmetric and
+    positive semidefinite (positive definite with ``definite``)."""
+    M = as_matrix(value, n, name)
+    if not np.all(np.isfinite(M)):
+        raise ValueError(f"{name}: entries must be finite")
+    if not np.allclose(M, M.T, rtol=1e-12, atol=0.0):
+        raise ValueError(f"{name}: not symmetric")
+    lowest = float(np.linalg.eigvalsh(M)[0])
+    scale = float(np.max(np.abs(M), initial=0.0))
+    if lowest < -1e-12 * scale or (definite and not lowest > 0):
+        kind = "positive definite" if definite else "positive semidefinite"
+        raise ValueError(f"{name}: not {kind} (smallest eigenvalue {lowest:.3g})")
+    return M
+
+
 def joseph_update(x: np.ndarray, P: np.ndarray, innovation: np.ndarray, H: np.ndarray,
                   R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Measurement update (eqs A.5-A.7, A.14-A.16) in Joseph form, batched.

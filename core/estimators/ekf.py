@@ -10,7 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 from core import discretize
-from core.estimators.base import Estimate, as_matrix, batch_input, joseph_update
+from core.estimators.base import Estimate, as_matrix, batch_input, check_covariance, joseph_update
+from core.schema import REQUIRED, integer, list_of, matrix, number, text
 
 
 class ExtendedKalmanFilter:
@@ -27,6 +28,16 @@ class ExtendedKalmanFilter:
         diverged and frozen (from that step on its estimates are NaN).
     """
 
+    SETTINGS = {
+        "Q": (matrix, REQUIRED),
+        "R": (matrix, REQUIRED),
+        "P0": (matrix, REQUIRED),
+        "x0": (list_of(number(), max_length=64), None),
+        "discretization": (text(discretize.METHODS), None),
+        "substeps": (integer(1, 1000), None),
+        "divergence_bound": (number(positive=True, maximum=1e12), None),
+    }
+
     def __init__(self, Q, R, P0, x0=None, discretization: str = "exponential",
                  substeps: int = 1, divergence_bound: float = 1e3) -> None:
         if discretization not in discretize.METHODS:
@@ -40,10 +51,9 @@ class ExtendedKalmanFilter:
     def validate(self, model) -> None:
         """Raise ``ValueError`` for settings that cannot run with ``model``."""
         n, m = model.n_states, model.n_outputs
-        for name, value, size in (("Q", self.Q, n), ("R", self.R, m), ("P0", self.P0, n)):
-            M = as_matrix(value, size, name)
-            if not np.all(np.isfinite(M)) or np.any(np.diag(M) < 0):
-                raise ValueError(f"{name}: entries must be finite and the diagonal >= 0")
+        check_covariance(self.Q, n, "Q")
+        check_covariance(self.P0, n, "P0")
+        check_covariance(self.R, m, "R", definite=True)
         if self.substeps < 1:
             raise ValueError(f"substeps must be >= 1, got {self.substeps}")
         if self.x0 is not None and np.size(self.x0) != n:

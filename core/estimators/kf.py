@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.estimators.base import Estimate, as_matrix, batch_input, joseph_update
+from core.estimators.base import Estimate, as_matrix, batch_input, check_covariance, joseph_update
+from core.schema import REQUIRED, list_of, matrix, number
 
 
 class KalmanFilter:
@@ -14,6 +15,16 @@ class KalmanFilter:
     initial estimate is the ``x0`` setting; without it, the ``x0`` given to :meth:`run` (the
     analyses pass the actual operating point, as for the EKF), else zero.
     """
+
+    SETTINGS = {
+        "A": (matrix, REQUIRED),
+        "B": (matrix, REQUIRED),
+        "C": (matrix, REQUIRED),
+        "Q": (matrix, REQUIRED),
+        "R": (matrix, REQUIRED),
+        "P0": (matrix, REQUIRED),
+        "x0": (list_of(number(), max_length=64), None),
+    }
 
     def __init__(self, A, B, C, Q, R, P0, x0=None) -> None:
         self.A = np.atleast_2d(np.asarray(A, float))
@@ -26,7 +37,11 @@ class KalmanFilter:
         self.P0 = as_matrix(P0, n, "P0")
 
     def validate(self, model) -> None:
-        """The matrices were checked when the filter was built."""
+        """The covariances: finite, symmetric, positive (semi)definite."""
+        n = self.A.shape[0]
+        check_covariance(self.Q, n, "Q")
+        check_covariance(self.P0, n, "P0")
+        check_covariance(self.R, self.C.shape[0], "R", definite=True)
 
     def run(self, model, z: np.ndarray, u: np.ndarray, dt: float | None = None,
             x0: np.ndarray | None = None) -> Estimate:

@@ -26,10 +26,20 @@ from __future__ import annotations
 import numpy as np
 
 from core.estimators.base import Estimate, batch_input
+from core.schema import boolean, integer, number
 
 
 class RecursiveLeastSquares:
     """RLS-VFF output estimator; see the module docstring for the recursion."""
+
+    SETTINGS = {
+        "order": (integer(1, 200), None),
+        "chi": (number(positive=True, maximum=1e12), None),
+        "lambda0": (number(positive=True, maximum=1.0), None),
+        "lambda_min": (number(positive=True, maximum=1.0), None),
+        "delta": (number(positive=True, maximum=1e12), None),
+        "bias": (boolean, None),
+    }
 
     def __init__(self, order: int = 10, chi: float = 1.0, lambda0: float = 0.99,
                  lambda_min: float = 0.9, delta: float = 100.0, bias: bool = True) -> None:
