@@ -5,10 +5,13 @@ Exit codes: 0 ok, 1 a check found differences, 2 a usage or config error, 3 a ru
 
 from __future__ import annotations
 
+import csv
 import json
+import stat
 import sys
 import tempfile
 import time
+import warnings
 from pathlib import Path
 
 import click
@@ -19,7 +22,7 @@ import core
 from cli import project
 from core import io, runner, tables
 from core.analyses import ANALYSES
-from core.config import apply_overrides, load_yaml, parse_data, spec_hash
+from core.config import MAX_WORK, apply_overrides, load_yaml, parse_data, spec_hash
 from core.errors import ConfigError, ReferenceJoinError, UsageError
 from core.schema import Experiment
 
@@ -29,24 +32,38 @@ def fail(message: str) -> None:
     sys.exit(2)
 
 
-def load(path: Path, overrides: dict | None = None) -> Experiment:
+MAX_CONFIG_BYTES = 1 << 20
+
+
+def load(path: Path, overrides: dict | None = None, max_work: int = MAX_WORK) -> Experiment:
+    """Read and validate one config file (a regular file of at most 1 MiB of UTF-8)."""
     try:
-        text = path.read_text()
+        info = path.stat()
+        if not stat.S_ISREG(info.st_mode):
+            raise ConfigError(str(path), "", "not a regular file")
+        if info.st_size > MAX_CONFIG_BYTES:
+            raise ConfigError(str(path), "", f"larger than {MAX_CONFIG_BYTES // 1024} KiB")
+        with path.open("rb") as fh:
+            raw = fh.read(MAX_CONFIG_BYTES + 1)
     except FileNotFoundError:
         raise ConfigError(str(path), "", "no such file") from None
     except OSError as exc:
-        raise ConfigError(str(path), "", f"cannot read ({exc.strerror})") from None
+        raise ConfigError(str(path), "", f"cannot read ({exc.strerror or exc})") from None
+    if len(raw) > MAX_CONFIG_BYTES:
+        raise ConfigError(str(path), "", f"larger than {MAX_CONFIG_BYTES // 1024} KiB")
+    try:
+        text = raw.decode("utf-8")
     except UnicodeDecodeError:
         raise ConfigError(str(path), "", "not a UTF-8 text file") from None
     data = load_yaml(text, str(path))
     if overrides:
         data = apply_overrides(data, overrides)
-    return parse_data(data, str(path), path.stem)
+    return parse_data(data, str(path), path.stem, max_work)
 
 
-def load_all(paths, overrides: dict | None = None) -> list[Experiment]:
+def load_all(paths, overrides: dict | None = None, max_work: int = MAX_WORK) -> list[Experiment]:
     try:
-        exps = [load(Path(p), overrides) for p in paths]
+        exps = [load(Path(p), overrides, max_work) for p in paths]
     except ConfigError as exc:
         fail(str(exc))
     names = [e.name for e in exps]
@@ -57,35 +74,66 @@ def load_all(paths, overrides: dict | None = None) -> list[Experiment]:
 
 
 def run_one(exp: Experiment, out: Path, jobs: int, quiet: bool) -> runner.Result:
+    """Run ``exp`` and write ``out/<name>/`` as a unit: all old or all new (core.io)."""
     start = time.perf_counter()
     total = runner.work_units(exp)
-    if quiet or not sys.stderr.isatty():
-        if not quiet:
-            click.echo(f"{exp.name}: {total} work units ...", err=True)
-        result = runner.execute(exp, jobs)
-    else:
-        with click.progressbar(length=total, label=exp.name, file=sys.stderr) as bar:
-            result = runner.execute(exp, jobs, on_done=lambda: bar.update(1))
-    folder = out / exp.name
-    for metric, df in result.tables.items():
-        io.write_csv(df, folder / f"{metric}.csv")
-    for name, fig in result.figures.items():
-        io.write_figure(fig, folder / "figures" / f"{name}.png")
-        plt.close(fig)
-    produced = {f"{metric}.csv" for metric in result.tables}
-    produced |= {f"figures/{name}.png" for name in result.figures}
-    io.remove_stale(folder, produced)
-    io.write_manifest(folder, exp.spec, spec_hash(exp.spec), time.perf_counter() - start,
-                      command=" ".join(["estim", *sys.argv[1:]]))
+    with io.ResultFolder(out, exp.name) as folder:
+        if quiet or not sys.stderr.isatty():
+            if not quiet:
+                click.echo(f"{exp.name}: {total} work units ...", err=True)
+            result = runner.execute(exp, jobs)
+        else:
+            with click.progressbar(length=total, label=exp.name, file=sys.stderr) as bar:
+                result = runner.execute(exp, jobs, on_done=lambda: bar.update(1))
+        for metric, df in result.tables.items():
+            io.write_csv(df, folder.path / f"{metric}.csv")
+        for name, fig in result.figures.items():
+            io.write_figure(fig, folder.path / "figures" / f"{name}.png")
+            plt.close(fig)
+        io.write_manifest(folder.path, exp.spec, spec_hash(exp.spec),
+                          time.perf_counter() - start, command=" ".join(["estim", *sys.argv[1:]]))
+        folder.commit()
     return result
 
 
-def read_table(path: Path) -> pd.DataFrame:
-    """A stored result table, with an empty ``table_id`` kept as an empty string."""
-    df = pd.read_csv(path, dtype={"table_id": str}, keep_default_na=False,
-                     na_values=["", "NaN", "nan", "<NA>"])
+def read_table(path: Path, spec=None) -> pd.DataFrame:
+    """A stored result table, with an empty ``table_id`` kept as an empty string.
+
+    Raises :class:`UsageError` naming the file when it cannot be read as a table: empty,
+    not CSV, ragged rows, missing columns of ``spec``, or text in one of its value columns.
+    """
+    try:
+        with path.open(newline="") as fh:
+            rows = list(csv.reader(fh))
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise UsageError(f"{path}: cannot read ({exc})") from None
+    if not rows or not rows[0]:
+        raise UsageError(f"{path}: empty, not a table")
+    width = len(rows[0])
+    for number, row in enumerate(rows[1:], start=2):
+        if len(row) != width:
+            raise UsageError(f"{path}: line {number} has {len(row)} fields, the header {width}")
+    try:
+        df = pd.read_csv(path, dtype={"table_id": str}, keep_default_na=False,
+                         na_values=["", "NaN", "nan", "<NA>"])
+    except (ValueError, pd.errors.ParserError) as exc:
+        raise UsageError(f"{path}: not a table ({str(exc).splitlines()[0]})") from None
     if "table_id" in df:
         df["table_id"] = df["table_id"].fillna("")
+    if spec is not None:
+        missing = [c for c in spec.columns if c not in df.columns]
+        if missing:
+            raise UsageError(f"{path}: no column {missing[0]!r}")
+        for column in spec.values:
+            if not pd.api.types.is_numeric_dtype(df[column]):
+                for i, cell in enumerate(df[column]):
+                    if pd.isna(cell) or str(cell) in ("True", "False"):
+                        continue
+                    try:
+                        float(cell)
+                    except ValueError:
+                        raise UsageError(f"{path}: line {i + 2}, column {column}: "
+                                         f"{str(cell)[:40]!r} is not a number") from None
     return df
 
 
@@ -125,12 +173,20 @@ class Group(click.Group):
     that failed after starting (1 means drift)."""
 
     def invoke(self, ctx):
+        warnings.simplefilter("ignore", RuntimeWarning)     # errors are reported, one line
         try:
             return super().invoke(ctx)
-        except (click.exceptions.Exit, click.ClickException, click.Abort, SystemExit):
+        except (KeyboardInterrupt, click.Abort):
+            click.echo("error: interrupted", err=True)
+            sys.exit(130)
+        except (click.exceptions.Exit, click.ClickException, SystemExit):
             raise
         except (UsageError, ConfigError) as exc:
             fail(str(exc))
+        except OSError as exc:
+            where = f" ({exc.filename})" if exc.filename else ""
+            click.echo(f"error: {exc.strerror or exc}{where}", err=True)
+            sys.exit(3)
         except Exception as exc:  # noqa: BLE001 - last line of defence, reported
             click.echo(f"error: {type(exc).__name__}: {exc}", err=True)
             sys.exit(3)
@@ -145,8 +201,11 @@ def main() -> None:
     """
 
 
-_jobs = click.option("--jobs", type=click.IntRange(1), default=1, show_default=True,
+_jobs = click.option("--jobs", type=click.IntRange(1, 256), default=1, show_default=True,
                      help="Worker processes over work units.")
+_max_work = click.option("--max-work", type=click.IntRange(1), default=MAX_WORK,
+                         show_default=True,
+                         help="Refuse a config whose work (state-samples) exceeds this.")
 
 
 def _out_folder(out: Path | None, exps: list[Experiment], overridden: bool,
@@ -180,12 +239,13 @@ def _out_folder(out: Path | None, exps: list[Experiment], overridden: bool,
 @click.option("--update-baseline", is_flag=True,
               help="Allow an overridden run to write into the stored results/.")
 @_jobs
+@_max_work
 @click.option("--quiet", is_flag=True, help="No progress and no summary.")
-def run(configs, out, runs, seed, update_baseline, jobs, quiet) -> None:
+def run(configs, out, runs, seed, update_baseline, jobs, max_work, quiet) -> None:
     """Run the experiment(s) of CONFIGS and write OUT/<config name>/."""
     overrides = {k: v for k, v in (("monte_carlo.runs", runs), ("monte_carlo.seed", seed))
                  if v is not None}
-    exps = load_all(configs, overrides)
+    exps = load_all(configs, overrides, max_work)
     folder = _out_folder(out, exps, bool(overrides), update_baseline, quiet)
     io.ensure_writable(folder)
     for exp in exps:
@@ -196,13 +256,14 @@ def run(configs, out, runs, seed, update_baseline, jobs, quiet) -> None:
 @click.option("--out", type=click.Path(file_okay=False, path_type=Path),
               help="Folder for results [default: the project's results/].")
 @_jobs
+@_max_work
 @click.option("--quiet", is_flag=True)
-def reproduce(out, jobs, quiet) -> None:
+def reproduce(out, jobs, max_work, quiet) -> None:
     """Run every config of configs/ (the thesis tables on the default settings)."""
     where = project.locate()
     if not quiet:
         click.echo(where.describe(), err=True)
-    exps = load_all(where.configs())
+    exps = load_all(where.configs(), max_work=max_work)
     folder = out or where.results
     io.ensure_writable(folder)
     for exp in exps:
@@ -236,7 +297,7 @@ def table(metric, results, fmt, thesis, partial) -> None:
     results = results or project.locate().results
     shown = 0
     for folder, spec, path in _stored_tables(results, metric):
-        df = tables.view(read_table(path), spec)
+        df = tables.view(read_table(path, spec), spec)
         if df.drop(columns=list(spec.keys), errors="ignore").isna().all().all():
             continue
         shown += 1
@@ -258,12 +319,13 @@ def table(metric, results, fmt, thesis, partial) -> None:
 @click.option("--results", type=click.Path(file_okay=False, path_type=Path),
               help="Folder of stored results [default: the project's results/].")
 @_jobs
-def check(configs, results, jobs) -> None:
+@_max_work
+def check(configs, results, jobs, max_work) -> None:
     """Re-run CONFIGS (default: configs/*.yaml) as they are and compare every cell with the
     stored tables under each config's tolerances; the stored manifest must record the same
     config (runs, seed and every other value)."""
     where = project.locate()
-    exps = load_all(configs or where.configs())
+    exps = load_all(configs or where.configs(), max_work=max_work)
     results = results or where.results
     differing = 0
     with tempfile.TemporaryDirectory() as tmp:
@@ -304,7 +366,12 @@ def _check_one(exp: Experiment, stored_dir: Path, tmp: Path, jobs: int) -> int:
             click.echo(f"{exp.name}/{metric}.csv: missing from the stored results")
             differing += 1
             continue
-        stored = read_table(path)
+        try:
+            stored = read_table(path, analysis.TABLES.get(metric))
+        except UsageError as exc:
+            click.echo(f"{exp.name}/{metric}.csv: {exc}")
+            differing += 1
+            continue
         diffs = io.compare_tables(stored, read_table(tmp / exp.name / f"{metric}.csv"), tol)
         for d in diffs:
             click.echo(f"{exp.name}/{metric}.csv row {d['row']} {d['column']}: "
@@ -320,14 +387,20 @@ def _check_one(exp: Experiment, stored_dir: Path, tmp: Path, jobs: int) -> int:
                 differing += 1
         if not diffs:
             click.echo(f"{exp.name}/{metric}.csv: {len(new)} rows match")
+    for name in sorted(result.figures):
+        figure = stored_dir / "figures" / f"{name}.png"
+        if not figure.is_file() or figure.stat().st_size == 0:
+            click.echo(f"{exp.name}/figures/{name}.png: missing from the stored results")
+            differing += 1
     return differing
 
 
 @main.command()
 @click.argument("configs", nargs=-1, required=True, type=click.Path(path_type=Path))
-def validate(configs) -> None:
+@_max_work
+def validate(configs, max_work) -> None:
     """Check CONFIGS without running them."""
-    for exp in load_all(configs):
+    for exp in load_all(configs, max_work=max_work):
         click.echo(f"{exp.source}: ok ({exp.name})")
 
 

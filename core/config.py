@@ -22,7 +22,7 @@ from core.schema import Experiment, integer, list_of, mapping, model_block, numb
 
 TOLERANCE: dict = {
     "rtol": (number(minimum=0.0, maximum=1.0), 0.0),
-    "atol": (number(minimum=0.0), 0.0),
+    "atol": (number(minimum=0.0, maximum=1.0), 0.0),
     "se": (number(positive=True, maximum=10.0), None),
     "se_column": (text(max_length=100), None),
     "binomial": (number(positive=True, maximum=10.0), None),

@@ -5,11 +5,15 @@ These functions take paths from their caller (the CLI); nothing here picks a loc
 
 from __future__ import annotations
 
+import ctypes
+import errno
+import fcntl
 import hashlib
 import io
 import json
 import os
 import platform
+import shutil
 import tempfile
 from importlib import metadata
 from pathlib import Path
@@ -41,13 +45,121 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
         raise
 
 
-def remove_stale(folder: Path, produced: set[str]) -> None:
-    """Delete tables, figures and temporary files in ``folder`` that this run did not write."""
-    for path in list(folder.rglob("*")):
-        rel = str(path.relative_to(folder))
-        stale = path.suffix in (".csv", ".png") and rel not in produced
-        if path.is_file() and (stale or path.name.endswith(".tmp")):
-            path.unlink()
+_RENAME_EXCHANGE = 2
+_AT_FDCWD = -100
+
+
+def _exchange(a: Path, b: Path) -> bool:
+    """Swap two paths in one atomic step (Linux ``renameat2(RENAME_EXCHANGE)``); False where
+    the system has no such call."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        renameat2 = libc.renameat2
+    except (OSError, AttributeError):
+        return False
+    renameat2.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p,
+                          ctypes.c_uint]
+    if renameat2(_AT_FDCWD, os.fsencode(a), _AT_FDCWD, os.fsencode(b), _RENAME_EXCHANGE) == 0:
+        return True
+    err = ctypes.get_errno()
+    if err in (errno.ENOSYS, errno.EINVAL, errno.ENOTSUP):
+        return False
+    raise OSError(err, os.strerror(err), str(b))
+
+
+def _fsync_dir(folder: Path) -> None:
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+class ResultFolder:
+    """A result folder written as a unit: ``with ResultFolder(out, name) as rf:`` locks
+    ``out/name`` against other runs, hands out a staging folder ``rf.path`` beside it, and
+    ``rf.commit()`` swaps the staging folder in. Until the swap ``out/name`` is all old;
+    after it all new; a run that fails or is killed before leaves it untouched (its staging
+    folder is removed now, or by the next run).
+
+    The swap is one ``renameat2(RENAME_EXCHANGE)`` on Linux; elsewhere two renames, and a
+    folder caught between them is restored by the next run.
+    """
+
+    def __init__(self, out: Path, name: str, min_free_bytes: int = 20 * 2**20) -> None:
+        self.out, self.name = Path(out), name
+        self.final = self.out / name
+        self.path = self.out / f".{name}.partial-{os.getpid()}"
+        self._old = self.out / f".{name}.old-{os.getpid()}"
+        self.min_free_bytes = min_free_bytes
+        self._lock_fd: int | None = None
+        self.committed = False
+
+    def __enter__(self) -> ResultFolder:
+        ensure_writable(self.out)
+        lock = self.out / f".{self.name}.lock"
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666 & ~_UMASK)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            raise UsageError(f"another estim run is writing {self.final}; try again when it "
+                             "has finished") from None
+        self._lock_fd = fd
+        self._recover()
+        need = max(self.min_free_bytes, 2 * _size(self.final))
+        free = shutil.disk_usage(self.out).free
+        if free < need:
+            self._release()
+            raise UsageError(f"not enough free space in {self.out}: {free / 2**20:.1f} MiB, "
+                             f"need {need / 2**20:.1f} MiB")
+        self.path.mkdir()
+        return self
+
+    def _recover(self) -> None:
+        """Undo what a killed run left: staging folders, and a folder caught mid-swap."""
+        olds = sorted(self.out.glob(f".{self.name}.old-*"))
+        if not self.final.exists() and olds:
+            os.rename(olds[-1], self.final)
+            olds = olds[:-1]
+        for stale in [*olds, *self.out.glob(f".{self.name}.partial-*")]:
+            shutil.rmtree(stale, ignore_errors=True)
+
+    def commit(self) -> None:
+        for path in self.path.rglob("*"):
+            if path.is_dir():
+                _fsync_dir(path)
+        _fsync_dir(self.path)
+        if self.final.exists():
+            if _exchange(self.path, self.final):
+                shutil.rmtree(self.path)
+            else:
+                os.rename(self.final, self._old)
+                os.rename(self.path, self.final)
+                shutil.rmtree(self._old)
+        else:
+            os.rename(self.path, self.final)
+        _fsync_dir(self.out)
+        self.committed = True
+
+    def _release(self) -> None:
+        if self._lock_fd is not None:
+            fcntl.flock(self._lock_fd, fcntl.LOCK_UN)
+            os.close(self._lock_fd)
+            self._lock_fd = None
+
+    def __exit__(self, *exc) -> None:
+        try:
+            if not self.committed:
+                shutil.rmtree(self.path, ignore_errors=True)
+        finally:
+            self._release()
+
+
+def _size(folder: Path) -> int:
+    if not folder.is_dir():
+        return 0
+    return sum(p.stat().st_size for p in folder.rglob("*") if p.is_file())
 
 
 def write_csv(df: pd.DataFrame, path: Path) -> None:

@@ -18,6 +18,10 @@ from core.errors import ConfigError, ParameterError
 
 REQUIRED = object()
 
+PARAM_RANGE = 1e6
+"""A model parameter may be at most this many times its default in magnitude (a parameter
+with default 0 at most ``MAX_VOLTS``): beyond, no circuit the models describe exists."""
+
 MAX_VOLTS = 1e3
 """Bound on every voltage and noise level of a config: far above any circuit here, far below
 what overflows the device laws."""
@@ -154,8 +158,8 @@ def simulation_block(rtol: float, atol: float) -> tuple[dict, dict]:
     default tolerances."""
     return ({
         "solver": (text({"batched_radau", "scipy"}), "batched_radau"),
-        "rtol": (number(positive=True, below=0.1), rtol),
-        "atol": (number(positive=True), atol),
+        "rtol": (number(minimum=1e-12, below=0.1), rtol),
+        "atol": (number(minimum=1e-15, maximum=1.0), atol),
     }, {})
 
 
@@ -176,15 +180,36 @@ def build_model(model_cls, variant, params: dict, source: str, path: str):
             raise ConfigError(source, f"{path}.{key}",
                               f"unknown parameter of {model_cls.name}; expected one of "
                               f"{sorted(fields)}")
-        expected = type(fields[key].default)
-        if expected is float and (isinstance(value, bool) or not isinstance(value, (int, float))):
-            raise ConfigError(source, f"{path}.{key}", f"expected a number, got {value!r}")
+        default = fields[key].default
+        expected = type(default)
+        if expected is float:
+            limit = PARAM_RANGE * abs(default) if default else MAX_VOLTS
+            problem = number(minimum=-limit, maximum=limit)(value)
+            if problem:
+                raise ConfigError(source, f"{path}.{key}", f"expected {problem} (at most "
+                                  f"{PARAM_RANGE:g} times the default {default:g}), got {value!r}")
         if expected is str and not isinstance(value, str):
             raise ConfigError(source, f"{path}.{key}", f"expected a string, got {value!r}")
     try:
         return model_cls(variant, **params)
     except (ParameterError, ValueError, TypeError) as exc:
         raise ConfigError(source, path, str(exc)) from None
+
+
+def operating_point(model, bias, source: str, path: str):
+    """The DC operating point of ``model`` with its sources held at ``bias``; a model whose
+    parameters give none is a config error at ``path``."""
+    import numpy as np
+
+    held = np.broadcast_to(np.asarray(bias, float), (1, 2, model.n_inputs))
+    try:
+        with np.errstate(all="ignore"):
+            x = model.operating_point(u=model.source_to_input(held, 1.0)[0, 0])
+    except (RuntimeError, ValueError, ArithmeticError) as exc:
+        raise ConfigError(source, path, f"{model.name}: {str(exc).splitlines()[0]}") from None
+    if not np.all(np.isfinite(x)):
+        raise ConfigError(source, path, f"{model.name}: no finite DC operating point")
+    return x
 
 
 def build_estimator(est_cls, settings: dict, model, source: str, path: str):

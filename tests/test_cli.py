@@ -229,7 +229,7 @@ def chapter2_config(**changes) -> dict:
     ({"excitation.mix": [0.0]}, "excitation.mix", "non-zero"),
     ({"figures.row": 7}, "figures.row", "s_no of a row"),
     ({"tables.distortion": "2.9"}, "tables.distortion", "expected one of ['2.1'"),
-    ({"rows.0.amplitude_v": -1}, "rows[0].amplitude_v", "positive number"),
+    ({"rows.0.amplitude_v": -1}, "rows[0].amplitude_v", "number >= 1e-09"),
     ({"noise": {"input_levels": [1]}}, "noise", "unknown key"),
     ({"analysis": "volterra"}, "analysis", "perturbation"),
     ({"rows.0.amplitude_v": float("inf")}, "rows[0].amplitude_v", "finite number"),

@@ -19,6 +19,7 @@ An analysis is a module registered by one line in :data:`core.analyses.ANALYSES`
 
 from __future__ import annotations
 
+import signal
 from collections.abc import Callable, Iterable
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
@@ -74,6 +75,11 @@ class Analysis(Protocol):
     def tiny(self, spec: dict) -> dict: ...
 
 
+def _ignore_interrupts() -> None:
+    """Workers leave Ctrl-C to the parent, which stops them and reports once."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def map_tasks(fn: Callable[[Any], Any], tasks: Iterable, jobs: int = 1,
               on_done: Callable[[], None] | None = None) -> list:
     """``[fn(t) for t in tasks]``, in ``jobs`` processes when more than one; results keep the
@@ -81,11 +87,19 @@ def map_tasks(fn: Callable[[Any], Any], tasks: Iterable, jobs: int = 1,
     tasks = list(tasks)
     out = []
     if jobs > 1 and len(tasks) > 1:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
+        pool = ProcessPoolExecutor(max_workers=min(jobs, len(tasks)),
+                                   initializer=_ignore_interrupts)
+        try:
             for result in pool.map(fn, tasks):
                 out.append(result)
                 if on_done:
                     on_done()
+        except BaseException:
+            for process in list(getattr(pool, "_processes", {}).values()):
+                process.terminate()
+            pool.shutdown(wait=False, cancel_futures=True)
+            raise
+        pool.shutdown()
     else:
         for task in tasks:
             out.append(fn(task))

@@ -42,6 +42,7 @@ from core.schema import (
     mapping,
     model_block,
     number,
+    operating_point,
     simulation_block,
     text,
     validate,
@@ -134,6 +135,7 @@ class Plan:
 
     truth: object
     filters: tuple
+    x0: object
 
 
 def prepare(spec: dict, source: str) -> Plan:
@@ -162,6 +164,7 @@ def prepare(spec: dict, source: str) -> Plan:
                 if v in values[:i]:
                     raise ConfigError(source, f"{key}[{i}]", f"repeats {v!r}")
     truth = build_model(model_cls, variant, spec["model"]["params"], source, "model.params")
+    x0 = operating_point(truth, inp["bias_v"], source, "model.params")
     filters, labels = [], []
     for i, est in enumerate(spec["estimators"]):
         path = f"estimators[{i}]"
@@ -202,7 +205,7 @@ def prepare(spec: dict, source: str) -> Plan:
         raise ConfigError(source, "input.sample_time_s",
                           f"{dt:g} s samples the highest input frequency "
                           f"{max(inp['frequencies_hz']):g} Hz fewer than once in ten periods")
-    return Plan(truth=truth, filters=tuple(filters))
+    return Plan(truth=truth, filters=tuple(filters), x0=x0)
 
 
 def work_size(spec: dict) -> int:
@@ -286,8 +289,7 @@ def simulate_point(exp: Experiment, frequency_hz: float, sigma: float, runs: int
     input_noise = signals.gaussian(rng, sigma, (runs, steps + 1, 1)) * mix
     input_noise[:, 0] = 0.0    # the circuit starts at its operating point with v_in(t_0) known
     source = clean[None] + input_noise
-    rest = truth.source_to_input(np.repeat(clean[None, :1], 2, axis=1), dt)[0, 0]
-    x0 = truth.operating_point(u=rest)
+    x0 = exp.plan.x0           # the DC point with the source held at its value at t_0
     sim = exp.spec["simulation"]
     states = SOLVERS[sim["solver"]](truth, x0, truth.source_to_input(source, dt), dt,
                                     rtol=sim["rtol"], atol=sim["atol"])

@@ -38,6 +38,7 @@ from core.schema import (
     mapping,
     model_block,
     number,
+    operating_point,
     simulation_block,
     text,
 )
@@ -53,7 +54,7 @@ SCHEMA: dict = {
     }, REQUIRED),
     "rows": (list_of({
         "s_no": (integer(1, 10_000), REQUIRED),
-        "amplitude_v": (number(positive=True, maximum=MAX_VOLTS), REQUIRED),
+        "amplitude_v": (number(minimum=1e-9, maximum=MAX_VOLTS), REQUIRED),
         "frequency_hz": (number(minimum=1e-3, maximum=1e9), None),
         "duration_s": (number(minimum=1e-9, maximum=1e3), None),
         "params": (mapping, {}),
@@ -110,6 +111,7 @@ def prepare(spec: dict, source: str) -> dict:
         models[row["s_no"]] = build_model(model_cls, variant,
                                           {**spec["model"]["params"], **row["params"]},
                                           source, f"{path}.params")
+        operating_point(models[row["s_no"]], exc["bias_v"], source, f"{path}.params")
     row = spec["figures"]["row"]
     if row is not None and row not in models:
         raise ConfigError(source, "figures.row",

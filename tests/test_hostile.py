@@ -1,0 +1,452 @@
+"""Bad input and faults (issue 9): one clear line and exit 2 before any work, never a hang,
+an internal error or a silent NaN; a result folder is all old or all new."""
+
+import copy
+import functools
+import math
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+import yaml
+from click.testing import CliRunner
+
+from cli.main import main
+from core import io
+from core.analyses import ANALYSES
+from core.config import parse_data
+from core.errors import ConfigError
+
+ROOT = Path(__file__).resolve().parents[1]
+CONFIGS = {p.stem: yaml.safe_load(p.read_text()) for p in sorted((ROOT / "configs").glob("*.yaml"))}
+
+
+def config(config_name: str, changes: dict) -> dict:
+    """A shipped config with dotted-path ``changes`` (list items by index)."""
+    spec = copy.deepcopy(CONFIGS[config_name])
+    for path, value in changes.items():
+        *parents, last = path.split(".")
+        node = spec
+        for key in parents:
+            node = node[int(key)] if isinstance(node, list) else node[key]
+        node[int(last) if isinstance(node, list) else last] = value
+    return spec
+
+
+def validate_text(tmp_path: Path, text: str):
+    path = tmp_path / "hostile.yaml"
+    path.write_text(text)
+    return path, CliRunner().invoke(main, ["validate", str(path)])
+
+
+def assert_one_line_exit_2(result, path, key=None, expected=None):
+    assert result.exit_code == 2, result.output
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1, result.output
+    assert str(path) in lines[0] and "Traceback" not in result.output
+    if key is not None:
+        assert f": {key}: " in lines[0], lines[0]
+    if expected is not None:
+        assert expected in lines[0], lines[0]
+
+
+BOMB = "".join(f"l{i}: &l{i} [" + ", ".join([f"*l{i - 1}"] * 9 if i else ["lol"] * 9) + "]\n"
+               for i in range(9))
+
+HOSTILE = [
+    # (config, changes, key path, expected words)
+    ("mosfet_saturation", {"estimators.1.settings.order": 10**9}, "estimators[1].settings.order",
+     "integer from 1 to 200"),
+    ("mosfet_saturation", {"estimators.1.settings.order": math.inf},
+     "estimators[1].settings.order", "integer"),
+    ("mosfet_saturation", {"estimators.0.settings.substeps": 10**9},
+     "estimators[0].settings.substeps", "integer from 1 to 1000"),
+    ("mosfet_saturation", {"input.periods": 10**7}, "input.periods", "integer from 1 to 100000"),
+    ("cco_distortion", {"excitation.samples": 10**8}, "excitation.samples", "integer from 8"),
+    ("mosfet_distortion", {"excitation.samples_per_period": 10**7},
+     "excitation.samples_per_period", "integer from 8 to 10000"),
+    ("mosfet_saturation", {"input.frequencies_hz": list(range(1, 5001))},
+     "input.frequencies_hz", "at most 100 entries"),
+    ("mosfet_distortion", {"rows": [{"s_no": i, "amplitude_v": 0.01, "frequency_hz": 100}
+                                    for i in range(1, 1001)]}, "rows", "at most 100 entries"),
+    ("mosfet_saturation", {"simulation.solver": "scipy", "simulation.rtol": 1e-300},
+     "simulation.rtol", "number >= 1e-12"),
+    ("cco_distortion", {"rows.0.amplitude_v": 1e30}, "rows[0].amplitude_v", "<= 1000"),
+    ("mosfet_saturation", {"estimators.0.label": "E" * 1_000_000}, "estimators[0].label",
+     "at most 60 characters"),
+    ("mosfet_saturation", {"estimators.1.settings.delta": math.inf},
+     "estimators[1].settings.delta", "finite number"),
+    ("mosfet_saturation", {"estimators.0.settings.divergence_bound": math.nan},
+     "estimators[0].settings.divergence_bound", "finite number"),
+    ("mosfet_saturation", {"estimators.0.settings.divergence_bound": -1},
+     "estimators[0].settings.divergence_bound", "positive number"),
+    ("mosfet_saturation", {"estimators.0.settings.x0": [math.nan] * 4},
+     "estimators[0].settings.x0[0]", "finite number"),
+    ("mosfet_saturation", {"estimators.0.settings.Q": [[1, 2, 0, 0], [2, 1, 0, 0],
+                                                       [0, 0, 1, 0], [0, 0, 0, 1]]},
+     "estimators[0].settings", "not positive semidefinite"),
+    ("mosfet_saturation", {"model.params.V_DD": math.inf}, "model.params.V_DD", "finite number"),
+    ("mosfet_saturation", {"estimators.0.model_params": {"V_IN": math.nan}},
+     "estimators[0].model_params.V_IN", "finite number"),
+    ("mosfet_saturation", {"input.frequencies_hz": [1e-300]}, "input.frequencies_hz[0]",
+     "number >= 0.001"),
+    ("mosfet_saturation", {"tables.rmse": "4.1"}, "tables.rmse", "for a rmse table"),
+    ("mosfet_saturation", {"tables.rmse": 4.1}, "tables.rmse", "a non-empty string"),
+    ("mosfet_saturation", {"tables": {}}, "tables", "at least one of"),
+    ("cco_distortion", {"rows.0.duration_s": 1e-300}, "rows[0].duration_s", "number >= 1e-09"),
+    ("mosfet_saturation", {"tables.rmse": "2.4"}, "tables.rmse", "for a rmse table"),
+    ("mosfet_distortion", {"tables.distortion": "3.1"}, "tables.distortion",
+     "for a distortion table"),
+    ("mosfet_saturation", {"noise.readings": ["sigma", "sigma"]}, "noise.readings[1]",
+     "repeats 'sigma'"),
+    ("mosfet_saturation", {"input.frequencies_hz": [100, 1000, 100]}, "input.frequencies_hz[2]",
+     "repeats 100"),
+    ("mosfet_saturation", {"model.params.V_IN": math.nan}, "model.params.V_IN", "finite number"),
+    ("mosfet_saturation", {"model.params.V_DD": 1e308}, "model.params.V_DD", "times the default"),
+    ("mosfet_saturation", {"estimators.0.settings.R": True}, "estimators[0].settings.R",
+     "a finite number"),
+    ("mosfet_saturation", {"figures.names": {"noisy": "same", "rmse": "same"}}, "figures.names",
+     "share one file name"),
+    ("mosfet_saturation", {"figures.extra_noisy": [{"noise_level": 0.1, "name": "fig_3_4"}]},
+     "figures.extra_noisy[0].name", "already the file of figures.names.noiseless"),
+    ("mosfet_saturation", {"check.tolerances.no_column": {"rtol": 0.1}},
+     "check.tolerances.no_column", "no table of a estimation analysis has this column"),
+    ("mosfet_saturation", {"check.tolerances.rmse": {"rtol": 1e308}},
+     "check.tolerances.rmse.rtol", "number <= 1"),
+    ("mosfet_saturation", {"name": "n" * 300}, "name", "at most 100 characters"),
+    ("mosfet_saturation", {"figures.names": {"noisy": "f" * 300}}, "figures.names.noisy",
+     "at most 100 characters"),
+    ("mosfet_saturation", {"monte_carlo.runs": 10**6}, "", "raise it with --max-work"),
+]
+
+
+@pytest.mark.parametrize("name, changes, key, expected", HOSTILE,
+                         ids=[f"{h[0]}:{h[2] or 'work'}" for h in HOSTILE])
+def test_hostile_config_is_one_line_and_exit_2(tmp_path, name, changes, key, expected):
+    path, result = validate_text(tmp_path, yaml.safe_dump(config(name, changes)))
+    assert_one_line_exit_2(result, path, key or None, expected)
+
+
+@pytest.mark.parametrize("text, expected", [
+    (BOMB, "YAML aliases"),
+    ("name: a\ntitle: t\nname: b\n", "line 3: duplicate key 'name'"),
+    ("input:\n  amplitude_v: 0.01\n  amplitude_v: 0.02\n", "duplicate key 'amplitude_v'"),
+    ("[" * 5000 + "]" * 5000, "nested deeper than 32 levels"),
+    ("1: a\n", "is not a string"),
+    ("? [a, b]\n: 1\n", "a key that is not a plain value"),
+    ("\x00\x01", "not valid YAML"),
+])
+def test_hostile_yaml_is_one_line_and_exit_2(tmp_path, text, expected):
+    path, result = validate_text(tmp_path, text)
+    assert_one_line_exit_2(result, path, expected=expected)
+
+
+def test_device_files_and_fifos_are_refused_before_reading(tmp_path):
+    fifo = tmp_path / "pipe.yaml"
+    os.mkfifo(fifo)
+    for path in (Path("/dev/zero"), fifo, tmp_path):
+        result = CliRunner().invoke(main, ["validate", str(path)])
+        assert_one_line_exit_2(result, path, expected="not a regular file")
+    big = tmp_path / "big.yaml"
+    big.write_text("title: " + "x" * (2 << 20) + "\n")
+    assert_one_line_exit_2(CliRunner().invoke(main, ["validate", str(big)]), big,
+                           expected="larger than 1024 KiB")
+
+
+# ----- fuzzing: a few hundred seeded mutations of the shipped configs ------------------------
+
+FUZZ_VALUES = [math.inf, -math.inf, math.nan, 0, -1, 1e308, -1e308, 1e-300, True, False, None,
+               "", "x" * 300, [], {}, [1] * 150, 10**9, "4.1", [[[[[]]]]], 1e30, 0.5, "sigma"]
+
+
+def _paths(node, prefix=()):
+    yield prefix
+    if isinstance(node, dict):
+        for k, v in node.items():
+            yield from _paths(v, prefix + (k,))
+    elif isinstance(node, list):
+        for i, v in enumerate(node):
+            yield from _paths(v, prefix + (i,))
+
+
+def mutate(spec: dict, rng: random.Random) -> tuple[dict, str]:
+    """One random change: a hostile value, a deleted key, a repeated item or an unknown key."""
+    spec = copy.deepcopy(spec)
+    path = rng.choice([p for p in _paths(spec) if p])
+    parent = spec
+    for key in path[:-1]:
+        parent = parent[key]
+    last, op = path[-1], rng.random()
+    if op < 0.7:
+        value = rng.choice(FUZZ_VALUES)
+        parent[last] = copy.deepcopy(value)
+        return spec, f"{path} = {str(value)[:20]}"
+    if op < 0.8 and isinstance(parent, dict):
+        del parent[last]
+        return spec, f"del {path}"
+    if op < 0.9 and isinstance(parent, list):
+        parent.append(copy.deepcopy(parent[last]))
+        return spec, f"repeat {path}"
+    target = parent[last] if isinstance(parent[last], dict) else None
+    if target is not None:
+        target["zz_unknown"] = 1
+        return spec, f"unknown key under {path}"
+    parent[last] = {"nested": parent[last]}
+    return spec, f"wrap {path}"
+
+
+class _Hang(Exception):
+    pass
+
+
+def _alarm(*_):
+    raise _Hang
+
+
+@functools.cache
+def fuzz(n: int, seed: int) -> tuple[list[str], list[tuple[str, dict, str]]]:
+    """Problems (hang, internal error, multi-line message) and the accepted mutants."""
+    rng = random.Random(seed)
+    problems, accepted = [], []
+    previous = signal.signal(signal.SIGALRM, _alarm)
+    try:
+        for _ in range(n):
+            name = rng.choice(sorted(CONFIGS))
+            spec, what = mutate(CONFIGS[name], rng)
+            signal.alarm(5)
+            try:
+                parse_data(spec, "fuzz.yaml", "fuzz")
+                accepted.append((name, spec, what))
+            except ConfigError as exc:
+                if "\n" in str(exc) or not str(exc).startswith("fuzz.yaml: "):
+                    problems.append(f"{name} {what}: message {str(exc)[:100]!r}")
+            except _Hang:
+                problems.append(f"{name} {what}: hangs")
+            except Exception as exc:  # noqa: BLE001 - what the fuzz test looks for
+                problems.append(f"{name} {what}: {type(exc).__name__}: {exc}"[:200])
+            finally:
+                signal.alarm(0)
+    finally:
+        signal.signal(signal.SIGALRM, previous)
+    return problems, accepted
+
+
+def test_fuzzed_configs_end_in_a_config_error_or_validate():
+    problems, accepted = fuzz(300, seed=9)
+    assert not problems, "\n".join(problems)
+    assert 0 < len(accepted) < 150
+
+
+def test_accepted_mutants_run_or_fail_in_one_line_without_silent_nan(tmp_path):
+    _, accepted = fuzz(300, seed=9)
+    rng = random.Random(3)
+    for i, (name, spec, what) in enumerate(rng.sample(accepted, 6)):
+        module = ANALYSES[spec.get("analysis") or "estimation"]
+        spec = module.tiny(copy.deepcopy(spec))
+        spec["name"] = f"m{i}"
+        path = tmp_path / f"m{i}.yaml"
+        path.write_text(yaml.safe_dump(spec))
+        result = CliRunner().invoke(main, ["run", str(path), "--out", str(tmp_path / "out"),
+                                           "--quiet"])
+        assert result.exit_code in (0, 2, 3), f"{name} {what}: {result.output}"
+        if result.exit_code:
+            assert len(result.output.strip().splitlines()) == 1, f"{name} {what}"
+            continue
+        folder = tmp_path / "out" / f"m{i}"
+        for table in folder.glob("*.csv"):
+            df = pd.read_csv(table)
+            if "rmse" in df:      # a NaN RMSE only where every run diverged
+                silent = df["rmse"].isna() & (df["runs"] > 0)
+                assert not silent.any(), f"{name} {what}: {table.name}"
+            if "percent_distortion" in df:
+                assert df["percent_distortion"].notna().all(), f"{name} {what}"
+
+
+# ----- faults: a result folder is all old or all new -----------------------------------------
+
+def tiny_spec(name="tiny", runs=3, periods=2) -> dict:
+    spec = ANALYSES["estimation"].tiny(copy.deepcopy(CONFIGS["mosfet_saturation"]))
+    spec["name"] = name
+    spec["monte_carlo"]["runs"] = runs
+    spec["input"]["periods"] = periods
+    return spec
+
+
+def folder_is_whole(folder: Path) -> str:
+    """'old' or 'new' by the manifest's seed, after checking every file against it."""
+    import json
+
+    manifest = json.loads((folder / "manifest.json").read_text())
+    files = {str(p.relative_to(folder)) for p in folder.rglob("*") if p.is_file()}
+    assert files - {"manifest.json"} == set(manifest["files"]), files
+    for name, digest in manifest["files"].items():
+        assert io.sha256(folder / name) == digest, name
+    return {1: "old", 2: "new"}[manifest["seed"]]
+
+
+def test_a_failed_write_leaves_the_old_folder(tmp_path, monkeypatch):
+    path = tmp_path / "tiny.yaml"
+    path.write_text(yaml.safe_dump(tiny_spec()))
+    out = tmp_path / "out"
+    runner = CliRunner()
+    assert runner.invoke(main, ["run", str(path), "--out", str(out), "--quiet",
+                                "--seed", "1"]).exit_code == 0
+    calls = []
+
+    def full_disk(fig, target):
+        calls.append(target)
+        if len(calls) == 2:
+            raise OSError(28, "No space left on device", str(target))
+        return real(fig, target)
+
+    real = io.write_figure
+    monkeypatch.setattr(io, "write_figure", full_disk)
+    result = runner.invoke(main, ["run", str(path), "--out", str(out), "--quiet",
+                                  "--seed", "2"])
+    assert result.exit_code == 3
+    assert result.output.strip().splitlines() == [
+        f"error: No space left on device ({calls[1]})"]
+    assert folder_is_whole(out / "tiny") == "old"
+    assert sorted(p.name for p in out.iterdir()) == [".tiny.lock", "tiny"]
+
+
+def test_not_enough_space_is_found_before_any_work(tmp_path, monkeypatch):
+    path = tmp_path / "tiny.yaml"
+    path.write_text(yaml.safe_dump(tiny_spec()))
+    monkeypatch.setattr(io.shutil, "disk_usage", lambda p: type("U", (), {"free": 1024})())
+    result = CliRunner().invoke(main, ["run", str(path), "--out", str(tmp_path / "out")])
+    assert result.exit_code == 2 and "not enough free space" in result.output
+    assert "work units" not in result.output
+
+
+def test_read_only_folder_is_found_before_any_work(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    locked = subprocess.run(["chattr", "+i", str(out)], capture_output=True).returncode == 0
+    if not locked:
+        if os.geteuid() == 0:
+            pytest.skip("no way to make a folder read-only for root here (chattr failed)")
+        out.chmod(0o555)
+    try:
+        path = tmp_path / "tiny.yaml"
+        path.write_text(yaml.safe_dump(tiny_spec()))
+        result = CliRunner().invoke(main, ["run", str(path), "--out", str(out)])
+        assert result.exit_code == 2, result.output
+        assert f"cannot write to {out}" in result.output and "work units" not in result.output
+    finally:
+        if locked:
+            subprocess.run(["chattr", "-i", str(out)], check=True)
+        out.chmod(0o755)
+
+
+def estim(*args, cwd):
+    return subprocess.Popen([sys.executable, "-m", "cli.main", *args], cwd=cwd,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def test_killed_run_leaves_the_folder_all_old_or_all_new(tmp_path):
+    path = tmp_path / "tiny.yaml"
+    path.write_text(yaml.safe_dump(tiny_spec(runs=8, periods=4)))
+    out = tmp_path / "out"
+    args = ["run", str(path), "--out", str(out), "--quiet"]
+    first = estim(*args, "--seed", "1", cwd=tmp_path)
+    start = time.perf_counter()
+    assert first.wait(timeout=120) == 0, first.stderr.read()
+    duration = time.perf_counter() - start
+    seen = set()
+    for fraction in (0.9, 1.02):
+        run = estim(*args, "--seed", "2", cwd=tmp_path)
+        time.sleep(duration * fraction)
+        run.send_signal(signal.SIGKILL)
+        run.wait(timeout=60)
+        seen.add(folder_is_whole(out / "tiny"))
+        assert folder_is_whole(out / "tiny") in ("old", "new")
+        # whatever was left, the next run starts clean and restores the unit
+        done = estim(*args, "--seed", "1", cwd=tmp_path)
+        assert done.wait(timeout=120) == 0, done.stderr.read()
+        assert folder_is_whole(out / "tiny") == "old"
+        assert not list(out.glob(".tiny.partial-*")) and not list(out.glob(".tiny.old-*"))
+    assert "old" in seen
+
+
+def test_concurrent_run_into_one_folder_is_refused(tmp_path):
+    path = tmp_path / "tiny.yaml"
+    path.write_text(yaml.safe_dump(tiny_spec(runs=10, periods=4)))
+    out = tmp_path / "out"
+    first = estim("run", str(path), "--out", str(out), "--quiet", cwd=tmp_path)
+    deadline = time.time() + 30
+    while not list(out.glob(".tiny.partial-*")) and time.time() < deadline:
+        time.sleep(0.05)
+    second = CliRunner().invoke(main, ["run", str(path), "--out", str(out), "--quiet"])
+    assert second.exit_code == 2 and "another estim run is writing" in second.output
+    assert first.wait(timeout=120) == 0
+    assert CliRunner().invoke(main, ["run", str(path), "--out", str(out),
+                                     "--quiet"]).exit_code == 0
+
+
+def test_ctrl_c_is_one_line_and_exit_130(tmp_path):
+    path = tmp_path / "tiny.yaml"
+    path.write_text(yaml.safe_dump(tiny_spec(runs=50, periods=20)))
+    run = estim("run", str(path), "--out", str(tmp_path / "out"), "--jobs", "2", cwd=tmp_path)
+    time.sleep(3.0)
+    run.send_signal(signal.SIGINT)
+    assert run.wait(timeout=60) == 130
+    assert run.stderr.read().strip().splitlines()[-1] == "error: interrupted"
+    assert "Traceback" not in run.stderr.read()
+    assert not (tmp_path / "out" / "tiny").exists()
+
+
+# ----- corrupt stored files are named -----------------------------------------------------------
+
+@pytest.fixture
+def stored(tmp_path):
+    path = tmp_path / "tiny.yaml"
+    path.write_text(yaml.safe_dump(tiny_spec()))
+    out = tmp_path / "res"
+    assert CliRunner().invoke(main, ["run", str(path), "--out", str(out), "--quiet"]).exit_code == 0
+    return path, out
+
+
+@pytest.mark.parametrize("damage, expected", [
+    ("", "empty, not a table"),
+    ("a,b\n1,2,3\n", "line 2 has 3 fields"),
+    ("table_id,s_no\n3.2,1\n", "no column"),
+])
+def test_check_names_a_corrupt_stored_table(stored, damage, expected):
+    path, out = stored
+    (out / "tiny" / "rmse.csv").write_text(damage)
+    result = CliRunner().invoke(main, ["check", str(path), "--results", str(out)])
+    assert result.exit_code == 1
+    assert f"{out / 'tiny' / 'rmse.csv'}" in result.output and expected in result.output
+
+
+def test_check_reports_missing_manifest_and_figure(stored):
+    path, out = stored
+    (out / "tiny" / "figures" / "fig_3_4.png").unlink()
+    result = CliRunner().invoke(main, ["check", str(path), "--results", str(out)])
+    assert result.exit_code == 1 and "figures/fig_3_4.png: missing" in result.output
+    (out / "tiny" / "manifest.json").write_text("{not json")
+    result = CliRunner().invoke(main, ["check", str(path), "--results", str(out)])
+    assert result.exit_code == 1 and "manifest.json is missing or not JSON" in result.output
+
+
+def test_table_names_a_file_with_text_in_a_number_column(stored):
+    _, out = stored
+    target = out / "tiny" / "rmse.csv"
+    lines = target.read_text().splitlines()
+    header = lines[0].split(",")
+    cells = lines[1].split(",")
+    cells[header.index("rmse")] = "garbage"
+    target.write_text("\n".join([lines[0], ",".join(cells), *lines[2:]]) + "\n")
+    result = CliRunner().invoke(main, ["table", "rmse", "--results", str(out)])
+    assert result.exit_code == 2
+    assert f"{target}: line 2, column rmse: 'garbage' is not a number" in result.output
+    target.write_text(lines[0] + "\n1,2\n")
+    result = CliRunner().invoke(main, ["table", "rmse", "--results", str(out)])
+    assert result.exit_code == 2 and "line 2 has 2 fields" in result.output
