@@ -5,6 +5,7 @@ Exit codes: 0 ok, 1 a check found differences, 2 a usage or config error, 3 a ru
 
 from __future__ import annotations
 
+import copy
 import csv
 import json
 import stat
@@ -35,8 +36,10 @@ def fail(message: str) -> None:
 MAX_CONFIG_BYTES = 1 << 20
 
 
-def load(path: Path, overrides: dict | None = None, max_work: int = MAX_WORK) -> Experiment:
-    """Read and validate one config file (a regular file of at most 1 MiB of UTF-8)."""
+def load(path: Path, overrides: dict | None = None, max_work: int = MAX_WORK,
+         quick: bool = False) -> Experiment:
+    """Read and validate one config file (a regular file of at most 1 MiB of UTF-8); with
+    ``quick``, shrunk to its analysis' quick profile (``tiny``) and validated again."""
     try:
         info = path.stat()
         if not stat.S_ISREG(info.st_mode):
@@ -58,12 +61,17 @@ def load(path: Path, overrides: dict | None = None, max_work: int = MAX_WORK) ->
     data = load_yaml(text, str(path))
     if overrides:
         data = apply_overrides(data, overrides)
-    return parse_data(data, str(path), path.stem, max_work)
+    exp = parse_data(data, str(path), path.stem, max_work)
+    if quick:
+        small = ANALYSES[exp.analysis].tiny(copy.deepcopy(exp.spec))
+        exp = parse_data(small, f"{path} (--quick)", path.stem, max_work)
+    return exp
 
 
-def load_all(paths, overrides: dict | None = None, max_work: int = MAX_WORK) -> list[Experiment]:
+def load_all(paths, overrides: dict | None = None, max_work: int = MAX_WORK,
+             quick: bool = False) -> list[Experiment]:
     try:
-        exps = [load(Path(p), overrides, max_work) for p in paths]
+        exps = [load(Path(p), overrides, max_work, quick) for p in paths]
     except ConfigError as exc:
         fail(str(exc))
     names = [e.name for e in exps]
@@ -238,15 +246,20 @@ def _out_folder(out: Path | None, exps: list[Experiment], overridden: bool,
 @click.option("--seed", type=click.IntRange(0), help="Override monte_carlo.seed.")
 @click.option("--update-baseline", is_flag=True,
               help="Allow an overridden run to write into the stored results/.")
+@click.option("--quick", is_flag=True,
+              help="A first look in seconds: each analysis' quick profile (one sweep point, "
+                   "short records, 3 runs); never written into results/.")
 @_jobs
 @_max_work
 @click.option("--quiet", is_flag=True, help="No progress and no summary.")
-def run(configs, out, runs, seed, update_baseline, jobs, max_work, quiet) -> None:
+def run(configs, out, runs, seed, update_baseline, quick, jobs, max_work, quiet) -> None:
     """Run the experiment(s) of CONFIGS and write OUT/<config name>/."""
     overrides = {k: v for k, v in (("monte_carlo.runs", runs), ("monte_carlo.seed", seed))
                  if v is not None}
-    exps = load_all(configs, overrides, max_work)
-    folder = _out_folder(out, exps, bool(overrides), update_baseline, quiet)
+    if quick and update_baseline:
+        fail("--quick never writes the baseline: drop --update-baseline")
+    exps = load_all(configs, overrides, max_work, quick)
+    folder = _out_folder(out, exps, bool(overrides) or quick, update_baseline, quiet)
     io.ensure_writable(folder)
     for exp in exps:
         report(exp, folder, run_one(exp, folder, jobs, quiet), quiet)

@@ -306,13 +306,15 @@ def estimate_point(exp: Experiment, data: dict) -> list:
             for _, est, model in exp.plan.filters]
 
 
-def run_point(exp: Experiment, point: SweepPoint) -> list[dict]:
-    """Table rows (one per estimator) for one sweep point."""
+def run_point(exp: Experiment, point: SweepPoint, traces: bool = False) -> tuple[list, dict]:
+    """Table rows (one per estimator) for one sweep point, and with ``traces`` the figure
+    traces of its first run (the figures show the runs the table averages)."""
     mc = exp.spec["monte_carlo"]
     rng = np.random.default_rng(np.random.SeedSequence(mc["seed"], spawn_key=(point.index,)))
     data = simulate_point(exp, point.frequency_hz, point.sigma, mc["runs"], rng)
+    estimates = estimate_point(exp, data)
     rows = []
-    for (label, _, _), est in zip(exp.plan.filters, estimate_point(exp, data), strict=True):
+    for (label, _, _), est in zip(exp.plan.filters, estimates, strict=True):
         ok = ~est.diverged
         rmse, rmse_se = metrics.mean_and_se(
             metrics.rmse_per_run(data["actual"][ok], est.y_hat[ok]))
@@ -328,11 +330,44 @@ def run_point(exp: Experiment, point: SweepPoint) -> list[dict]:
             "residual_variance": var, "residual_variance_se": var_se,
             "runs": int(ok.sum()), "diverged": int((~ok).sum()),
         })
-    return rows
+    return rows, (_traces(exp, data, estimates) if traces else {})
+
+
+def _traces(exp: Experiment, data: dict, estimates: list) -> dict:
+    """What a figure draws of a batch: run 0's signals and every estimator's running RMSE
+    over the runs that did not diverge."""
+    labels = [label for label, _, _ in exp.plan.filters]
+    pairs = list(zip(labels, estimates, strict=True))
+    return {
+        "t": data["t"], "source": data["source"][0, 1:, 0], "clean": data["clean"][1:, 0],
+        "actual": data["actual"][0, :, 0], "z": data["z"][0, :, 0],
+        "y_hat": {lab: e.y_hat[0, :, 0] for lab, e in pairs},
+        "innovation": {lab: e.innovation[0, :, 0] for lab, e in pairs},
+        "running_rmse": {lab: metrics.running_rmse(data["actual"][~e.diverged],
+                                                   e.y_hat[~e.diverged]) for lab, e in pairs},
+    }
 
 
 def _run_point_args(args):
     return run_point(*args)
+
+
+FIGURE_SEED_KEY = 2**31
+"""Figure batches that are not a sweep point draw from ``spawn_key=(FIGURE_SEED_KEY, i)``: a
+key space no sweep point reaches."""
+
+
+def figure_cases(exp: Experiment) -> list[tuple[str, float, float, str]]:
+    """``(key, frequency, noise level, reading)`` of every noisy figure batch: the figure's
+    point and each ``figures.extra_noisy`` case."""
+    fig = exp.spec["figures"]
+    f = fig["frequency_hz"] or exp.spec["input"]["frequencies_hz"][0]
+    level = fig["noise_level"] or exp.spec["noise"]["input_levels"][0]
+    reading = fig["reading"] or exp.spec["noise"]["readings"][0]
+    cases = [("noisy", f, level, reading)]
+    cases += [(extra["name"], f, extra["noise_level"], extra["reading"])
+              for extra in fig["extra_noisy"]]
+    return cases
 
 
 def thesis_row_numbers(rows: pd.DataFrame, table_id: str | None) -> pd.Series:
@@ -391,9 +426,18 @@ def _verdict(better: float, worse: float, diverged_better: int, diverged_worse: 
 
 def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = None) -> Result:
     """All sweep points (rows in thesis order whatever the number of jobs), the claims and
-    the figures."""
-    tasks = [(exp, p) for p in sweep(exp)]
-    rows = [row for part in map_tasks(_run_point_args, tasks, jobs, on_done) for row in part]
+    the figures, drawn from the table's own batches where a figure shows a sweep point."""
+    points = sweep(exp)
+    wanted: dict[int, list[str]] = {}
+    for key, f, level, reading in figure_cases(exp):
+        match = next((p for p in points if p.reading == reading and np.isclose(p.level, level)
+                      and np.isclose(p.frequency_hz, f)), None)
+        if match is not None:
+            wanted.setdefault(match.index, []).append(key)
+    tasks = [(exp, p, p.index in wanted) for p in points]
+    done = map_tasks(_run_point_args, tasks, jobs, on_done)
+    rows = [row for part, _ in done for row in part]
+    known = {key: done[index][1] for index, keys in wanted.items() for key in keys}
     out = Result(tables={})
     for metric, table_id in exp.spec["tables"].items():
         if table_id is not None:
@@ -402,47 +446,39 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
         out.tables["claims"] = pd.concat(
             [claims(out.tables["rmse"], c["better"], c["worse"]) for c in exp.spec["claims"]],
             ignore_index=True)
-    out.figures = figures(exp)
+    out.figures = figures(exp, known)
     if on_done:
         on_done()
     return out
 
 
-def figure_data(exp: Experiment) -> dict:
-    """Traces for the figures: a noiseless run, a noisy batch at the figure's point, and one
-    batch for each ``figures.extra_noisy`` case (keyed by its figure name)."""
-    fig, mc = exp.spec["figures"], exp.spec["monte_carlo"]
-    f = fig["frequency_hz"] or exp.spec["input"]["frequencies_hz"][0]
-    level = fig["noise_level"] or exp.spec["noise"]["input_levels"][0]
-    sigma = signals.noise_sigma(level, fig["reading"] or exp.spec["noise"]["readings"][0])
-    labels = [label for label, _, _ in exp.plan.filters]
-    out = {"frequency_hz": f, "noise_level": level, "labels": labels}
-    cases = [("noiseless", 0.0, 1), ("noisy", sigma, mc["runs"])]
-    cases += [(extra["name"], signals.noise_sigma(extra["noise_level"], extra["reading"]),
-               mc["runs"]) for extra in fig["extra_noisy"]]
-    for i, (key, s, n) in enumerate(cases):
-        rng = np.random.default_rng(np.random.SeedSequence(mc["seed"], spawn_key=(10_000 + i,)))
-        data = simulate_point(exp, f, s, n, rng)
-        ests = estimate_point(exp, data)
-        out[key] = {
-            "t": data["t"], "source": data["source"][0, 1:, 0], "clean": data["clean"][1:, 0],
-            "actual": data["actual"][0, :, 0], "z": data["z"][0, :, 0],
-            "y_hat": {lab: e.y_hat[0, :, 0] for lab, e in zip(labels, ests, strict=True)},
-            "innovation": {lab: e.innovation[0, :, 0] for lab, e in zip(labels, ests, strict=True)},
-            "running_rmse": {lab: metrics.running_rmse(data["actual"][~e.diverged],
-                                                       e.y_hat[~e.diverged])
-                             for lab, e in zip(labels, ests, strict=True)},
-        }
+def figure_traces(exp: Experiment, known: dict) -> dict:
+    """Traces of every figure: the noiseless run (one run, its own seed) and the noisy
+    cases, taken from ``known`` (traces of sweep points) or simulated with their own seed."""
+    mc = exp.spec["monte_carlo"]
+    cases = figure_cases(exp)
+    f = cases[0][1]
+    batches = [("noiseless", 0.0, 1)] + [
+        (key, signals.noise_sigma(level, reading), mc["runs"]) for key, _, level, reading in cases]
+    out = {}
+    for i, (key, sigma, runs) in enumerate(batches):
+        if key in known:
+            out[key] = known[key]
+            continue
+        rng = np.random.default_rng(np.random.SeedSequence(mc["seed"],
+                                                           spawn_key=(FIGURE_SEED_KEY, i)))
+        data = simulate_point(exp, f, sigma, runs, rng)
+        out[key] = _traces(exp, data, estimate_point(exp, data))
     return out
 
 
-def figures(exp: Experiment) -> dict:
+def figures(exp: Experiment, known: dict) -> dict:
     """Figs 3.2-3.7, 3.9-3.11: estimates without and with input noise, running RMSE and
     residuals, under the names of ``figures.names``."""
-    data = figure_data(exp)
+    data = figure_traces(exp, known)
     names = exp.spec["figures"]["names"]
-    reading = exp.spec["figures"]["reading"] or exp.spec["noise"]["readings"][0]
-    where = f"{data['frequency_hz']:g} Hz, input noise {data['noise_level']:g} ({reading})"
+    _, f, level, reading = figure_cases(exp)[0]
+    where = f"{f:g} Hz, input noise {level:g} ({reading})"
     makers = {
         "noiseless": lambda: plots.estimates(data["noiseless"], f"{exp.name}, noiseless input"),
         "noisy": lambda: plots.estimates(data["noisy"], f"{exp.name}, {where}"),
@@ -451,8 +487,8 @@ def figures(exp: Experiment) -> dict:
     }
     out = {names.get(kind, kind): makers[kind]() for kind in FIGURE_KINDS}
     for extra in exp.spec["figures"]["extra_noisy"]:
-        title = (f"{exp.name}, {data['frequency_hz']:g} Hz, input noise "
-                 f"{extra['noise_level']:g} ({extra['reading']})")
+        title = (f"{exp.name}, {f:g} Hz, input noise {extra['noise_level']:g} "
+                 f"({extra['reading']})")
         out[extra["name"]] = plots.estimates(data[extra["name"]], title)
     return out
 
