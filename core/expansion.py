@@ -61,6 +61,14 @@ def expand(model, x_op: np.ndarray, u_op: np.ndarray) -> Expansion:
                      C=model.h_jacobian(x_op))
 
 
+EXACT_STIFFNESS_LIMIT = 1e6
+"""Largest ``max |eig(A)| dt`` for which the exact propagation is used. Its matrix
+exponential rounds to about ``eps max|eig(A)| dt`` of the output: 2e-10 at the limit, below
+the integrator's ``rtol``; beyond it (the printed-bias amplifiers, up to 5e8) the stacked
+system is integrated instead (measured: 6e-9 of a 9 V output per period, which the periodic
+solve amplifies 26-fold, against 1e-11 for the integrator)."""
+
+
 def propagate_expanded(e: Expansion, du: np.ndarray, dt: float,
                        start: np.ndarray) -> np.ndarray:
     """Exact zeroth- and first-order trajectories ``[x0, x1]`` at the sample times.
@@ -103,6 +111,38 @@ def propagate_expanded(e: Expansion, du: np.ndarray, dt: float,
         x = w @ Phi_out
         out[:, k + 1] = x
     return out
+
+
+class ExpandedSystem:
+    """The zeroth- and first-order systems stacked, ``[x0, x1]``, as a model for the
+    integrator: input ``du``, drift ``[A x0 + B du, A x1 + q(x0, du)]``."""
+
+    def __init__(self, expansion: Expansion, name: str) -> None:
+        self.expansion = expansion
+        self.name = f"{name} (perturbation)"
+        self.n = expansion.A.shape[0]
+        self.n_states = 2 * self.n
+
+    def f_and_jacobian(self, state: np.ndarray, du: np.ndarray,
+                       t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        e, n = self.expansion, self.n
+        x0, x1 = state[..., :n], state[..., n:]
+        du = np.broadcast_to(du, state.shape[:-1] + du.shape[-1:])
+        z = np.concatenate([x0, du], axis=-1)
+        f = np.concatenate([x0 @ e.A.T + du @ e.B.T,
+                            x1 @ e.A.T + 0.5 * np.einsum("ijk,...j,...k->...i", e.H, z, z)],
+                           axis=-1)
+        J = np.zeros(state.shape + (2 * n,))
+        J[..., :n, :n] = e.A
+        J[..., n:, n:] = e.A
+        J[..., n:, :n] = np.einsum("ijk,...k->...ij", e.H[:, :n, :], z)
+        return f, J
+
+    def f(self, state: np.ndarray, du: np.ndarray, t: float = 0.0) -> np.ndarray:
+        return self.f_and_jacobian(state, du, t)[0]
+
+    def jacobian(self, state: np.ndarray, du: np.ndarray, t: float = 0.0) -> np.ndarray:
+        return self.f_and_jacobian(state, du, t)[1]
 
 
 @dataclass(frozen=True)
@@ -150,9 +190,13 @@ def respond(model, source: np.ndarray, bias: np.ndarray, dt: float, periodic: bo
             "circuit oscillates and a perturbation series about the point diverges")
     du = np.broadcast_to(u_in - u_op, u_in.shape)
     n = model.n_states
+    stiffness = float(np.max(np.abs(np.linalg.eigvals(expansion.A)))) * dt
+    system = ExpandedSystem(expansion, model.name)
 
     def run_expanded(start):
-        return propagate_expanded(expansion, du, dt, start)
+        if stiffness <= EXACT_STIFFNESS_LIMIT:
+            return propagate_expanded(expansion, du, dt, start)
+        return _with_start(start, integrate(system, start, du, dt, rtol=rtol, atol=atol))
 
     zero = np.zeros((runs, 2 * n))
     iterations = 0
