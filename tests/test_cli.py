@@ -304,6 +304,11 @@ def test_overridden_run_never_writes_the_baseline(tmp_path, monkeypatch):
     check = runner.invoke(main, ["check"])
     assert check.exit_code == 1
     assert "monte_carlo.runs: stored 2, config 3" in check.output
+    quick = runner.invoke(main, ["run", config, "--quick", "--quiet"])
+    assert quick.exit_code == 0 and (root / "scratch/tiny/manifest.json").is_file()
+    assert '"runs": 3' in (root / "scratch/tiny/manifest.json").read_text()
+    refused = runner.invoke(main, ["run", config, "--quick", "--update-baseline"])
+    assert refused.exit_code == 2 and "--quick never writes the baseline" in refused.output
     plain = runner.invoke(main, ["run", config, "--quiet"])
     assert plain.exit_code == 0
     assert runner.invoke(main, ["check"]).exit_code == 0
