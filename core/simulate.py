@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from core import linalg
+from core import compiled, linalg
 from core.errors import SimulationError
 
 _S6 = np.sqrt(6.0)
@@ -76,7 +76,8 @@ def _radau_step(model, x: np.ndarray, u: np.ndarray, h: np.ndarray, newton_tol: 
 
 def simulate(model, x0: np.ndarray, u: np.ndarray, dt: float, rtol: float = 1e-6,
              atol: float = 1e-7, newton_tol: float = 1e-12, max_newton: int = 20,
-             max_iterations: int = 1_000_000, on_failure: str = "raise") -> np.ndarray:
+             max_iterations: int = 1_000_000, on_failure: str = "raise",
+             engine: str = "auto") -> np.ndarray:
     """Integrate ``model`` from ``x0`` over ``steps`` intervals of length ``dt``.
 
     Each run has its own step size: a step is accepted when the RMS over states of the
@@ -90,6 +91,9 @@ def simulate(model, x0: np.ndarray, u: np.ndarray, dt: float, rtol: float = 1e-6
     u : ``(runs, steps, p)`` input, constant on each interval ``[t_k, t_{k+1})``.
     on_failure : ``"raise"`` a :class:`SimulationError` when a run's step size underflows,
         or ``"nan"``: that run's states become NaN from there on and the others go on.
+    engine : ``"compiled"`` (:mod:`core.compiled`, the same algorithm compiled with numba;
+        needs numba and a model with a ``kernel``), ``"numpy"``, or ``"auto"``: compiled
+        where it can be.
 
     Returns
     -------
@@ -100,6 +104,19 @@ def simulate(model, x0: np.ndarray, u: np.ndarray, dt: float, rtol: float = 1e-6
     u = np.asarray(u, float)
     runs, steps, _ = u.shape
     x = np.broadcast_to(np.asarray(x0, float), (runs, model.n_states)).copy()
+    kernel = model.kernel() if engine != "numpy" and compiled.AVAILABLE else None
+    if engine == "compiled" and kernel is None:
+        raise ValueError(f"{model.name}: no compiled kernel (or numba is not installed)")
+    if kernel is not None:
+        out, status, r, k = compiled.integrate(kernel[0], kernel[1], x, u, dt, rtol, atol,
+                                               newton_tol, max_newton, max_iterations,
+                                               on_failure == "nan")
+        if status == compiled.STEP_UNDERFLOW:
+            raise SimulationError(f"{model.name}: step size underflow on interval {k} "
+                                  f"(run {r})")
+        if status == compiled.TOO_MANY_STEPS:
+            raise SimulationError(f"{model.name}: more than {max_iterations} steps (run {r})")
+        return out
     out = np.empty((runs, steps, model.n_states))
     h = np.full(runs, dt / 4)
     iterations = 0

@@ -141,6 +141,10 @@ class Model:
         H = np.moveaxis((4 * second(h / 2) - second(h)) / 3, -1, 0)
         return 0.5 * (H + np.swapaxes(H, 1, 2))
 
+    def kernel(self):
+        """``(compiled_fn, P)`` for :mod:`core.compiled`, or ``None`` (the numpy path)."""
+        return None
+
     def h(self, x: np.ndarray) -> np.ndarray:
         raise NotImplementedError
 

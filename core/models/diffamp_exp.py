@@ -43,6 +43,10 @@ class DiffAmpExponential(DiffAmpEbersMoll):
     Params = DiffAmpExpParams
     variants = {"completed": {}, "thesis_printed": {"R_E": 80.0}}
 
+    def _kernel_params(self) -> list[float]:
+        p = self.params
+        return [1.0, 0.0, 0.0, 0.0, 0.0, p.V_T, p.beta * p.I_0, p.I_0 / (1 - p.alpha)]
+
     def _terminal_currents(self, x: np.ndarray, u: np.ndarray):
         p = self.params
         vE = x[..., 0:1]
