@@ -244,6 +244,19 @@ def _cell_tolerated(x: float, y: float, i: int, tol: dict, stored: pd.DataFrame,
     return False
 
 
+def _too_few_runs(tol: dict, stored: pd.DataFrame, new: pd.DataFrame, col: str,
+                  i: int) -> bool:
+    """With an ``se`` criterion: a mean whose standard error is undefined on either side
+    (fewer than two runs behind it, e.g. all runs but one diverged) is no Monte Carlo
+    estimate to compare; the run counts beside it are compared instead."""
+    if tol.get("se") is None:
+        return False
+    se_col = tol.get("se_column") or f"{col}_se"
+    if se_col not in stored or se_col not in new:
+        return False
+    return bool(pd.isna(stored[se_col].iloc[i]) or pd.isna(new[se_col].iloc[i]))
+
+
 def compare_tables(stored: pd.DataFrame, new: pd.DataFrame,
                    tolerances: dict[str, dict]) -> list[dict]:
     """Cells that differ, under each column's tolerance (default: exact).
@@ -257,7 +270,8 @@ def compare_tables(stored: pd.DataFrame, new: pd.DataFrame,
     * ``binomial: k``: a count of runs out of ``n`` (the sum of the ``trials`` columns)
       within ``k sqrt(2 n p (1 - p))``, ``p`` the pooled fraction: for divergence counts.
 
-    NaN equals NaN. ``skip: reason`` leaves a column out (the reason is shown by the CLI).
+    NaN equals NaN; with ``se``, a mean with no standard error on either side (fewer than
+    two runs) is not compared. ``skip: reason`` leaves a column out (the CLI shows why).
     Non-numeric columns must match exactly. A change of shape is one difference.
     """
     if list(stored.columns) != list(new.columns) or len(stored) != len(new):
@@ -277,6 +291,8 @@ def compare_tables(stored: pd.DataFrame, new: pd.DataFrame,
             if numeric:
                 x, y = float(x) if pd.notna(x) else np.nan, float(y) if pd.notna(y) else np.nan
                 if np.isnan(x) and np.isnan(y):
+                    continue
+                if _too_few_runs(tol, stored, new, col, i):
                     continue
                 if not np.isnan(x - y) and _cell_tolerated(x, y, i, tol, stored, new, col):
                     continue

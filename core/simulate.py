@@ -104,7 +104,8 @@ def simulate(model, x0: np.ndarray, u: np.ndarray, dt: float, rtol: float = 1e-6
     u = np.asarray(u, float)
     runs, steps, _ = u.shape
     x = np.broadcast_to(np.asarray(x0, float), (runs, model.n_states)).copy()
-    kernel = model.kernel() if engine != "numpy" and compiled.AVAILABLE else None
+    make = getattr(model, "kernel", None)
+    kernel = make() if make is not None and engine != "numpy" and compiled.AVAILABLE else None
     if engine == "compiled" and kernel is None:
         raise ValueError(f"{model.name}: no compiled kernel (or numba is not installed)")
     if kernel is not None:

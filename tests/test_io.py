@@ -26,3 +26,23 @@ def test_compare_tables_uses_column_tolerances():
     assert [d["column"] for d in diffs] == ["rmse"]
     c = pd.DataFrame({"estimator": ["RLS"], "rmse": [1.0], "runs": [5]})
     assert [d["column"] for d in io.compare_tables(a, c, {})] == ["estimator"]
+
+
+def test_statistical_tolerances():
+    nan = float("nan")
+    stored = pd.DataFrame({"rmse": [0.30, 0.30, nan], "rmse_se": [0.01, 0.01, nan],
+                           "runs": [30, 28, 0], "diverged": [0, 2, 30]})
+    new = pd.DataFrame({"rmse": [0.33, 0.40, 0.22], "rmse_se": [0.01, 0.01, nan],
+                        "runs": [30, 30, 1], "diverged": [0, 0, 29]})
+    tol = {"rmse": {"se": 4.0}, "diverged": {"binomial": 4.0, "trials": ["runs", "diverged"]},
+           "runs": {"binomial": 4.0, "trials": ["runs", "diverged"]}}
+    diffs = io.compare_tables(stored, new, tol)
+    # 0.03 is 2.1 combined SEs: passes; 0.10 is 7.1: fails; the one-run mean is not compared
+    assert [(d["row"], d["column"]) for d in diffs] == [(1, "rmse")]
+    # two zero counts must agree exactly; 2 -> 0 of 30 is within 4 binomial deviations
+    zero = pd.DataFrame({"rmse": [0.3], "rmse_se": [0.01], "runs": [30], "diverged": [0]})
+    one = zero.assign(diverged=[1], runs=[29])
+    assert io.compare_tables(zero, zero, tol) == []
+    assert io.compare_tables(zero, one, tol) == []
+    assert [d["column"] for d in io.compare_tables(zero, one, {})] == ["runs", "diverged"]
+    assert io.compare_tables(stored, new, {**tol, "rmse": {"skip": "why"}}) == []

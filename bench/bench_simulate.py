@@ -1,0 +1,83 @@
+"""One Chapter 3 row's "actual" signal: the numpy Radau integrator (the old path), the
+compiled one (core.compiled, the default) and scipy's solve_ivp, in one process.
+
+Run on demand (not part of the tests):  python bench/bench_simulate.py [--runs 30]
+
+The row: configs/mosfet_saturation.yaml, input noise 0.25 (sigma), 1 kHz, 200 samples, at
+the config's solver tolerance. Errors are against a tight reference (the compiled
+integrator at rtol 1e-10, atol 1e-12), as the largest drain-voltage difference over the
+runs and samples. scipy's solve_ivp cannot batch runs: it is timed on a few runs and its
+time scaled to the row (Radau and LSODA, with the analytic Jacobian).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from core.analyses import estimation
+from core.config import parse_data
+from core.simulate import simulate, simulate_scipy
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def row(runs: int):
+    spec = yaml.safe_load((ROOT / "configs" / "mosfet_saturation.yaml").read_text())
+    spec["monte_carlo"]["runs"] = runs
+    exp = parse_data(spec, "mosfet_saturation.yaml", "mosfet_saturation")
+    point = next(p for p in estimation.sweep(exp)
+                 if p.reading == "sigma" and p.level == 0.25 and p.frequency_hz == 1000)
+    rng = np.random.default_rng(np.random.SeedSequence(2019, spawn_key=(point.index,)))
+    dt, steps = estimation.sampling(exp, point.frequency_hz)
+    t = np.arange(steps + 1) * dt
+    clean = np.asarray(exp.spec["input"]["bias_v"]) + 0.01 * np.sin(
+        2 * np.pi * point.frequency_hz * t)[:, None]
+    source = clean[None] + point.sigma * rng.standard_normal((runs, steps + 1, 1))
+    source[:, 0] = clean[0]
+    truth = exp.plan.truth
+    return truth, exp.plan.x0, truth.source_to_input(source, dt), dt, exp.spec["simulation"]
+
+
+def timed(fn):
+    start = time.perf_counter()
+    out = fn()
+    return out, time.perf_counter() - start
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=30)
+    parser.add_argument("--scipy-runs", type=int, default=2)
+    args = parser.parse_args()
+    model, x0, u, dt, sim = row(args.runs)
+    rtol, atol = sim["rtol"], sim["atol"]
+    simulate(model, x0, u[:1, :2], dt, engine="compiled")            # compile once
+    reference = simulate(model, x0, u, dt, rtol=1e-10, atol=1e-12, engine="compiled")
+    results = []
+    out, sec = timed(lambda: simulate(model, x0, u, dt, rtol=rtol, atol=atol, engine="numpy"))
+    results.append(("batched Radau, numpy (old)", sec, out))
+    out, sec = timed(lambda: simulate(model, x0, u, dt, rtol=rtol, atol=atol,
+                                      engine="compiled"))
+    results.append(("batched Radau, compiled (new)", sec, out))
+    k = args.scipy_runs
+    for method in ("Radau", "LSODA"):
+        out, sec = timed(lambda method=method: simulate_scipy(model, x0, u[:k], dt, rtol=rtol,
+                                                                atol=atol, method=method))
+        results.append((f"solve_ivp {method}, per run (x{args.runs / k:g})",
+                        sec * args.runs / k, out))
+    base = results[0][1]
+    print(f"Chapter 3 row: {args.runs} runs x {u.shape[1]} samples, rtol {rtol:g}, "
+          f"atol {atol:g}")
+    print(f"{'integrator':42s} {'seconds':>9s} {'speed-up':>9s} {'max error [V]':>14s}")
+    for name, sec, out in results:
+        err = np.max(np.abs(model.h(out) - model.h(reference[:out.shape[0]])))
+        print(f"{name:42s} {sec:9.2f} {base / sec:8.1f}x {err:14.2e}")
+
+
+if __name__ == "__main__":
+    main()
