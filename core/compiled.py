@@ -24,13 +24,15 @@ except ImportError:  # pragma: no cover - the numpy path serves then
 AVAILABLE = numba is not None
 
 _S6 = np.sqrt(6.0)
-_A = np.array([
+RADAU_A = np.array([
     [(88 - 7 * _S6) / 360, (296 - 169 * _S6) / 1800, (-2 + 3 * _S6) / 225],
     [(296 + 169 * _S6) / 1800, (88 + 7 * _S6) / 360, (-2 - 3 * _S6) / 225],
     [(16 - _S6) / 36, (16 + _S6) / 36, 1 / 9],
 ])
-_MU = 3 + 3 ** (2 / 3) - 3 ** (1 / 3)
-_E = np.array([-13 - 7 * _S6, -13 + 7 * _S6, -1.0]) / 3
+"""Radau IIA (3 stages, order 5) coefficients."""
+RADAU_MU = 3 + 3 ** (2 / 3) - 3 ** (1 / 3)
+RADAU_E = np.array([-13 - 7 * _S6, -13 + 7 * _S6, -1.0]) / 3
+"""The embedded error estimate (Hairer & Wanner, Solving ODEs II, IV.8; as scipy)."""
 
 OK, STEP_UNDERFLOW, TOO_MANY_STEPS = 0, 1, 2
 
@@ -213,4 +215,4 @@ def integrate(kernel, P: np.ndarray, x0: np.ndarray, u: np.ndarray, dt: float, r
                           np.ascontiguousarray(x0, dtype=np.float64),
                           np.ascontiguousarray(u, dtype=np.float64), float(dt), float(rtol),
                           float(atol), float(newton_tol), int(max_newton), int(max_iterations),
-                          bool(nan_on_failure), _A, _E, _MU)
+                          bool(nan_on_failure), RADAU_A, RADAU_E, RADAU_MU)

@@ -19,17 +19,9 @@ from scipy.integrate import solve_ivp
 from core import compiled, linalg
 from core.errors import SimulationError
 
-_S6 = np.sqrt(6.0)
-RADAU_A = np.array([
-    [(88 - 7 * _S6) / 360, (296 - 169 * _S6) / 1800, (-2 + 3 * _S6) / 225],
-    [(296 + 169 * _S6) / 1800, (88 + 7 * _S6) / 360, (-2 - 3 * _S6) / 225],
-    [(16 - _S6) / 36, (16 + _S6) / 36, 1 / 9],
-])
-
-
-# Embedded error estimate of Radau IIA (Hairer & Wanner, Solving ODEs II, IV.8; as scipy).
-_MU = 3 + 3 ** (2 / 3) - 3 ** (1 / 3)
-_E = np.array([-13 - 7 * _S6, -13 + 7 * _S6, -1.0]) / 3
+# The Radau IIA tableau and its embedded error estimate (Hairer & Wanner, Solving ODEs II,
+# IV.8; as scipy), shared with the compiled integrator.
+RADAU_A, _MU, _E = compiled.RADAU_A, compiled.RADAU_MU, compiled.RADAU_E
 
 
 def _radau_step(model, x: np.ndarray, u: np.ndarray, h: np.ndarray, newton_tol: float,
