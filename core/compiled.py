@@ -6,8 +6,8 @@ and step sizes carried over between sample intervals. Only the arithmetic moves 
 calls on small arrays (whose call overhead was 90 % of the time) to compiled loops, one run
 at a time; results agree with the numpy path to rounding (``tests/test_compiled.py``).
 
-A model opts in with ``Model.kernel()``, which returns a compiled function
-``kernel(x, u, P, f, J)`` (writing the drift into ``f`` and its Jacobian into ``J``) and the
+A model opts in with ``Model.kernel()``, which returns the number of its compiled kernel in
+:mod:`core.kernels` (writing the drift into ``f`` and its Jacobian into ``J``) and the
 parameter vector ``P`` it reads. Without numba installed, or for a model without a kernel,
 :func:`core.simulate.simulate` keeps the numpy path.
 """
@@ -16,12 +16,10 @@ from __future__ import annotations
 
 import numpy as np
 
-try:
-    import numba
-except ImportError:  # pragma: no cover - the numpy path serves then
-    numba = None
+from core import kernels
+from core.kernels import evaluate, jit
 
-AVAILABLE = numba is not None
+AVAILABLE = kernels.AVAILABLE
 
 _S6 = np.sqrt(6.0)
 RADAU_A = np.array([
@@ -35,12 +33,6 @@ RADAU_E = np.array([-13 - 7 * _S6, -13 + 7 * _S6, -1.0]) / 3
 """The embedded error estimate (Hairer & Wanner, Solving ODEs II, IV.8; as scipy)."""
 
 OK, STEP_UNDERFLOW, TOO_MANY_STEPS = 0, 1, 2
-
-
-def jit(fn):
-    """``numba.njit`` (cached, numpy float semantics: 1/0 is inf, not an exception) where
-    numba is installed, else the plain function."""
-    return numba.njit(cache=True, error_model="numpy")(fn) if AVAILABLE else fn
 
 
 def _solve(M, b):
@@ -76,7 +68,7 @@ def _solve(M, b):
 solve = jit(_solve)
 
 
-def _radau_step(kernel, P, x, u, h, newton_tol, max_newton, A, E, mu, work, Js, M):
+def _radau_step(kind, P, x, u, h, newton_tol, max_newton, A, E, mu, work, Js, M):
     """One Radau IIA step of size ``h`` from ``x``: the new state, whether Newton converged
     to a finite error estimate, and the embedded error estimate. ``work``, ``Js`` and ``M``
     are scratch arrays of shapes ``(9, n)``, ``(4, n, n)`` and ``(3n, 3n)``."""
@@ -86,14 +78,14 @@ def _radau_step(kernel, P, x, u, h, newton_tol, max_newton, A, E, mu, work, Js, 
     f0, X, G3 = work[6], work[7], work[8]
     Z[:] = 0.0
     J0 = Js[3]
-    kernel(x, u, P, f0, J0)
+    evaluate(kind, x, u, P, f0, J0)
     G = np.empty(3 * n)
     done = False
     for _ in range(max_newton):
         for i in range(3):
             for a in range(n):
                 X[a] = x[a] + Z[i, a]
-            kernel(X, u, P, F[i], Js[i])
+            evaluate(kind, X, u, P, F[i], Js[i])
         finite = True
         for i in range(3):
             for a in range(n):
@@ -152,7 +144,7 @@ def _radau_step(kernel, P, x, u, h, newton_tol, max_newton, A, E, mu, work, Js, 
 radau_step = jit(_radau_step)
 
 
-def _integrate(kernel, P, x0, u, dt, rtol, atol, newton_tol, max_newton, max_iterations,
+def _integrate(kind, P, x0, u, dt, rtol, atol, newton_tol, max_newton, max_iterations,
                nan_on_failure, A, E, mu):
     runs, steps, _ = u.shape
     n = x0.shape[1]
@@ -172,7 +164,7 @@ def _integrate(kernel, P, x0, u, dt, rtol, atol, newton_tol, max_newton, max_ite
                 if iterations > max_iterations:
                     return out, TOO_MANY_STEPS, r, k
                 hh = min(h, dt - t)
-                new, ok, error = radau_step(kernel, P, x, uk, hh, newton_tol, max_newton,
+                new, ok, error = radau_step(kind, P, x, uk, hh, newton_tol, max_newton,
                                             A, E, mu, work, Js, M)
                 acc = 0.0
                 for a in range(n):
@@ -206,12 +198,12 @@ def _integrate(kernel, P, x0, u, dt, rtol, atol, newton_tol, max_newton, max_ite
 integrate_runs = jit(_integrate)
 
 
-def integrate(kernel, P: np.ndarray, x0: np.ndarray, u: np.ndarray, dt: float, rtol: float,
+def integrate(kind: int, P: np.ndarray, x0: np.ndarray, u: np.ndarray, dt: float, rtol: float,
               atol: float, newton_tol: float, max_newton: int, max_iterations: int,
               nan_on_failure: bool) -> tuple[np.ndarray, int, int, int]:
     """``(states (runs, steps, n), status, run, interval)``: ``status`` is ``OK``,
     ``STEP_UNDERFLOW`` or ``TOO_MANY_STEPS`` (with the run and interval where it happened)."""
-    return integrate_runs(kernel, np.ascontiguousarray(P, dtype=np.float64),
+    return integrate_runs(int(kind), np.ascontiguousarray(P, dtype=np.float64),
                           np.ascontiguousarray(x0, dtype=np.float64),
                           np.ascontiguousarray(u, dtype=np.float64), float(dt), float(rtol),
                           float(atol), float(newton_tol), int(max_newton), int(max_iterations),

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import linalg
 
-from core.compiled import jit
+from core import kernels
 from core.errors import SimulationError
 from core.simulate import SOLVERS
 
@@ -114,41 +114,6 @@ def propagate_expanded(e: Expansion, du: np.ndarray, dt: float,
     return out
 
 
-def _kernel(x, u, P, f, J):
-    """:meth:`ExpandedSystem.f_and_jacobian` in scalar form (compiled)."""
-    n, p = int(P[0]), int(P[1])
-    m = n + p
-    oA, oB, oH = 2, 2 + n * n, 2 + n * n + n * p
-    z = np.empty(m)
-    for a in range(n):
-        z[a] = x[a]
-    for c in range(p):
-        z[n + c] = u[c]
-    J[:, :] = 0.0
-    for a in range(n):
-        f0 = 0.0
-        f1 = 0.0
-        for b in range(n):
-            A_ab = P[oA + a * n + b]
-            f0 += A_ab * x[b]
-            f1 += A_ab * x[n + b]
-            J[a, b] = A_ab
-            J[n + a, n + b] = A_ab
-        for c in range(p):
-            f0 += P[oB + a * p + c] * u[c]
-        q = 0.0
-        for i in range(m):
-            row = 0.0
-            for j in range(m):
-                row += P[oH + (a * m + i) * m + j] * z[j]
-            q += row * z[i]
-            if i < n:
-                J[n + a, i] = row
-        f[a] = f0
-        f[n + a] = f1 + 0.5 * q
-
-
-_expanded_kernel = jit(_kernel)
 
 
 class ExpandedSystem:
@@ -182,7 +147,7 @@ class ExpandedSystem:
         e = self.expansion
         n, p = e.B.shape
         P = np.concatenate([[n, p], e.A.ravel(), e.B.ravel(), e.H.ravel()])
-        return _expanded_kernel, P
+        return kernels.EXPANDED, P
 
     def f(self, state: np.ndarray, du: np.ndarray, t: float = 0.0) -> np.ndarray:
         return self.f_and_jacobian(state, du, t)[0]

@@ -31,62 +31,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.compiled import jit
+from core import kernels
 from core.devices import ebers_moll
 from core.models.base import Model, check_params, param
-
-
-def _kernel(x, u, P, f, J):
-    """Compiled drift and Jacobian of :meth:`DiffAmpEbersMoll.f_and_jacobian` (and of the
-    plain-exponential pair), scalar form. ``P = [kind (0 Ebers-Moll, 1 exponential), I_ES,
-    I_CS, alpha_F, alpha_R, V_T, V_EE, V_CC, R_E, R_L, C_L, R_C1, R_C2, C_par, beta I_0,
-    I_0/(1 - alpha)]``."""
-    kind, I_ES, I_CS, aF, aR, VT = P[0], P[1], P[2], P[3], P[4], P[5]
-    V_EE, V_CC, R_E, R_L, C_L, R_C1, R_C2, Cp = (P[6], P[7], P[8], P[9], P[10], P[11], P[12],
-                                                  P[13])
-    vE, qL, vC1, vC2 = x[0], x[1], x[2], x[3]
-    IC = np.empty(2)
-    IE = np.empty(2)
-    dIC_be = np.empty(2)
-    dIC_bc = np.empty(2)
-    dIE_be = np.empty(2)
-    dIE_bc = np.empty(2)
-    for k in range(2):
-        vC = vC1 if k == 0 else vC2
-        eF = np.exp((u[k] - vE) / VT)
-        if kind == 0.0:
-            eR = np.exp((u[k] - vC) / VT)
-            fF, fR = I_ES * (eF - 1), I_CS * (eR - 1)
-            gF, gR = I_ES * eF / VT, I_CS * eR / VT
-            IC[k], IE[k] = aF * fF - fR, -fF + aR * fR
-            dIC_be[k], dIC_bc[k], dIE_be[k], dIE_bc[k] = aF * gF, -gR, -gF, aR * gR
-        else:
-            IC[k], IE[k] = P[14] * (eF - 1), -P[15] * (eF - 1)
-            dIC_be[k], dIC_bc[k] = P[14] * eF / VT, 0.0
-            dIE_be[k], dIE_bc[k] = -P[15] * eF / VT, 0.0
-    iL = (vC1 - vC2 - qL / C_L) / R_L
-    f[0] = ((V_EE - vE) / R_E - IE[0] - IE[1]) / Cp
-    f[1] = iL
-    f[2] = ((V_CC - vC1) / R_C1 - IC[0] - iL) / Cp
-    f[3] = ((V_CC - vC2) / R_C2 - IC[1] + iL) / Cp
-    J[:, :] = 0.0
-    J[0, 0] = (-1 / R_E + dIE_be[0] + dIE_be[1]) / Cp
-    J[0, 2] = dIE_bc[0] / Cp
-    J[0, 3] = dIE_bc[1] / Cp
-    J[1, 1] = -1 / (R_L * C_L)
-    J[1, 2] = 1 / R_L
-    J[1, 3] = -1 / R_L
-    J[2, 0] = dIC_be[0] / Cp
-    J[2, 1] = 1 / (R_L * C_L * Cp)
-    J[2, 2] = (-1 / R_C1 + dIC_bc[0] - 1 / R_L) / Cp
-    J[2, 3] = 1 / (R_L * Cp)
-    J[3, 0] = dIC_be[1] / Cp
-    J[3, 1] = -1 / (R_L * C_L * Cp)
-    J[3, 3] = (-1 / R_C2 + dIC_bc[1] - 1 / R_L) / Cp
-    J[3, 2] = 1 / (R_L * Cp)
-
-
-kernel = jit(_kernel)
 
 
 @dataclass(frozen=True)
@@ -181,7 +128,7 @@ class DiffAmpEbersMoll(Model):
         head = self._kernel_params()
         P = np.array([*head[:6], p.V_EE, p.V_CC, p.R_E, p.R_L, p.C_L, p.R_C1, p.R_C2,
                       p.C_par, *head[6:]], float)
-        return kernel, P
+        return kernels.DIFFAMP, P
 
     def h(self, x: np.ndarray) -> np.ndarray:
         x = np.asarray(x)

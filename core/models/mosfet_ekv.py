@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.compiled import jit
+from core import kernels
 from core.models.base import Model, check_params, param
 
 DRAIN_CURRENT_LAWS = (
@@ -87,50 +87,6 @@ def _sigmoid(a: np.ndarray) -> np.ndarray:
 _LAWS = {"ekv": 0.0, "weak_inversion": 1.0, "weak_saturation": 2.0}
 
 
-def _kernel(x, u, P, f, J):
-    """Compiled drift and Jacobian (the laws ``ekv``, ``weak_inversion``, ``weak_saturation``
-    of :meth:`MosfetEKV.drain_current` and :meth:`MosfetEKV.f_and_jacobian`, scalar form).
-
-    ``P = [law, I_s, eta, U_T, V_T0, C^-1 (16, row-major), -g (4), i0 (4), b (4)]``."""
-    law, Is, eta, UT, VT0 = P[0], P[1], P[2], P[3], P[4]
-    vG, vB, vS, vD = x[0], x[1], x[2], x[3]
-    vp = (vG - vB - VT0) / eta
-    a_s = (vp - (vS - vB)) / (2 * UT)
-    a_d = (vp - (vD - vB)) / (2 * UT)
-    if law == 0.0:
-        sp_s = max(a_s, 0.0) + np.log1p(np.exp(-abs(a_s)))
-        sp_d = max(a_d, 0.0) + np.log1p(np.exp(-abs(a_d)))
-        Fs, Fd = sp_s * sp_s, sp_d * sp_d
-        dFs = 2 * sp_s * 0.5 * (1.0 + np.tanh(0.5 * a_s))
-        dFd = 2 * sp_d * 0.5 * (1.0 + np.tanh(0.5 * a_d))
-    else:
-        Fs, Fd = np.exp(2 * a_s), np.exp(2 * a_d)
-        dFs, dFd = 2 * Fs, 2 * Fd
-    if law == 2.0:
-        Fd, dFd = 0.0, 0.0
-    current = Is * (Fs - Fd)
-    k = Is / (2 * UT)
-    g0 = (dFs - dFd) * k / eta
-    g1 = (dFs - dFd) * k * (1 - 1 / eta)
-    g2 = -dFs * k
-    g3 = dFd * k
-    i0 = P[21] * vG + P[25]
-    i1 = P[22] * vB + P[26]
-    i2 = P[23] * vS + P[27] + current
-    i3 = P[24] * vD + P[28] - current
-    for a in range(4):
-        row = 5 + 4 * a
-        f[a] = (P[row] * i0 + P[row + 1] * i1 + P[row + 2] * i2 + P[row + 3] * i3
-                + u[0] * P[29 + a])
-        # J = C^-1 (diag(-g) + inc grad^T), inc = [0, 0, 1, -1]
-        s = P[row + 2] - P[row + 3]
-        J[a, 0] = P[row] * P[21] + s * g0
-        J[a, 1] = P[row + 1] * P[22] + s * g1
-        J[a, 2] = P[row + 2] * P[23] + s * g2
-        J[a, 3] = P[row + 3] * P[24] + s * g3
-
-
-kernel = jit(_kernel)
 
 
 class MosfetEKV(Model):
@@ -236,7 +192,7 @@ class MosfetEKV(Model):
             return None
         P = np.concatenate([[_LAWS[p.drain_current], p.I_0 * p.W_L, p.eta, p.U_T, p.V_T0],
                             self._Cinv.ravel(), np.diag(self._G), self._i0, self._b])
-        return kernel, P
+        return kernels.MOSFET, P
 
     def h(self, x: np.ndarray) -> np.ndarray:
         return np.asarray(x)[..., 3:4]
