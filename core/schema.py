@@ -206,7 +206,10 @@ def operating_point(model, bias, source: str, path: str):
         with np.errstate(all="ignore"):
             x = model.operating_point(u=model.source_to_input(held, 1.0)[0, 0])
     except (RuntimeError, ValueError, ArithmeticError) as exc:
-        raise ConfigError(source, path, f"{model.name}: {str(exc).splitlines()[0]}") from None
+        message = str(exc).splitlines()[0]
+        if not message.startswith(f"{model.name}:"):
+            message = f"{model.name}: {message}"
+        raise ConfigError(source, path, message) from None
     if not np.all(np.isfinite(x)):
         raise ConfigError(source, path, f"{model.name}: no finite DC operating point")
     return x

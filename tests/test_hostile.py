@@ -123,6 +123,10 @@ HOSTILE = [
     ("mosfet_saturation", {"figures.names": {"noisy": "f" * 300}}, "figures.names.noisy",
      "at most 100 characters"),
     ("mosfet_saturation", {"monte_carlo.runs": 10**6}, "", "raise it with --max-work"),
+    ("diffamp_em_printed_distortion", {"model.params.R_E": 1e-300}, "model.params",
+     "linearisation at its operating point is not finite"),
+    ("cco_distortion", {"rows.0.params": {"R_E": 1.0}}, "rows[0].params",
+     "cco: no DC operating point found"),
 ]
 
 

@@ -25,7 +25,7 @@ import pandas as pd
 from core import metrics, plots, registry, signals
 from core.analyses.base import Result, TableSpec, map_tasks
 from core.errors import ConfigError
-from core.expansion import Response, respond
+from core.expansion import Response, expand, respond
 from core.schema import (
     MAX_VOLTS,
     REQUIRED,
@@ -111,12 +111,32 @@ def prepare(spec: dict, source: str) -> dict:
         models[row["s_no"]] = build_model(model_cls, variant,
                                           {**spec["model"]["params"], **row["params"]},
                                           source, f"{path}.params")
-        operating_point(models[row["s_no"]], exc["bias_v"], source, f"{path}.params")
+        _check_expansion(models[row["s_no"]], exc["bias_v"], source,
+                         f"{path}.params" if row["params"] else "model.params")
     row = spec["figures"]["row"]
     if row is not None and row not in models:
         raise ConfigError(source, "figures.row",
                           f"expected the s_no of a row ({sorted(models)}), got {row}")
     return models
+
+
+def _check_expansion(model, bias: list, source: str, path: str) -> None:
+    """The row's circuit has a DC operating point, a finite linear + quadratic part there,
+    and is stable about it (else a perturbation series about the point diverges): checked
+    before any work, as a config error at ``path``."""
+    x_op = operating_point(model, bias, source, path)
+    held = np.broadcast_to(np.asarray(bias, float), (1, 2, model.n_inputs))
+    u_op = model.source_to_input(held, 1.0)[0, 0]
+    with np.errstate(all="ignore"):
+        e = expand(model, x_op, u_op)
+    if not all(np.all(np.isfinite(m)) for m in (e.A, e.B, e.H)):
+        raise ConfigError(source, path, f"{model.name}: the circuit's linearisation at its "
+                          "operating point is not finite (a parameter out of range?)")
+    if e.spectral_abscissa >= 0:
+        raise ConfigError(source, path, f"{model.name}: the operating point is unstable (an "
+                          f"eigenvalue of the linearisation has real part "
+                          f"{e.spectral_abscissa:.3g} 1/s >= 0): a perturbation series about "
+                          "it diverges")
 
 
 def tiny(spec: dict) -> dict:

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 from scipy import optimize
 
-from core.errors import ParameterError
+from core.errors import ParameterError, SimulationError
 from core.simulate import simulate
 
 
@@ -176,7 +176,13 @@ class Model:
         sol = solve(guess)
         if not sol.success:
             held = np.broadcast_to(u0, (1, 20, self.n_inputs))
-            sol = solve(simulate(self, guess, held, 1e-6, on_failure="nan")[0, -1])
+            try:
+                settled = simulate(self, guess, held, 1e-6, on_failure="nan",
+                                   max_iterations=2_000)[0, -1]
+            except SimulationError:
+                raise RuntimeError(f"{self.name}: no DC operating point found (Newton failed "
+                                   "and the circuit did not settle in 20 us)") from None
+            sol = solve(settled)
         if not sol.success:
             raise RuntimeError(f"{self.name}: no DC operating point found ({sol.message})")
         return sol.x
