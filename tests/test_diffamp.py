@@ -50,3 +50,28 @@ def test_small_signal_gain_matches_hand_formula():
     gain = np.ptp(y) / 2 / vd
     assert gain == pytest.approx(expected, rel=0.02)
     assert 20 * np.log10(gain) == pytest.approx(23.5, abs=0.2)
+
+
+def test_printed_q_in_volts_keeps_the_output_gain_below_one():
+    """Table 3.5's Q = diag(0.01) is in the thesis' units (volts). Read as the variance of the
+    model's charge state q_L (C^2) it is 1e8 V^2 on the load capacitor: the first update's
+    gain on the output is 1 and the EKF returns the measurement. Mapped by the model's
+    state scales (C_L for q_L) the gain stays well below 1."""
+    from core import discretize
+    from core.estimators.ekf import ExtendedKalmanFilter
+
+    model = DiffAmpEbersMoll()
+    u = np.array([1.0, 1.0])
+    x = model.operating_point(u=u)
+    H = model.h_jacobian(x)
+    gains = {}
+    for units in ("thesis", "state"):
+        ekf = ExtendedKalmanFilter(Q=[0.01] * 4, R=0.1, P0=[0.01] * 4, noise_units=units)
+        Q, P0 = ekf.state_covariances(model)
+        _, F = discretize.step(model, x[None], u[None], 1e-4, "exponential")
+        P = F[0] @ P0 @ F[0].T + Q
+        S = H @ P @ H.T + 0.1
+        gains[units] = float((H @ P @ H.T / S)[0, 0])
+    assert gains["state"] > 0.999999
+    assert gains["thesis"] < 0.5
+    assert model.state_scales == (1.0, model.params.C_L, 1.0, 1.0)

@@ -26,6 +26,8 @@ class ExtendedKalmanFilter:
     substeps : discretisation substeps per sample interval.
     divergence_bound : a run whose prediction or estimate leaves ``|x| <= bound`` is marked
         diverged and frozen (from that step on its estimates are NaN).
+    noise_units : ``thesis`` (default): ``Q`` and ``P0`` are in the thesis' state units and
+        mapped onto the model's states (:meth:`state_covariances`); ``state``: as given.
     """
 
     SETTINGS = {
@@ -36,10 +38,12 @@ class ExtendedKalmanFilter:
         "discretization": (text(discretize.METHODS), None),
         "substeps": (integer(1, 1000), None),
         "divergence_bound": (number(positive=True, maximum=1e12), None),
+        "noise_units": (text({"thesis", "state"}), None),
     }
 
     def __init__(self, Q, R, P0, x0=None, discretization: str = "exponential",
-                 substeps: int = 1, divergence_bound: float = 1e3) -> None:
+                 substeps: int = 1, divergence_bound: float = 1e3,
+                 noise_units: str = "thesis") -> None:
         if discretization not in discretize.METHODS:
             raise ValueError(f"discretization {discretization!r}; expected one of "
                              f"{list(discretize.METHODS)}")
@@ -47,6 +51,7 @@ class ExtendedKalmanFilter:
         self.discretization = discretization
         self.substeps = int(substeps)
         self.divergence_bound = float(divergence_bound)
+        self.noise_units = noise_units
 
     def validate(self, model) -> None:
         """Raise ``ValueError`` for settings that cannot run with ``model``."""
@@ -59,11 +64,26 @@ class ExtendedKalmanFilter:
         if self.x0 is not None and np.size(self.x0) != n:
             raise ValueError(f"x0: expected {n} values for {list(model.state_names)}")
 
+    def state_covariances(self, model) -> tuple[np.ndarray, np.ndarray]:
+        """``Q`` and ``P0`` in the model's own state units.
+
+        With ``noise_units: thesis`` (the default) the settings are read in the thesis' state
+        units (volts) and scaled by the model's ``state_scales`` (``S Q S``, ``S`` diagonal):
+        a model whose state is a charge ``q = C v`` gets ``C^2`` times the printed variance.
+        With ``state`` they are taken as they are.
+        """
+        n = model.n_states
+        Q, P0 = as_matrix(self.Q, n, "Q"), as_matrix(self.P0, n, "P0")
+        if self.noise_units == "thesis":
+            S = np.asarray(model.state_scales, float)
+            Q, P0 = S[:, None] * Q * S[None, :], S[:, None] * P0 * S[None, :]
+        return Q, P0
+
     def run(self, model, z: np.ndarray, u: np.ndarray, dt: float,
             x0: np.ndarray | None = None) -> Estimate:
         runs, steps, m = z.shape
         n = model.n_states
-        Q = as_matrix(self.Q, n, "Q")
+        Q, P0 = self.state_covariances(model)
         R = as_matrix(self.R, m, "R")
         if self.x0 is not None:
             x0 = np.asarray(self.x0, float)
@@ -71,7 +91,7 @@ class ExtendedKalmanFilter:
             x0 = model.operating_point()
         u = batch_input(u, runs)
         x = np.broadcast_to(x0, (runs, n)).copy()
-        P = np.broadcast_to(as_matrix(self.P0, n, "P0"), (runs, n, n)).copy()
+        P = np.broadcast_to(P0, (runs, n, n)).copy()
         x_hat = np.full((runs, steps, n), np.nan)
         P_diag = np.full((runs, steps, n), np.nan)
         innovation = np.full((runs, steps, m), np.nan)

@@ -81,6 +81,14 @@ class Model:
         self.params = self.Params(**values)
 
     @property
+    def state_scales(self) -> tuple[float, ...]:
+        """Each state in units of the thesis' state for it: ``x_model = scale * x_thesis``.
+        One for a voltage state; a model whose state is a charge ``q = C v`` where the thesis
+        uses ``v`` returns ``C`` there. Filters map covariances given in the thesis' units
+        with it (``S Q S``)."""
+        return (1.0,) * self.n_states
+
+    @property
     def n_states(self) -> int:
         return len(self.state_names)
 

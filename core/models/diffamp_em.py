@@ -118,6 +118,12 @@ class DiffAmpEbersMoll(Model):
             J[..., row, 3 - side] = 1 / (p.R_L * p.C_par)
         return f, J
 
+    @property
+    def state_scales(self) -> tuple[float, ...]:
+        """The thesis' state (eq 3.60) has the load capacitor's voltage ``v_L`` where this
+        model has its charge ``q_L = C_L v_L``."""
+        return (1.0, self.params.C_L, 1.0, 1.0)
+
     def _kernel_params(self) -> list[float]:
         p = self.params
         return [0.0, p.I_ES, p.I_CS, p.alpha_F, p.alpha_R, p.V_T, 0.0, 0.0]
