@@ -123,6 +123,16 @@ HOSTILE = [
     ("mosfet_saturation", {"figures.names": {"noisy": "f" * 300}}, "figures.names.noisy",
      "at most 100 characters"),
     ("mosfet_saturation", {"monte_carlo.runs": 10**6}, "", "raise it with --max-work"),
+    ("mosfet_saturation", {"claims": [{"better": "EKF", "worse": "LMS"}]}, "claims[0].worse",
+     "expected an estimator label"),
+    ("mosfet_saturation", {"estimators.0.settings.noise_units": "volts"},
+     "estimators[0].settings.noise_units", "['state', 'thesis']"),
+    ("mosfet_saturation", {"check.tolerances.rmse": {"binomial": 4}},
+     "check.tolerances.rmse.trials", "binomial needs"),
+    ("mosfet_saturation", {"check.tolerances.rmse": {"se": 4, "se_column": "nope"}},
+     "check.tolerances.rmse", "no column 'nope'"),
+    ("mosfet_saturation", {"check.tolerances.rmse": {"se": 100}}, "check.tolerances.rmse.se",
+     "number <= 10"),
     ("diffamp_em_printed_distortion", {"model.params.R_E": 1e-300}, "model.params",
      "linearisation at its operating point is not finite"),
     ("cco_distortion", {"rows.0.params": {"R_E": 1.0}}, "rows[0].params",
@@ -454,3 +464,11 @@ def test_table_names_a_file_with_text_in_a_number_column(stored):
     target.write_text(lines[0] + "\n1,2\n")
     result = CliRunner().invoke(main, ["table", "rmse", "--results", str(out)])
     assert result.exit_code == 2 and "line 2 has 2 fields" in result.output
+
+
+def test_max_work_raises_the_work_limit(tmp_path):
+    path, result = validate_text(tmp_path, yaml.safe_dump(
+        config("mosfet_saturation", {"monte_carlo.runs": 10**6})))
+    assert_one_line_exit_2(result, path, expected="raise it with --max-work")
+    raised = CliRunner().invoke(main, ["validate", str(path), "--max-work", str(10**12)])
+    assert raised.exit_code == 0, raised.output
