@@ -1,6 +1,7 @@
 """``estim``: run, reproduce, table, check, validate, list.
 
-Exit codes: 0 ok, 1 a check found differences, 2 a usage or config error, 3 a run failed.
+Exit codes: 0 ok, 1 a check found differences, 2 a usage or config error, 3 a run failed,
+130 interrupted.
 """
 
 from __future__ import annotations
@@ -196,7 +197,8 @@ class Group(click.Group):
             click.echo(f"error: {exc.strerror or exc}{where}", err=True)
             sys.exit(3)
         except Exception as exc:  # noqa: BLE001 - last line of defence, reported
-            click.echo(f"error: {type(exc).__name__}: {exc}", err=True)
+            first = (str(exc).strip().splitlines() or [""])[0]
+            click.echo(f"error: {type(exc).__name__}: {first}", err=True)
             sys.exit(3)
 
 
@@ -205,7 +207,8 @@ class Group(click.Group):
 def main() -> None:
     """Reproduce the result tables of Bansal (2019), state estimation in ODE/PDE models.
 
-    Exit codes: 0 ok, 1 check found differences, 2 usage or config error, 3 a run failed.
+    Exit codes: 0 ok, 1 check found differences, 2 usage or config error, 3 a run failed,
+    130 interrupted.
     """
 
 
