@@ -14,11 +14,11 @@ timed on a few runs and scaled to the row (Radau and LSODA, analytic Jacobian).
 from __future__ import annotations
 
 import argparse
-import time
 from pathlib import Path
 
 import numpy as np
 import yaml
+from bench_filters import timed
 
 from core.analyses import estimation
 from core.config import parse_data
@@ -69,12 +69,6 @@ def stacked_scipy(model, x0, u, dt, rtol, atol, method="LSODA"):
         x = sol.y[:, -1]
         out[:, k] = x.reshape(runs, n)
     return out
-
-
-def timed(fn):
-    start = time.perf_counter()
-    out = fn()
-    return out, time.perf_counter() - start
 
 
 def main() -> None:

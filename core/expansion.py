@@ -53,6 +53,19 @@ class Expansion:
         return float(np.max(np.linalg.eigvals(self.A).real))
 
 
+def check_expansion(e: Expansion, name: str) -> None:
+    """Raise :class:`SimulationError` unless the linear and quadratic parts are finite and
+    the operating point is stable (about an unstable point the series diverges)."""
+    if not all(np.all(np.isfinite(m)) for m in (e.A, e.B, e.H)):
+        raise SimulationError(f"{name}: the circuit's linearisation at its operating point "
+                              "is not finite (a parameter out of range?)")
+    if e.spectral_abscissa >= 0:
+        raise SimulationError(
+            f"{name}: the operating point is unstable (an eigenvalue of the linearisation "
+            f"has real part {e.spectral_abscissa:.3g} 1/s >= 0): the circuit oscillates and "
+            "a perturbation series about the point diverges")
+
+
 def expand(model, x_op: np.ndarray, u_op: np.ndarray) -> Expansion:
     """The linear + quadratic split of ``model`` about ``(x_op, u_op)``."""
     x_op, u_op = np.asarray(x_op, float), np.asarray(u_op, float)
@@ -194,11 +207,7 @@ def respond(model, source: np.ndarray, bias: np.ndarray, dt: float, periodic: bo
     u_op = model.source_to_input(held, dt)[0]
     x_op = model.operating_point(u=u_op)
     expansion = expand(model, x_op, u_op)
-    if expansion.spectral_abscissa >= 0:
-        raise SimulationError(
-            f"{model.name}: the operating point is unstable (an eigenvalue of the "
-            f"linearisation has real part {expansion.spectral_abscissa:.3g} 1/s >= 0): the "
-            "circuit oscillates and a perturbation series about the point diverges")
+    check_expansion(expansion, model.name)
     du = np.broadcast_to(u_in - u_op, u_in.shape)
     n = model.n_states
     stiffness = float(np.max(np.abs(np.linalg.eigvals(expansion.A)))) * dt

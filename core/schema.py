@@ -14,6 +14,8 @@ import re
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from core.errors import ConfigError, ParameterError
 
 REQUIRED = object()
@@ -199,8 +201,6 @@ def build_model(model_cls, variant, params: dict, source: str, path: str):
 def operating_point(model, bias, source: str, path: str):
     """The DC operating point of ``model`` with its sources held at ``bias``; a model whose
     parameters give none is a config error at ``path``."""
-    import numpy as np
-
     held = np.broadcast_to(np.asarray(bias, float), (1, 2, model.n_inputs))
     try:
         with np.errstate(all="ignore"):

@@ -20,7 +20,7 @@ from click.testing import CliRunner
 from cli.main import main
 from core import io
 from core.analyses import ANALYSES
-from core.config import parse_data
+from core.config import apply_overrides, parse_data
 from core.errors import ConfigError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -29,14 +29,7 @@ CONFIGS = {p.stem: yaml.safe_load(p.read_text()) for p in sorted((ROOT / "config
 
 def config(config_name: str, changes: dict) -> dict:
     """A shipped config with dotted-path ``changes`` (list items by index)."""
-    spec = copy.deepcopy(CONFIGS[config_name])
-    for path, value in changes.items():
-        *parents, last = path.split(".")
-        node = spec
-        for key in parents:
-            node = node[int(key)] if isinstance(node, list) else node[key]
-        node[int(last) if isinstance(node, list) else last] = value
-    return spec
+    return apply_overrides(CONFIGS[config_name], changes)
 
 
 def validate_text(tmp_path: Path, text: str):

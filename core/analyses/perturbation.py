@@ -24,8 +24,8 @@ import pandas as pd
 
 from core import metrics, plots, registry, signals
 from core.analyses.base import Result, TableSpec, map_tasks
-from core.errors import ConfigError
-from core.expansion import Response, expand, respond
+from core.errors import ConfigError, SimulationError
+from core.expansion import Response, check_expansion, expand, respond
 from core.schema import (
     MAX_VOLTS,
     REQUIRED,
@@ -129,14 +129,10 @@ def _check_expansion(model, bias: list, source: str, path: str) -> None:
     u_op = model.source_to_input(held, 1.0)[0, 0]
     with np.errstate(all="ignore"):
         e = expand(model, x_op, u_op)
-    if not all(np.all(np.isfinite(m)) for m in (e.A, e.B, e.H)):
-        raise ConfigError(source, path, f"{model.name}: the circuit's linearisation at its "
-                          "operating point is not finite (a parameter out of range?)")
-    if e.spectral_abscissa >= 0:
-        raise ConfigError(source, path, f"{model.name}: the operating point is unstable (an "
-                          f"eigenvalue of the linearisation has real part "
-                          f"{e.spectral_abscissa:.3g} 1/s >= 0): a perturbation series about "
-                          "it diverges")
+    try:
+        check_expansion(e, model.name)
+    except SimulationError as exc:
+        raise ConfigError(source, path, str(exc)) from None
 
 
 def tiny(spec: dict) -> dict:
