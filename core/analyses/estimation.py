@@ -11,7 +11,12 @@ For each sweep point (noise reading x noise level x input frequency, in thesis r
 3. measurements are the actual output plus white measurement noise;
 4. every estimator sees the measurements and the nominal input (or the noisy one, when
    ``noise.filters_see`` is ``noisy``) and starts from the actual DC operating point;
-5. RMSE (eq 3.42) and residual statistics are taken over runs that did not diverge.
+5. every filter's health is judged (:mod:`core.health`): NEES against the actual states,
+   NIS, whiteness of the innovations, and divergence by the stated criterion;
+6. RMSE (eq 3.42) is reported over the runs that did not diverge and over all runs
+   (mean with its standard error, and median; a run the filter broke on counts as an
+   infinite error), beside a "measurement" row, the raw measurement's own RMSE; residual
+   statistics are over the runs that did not diverge.
 
 Each sweep point draws from its own ``SeedSequence(seed, spawn_key=(point,))``, so any cell
 can be re-run alone and comes out the same.
@@ -25,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from core import metrics, plots, registry, signals, tables
+from core import health, metrics, plots, registry, signals, tables
 from core.analyses.base import Result, TableSpec, map_tasks
 from core.errors import ConfigError
 from core.schema import (
@@ -87,6 +92,14 @@ SCHEMA: dict = {
         "rmse": (text(), None),
         "residual": (text(), None),
     }, REQUIRED),
+    "regime": (text(max_length=60), None),
+    "health": ({
+        "band": (number(minimum=0.5, maximum=0.9999), health.DEFAULTS["band"]),
+        "whiteness_lag": (integer(1, 1000), health.DEFAULTS["lag"]),
+        "whiteness_level": (number(minimum=1e-6, maximum=0.5), health.DEFAULTS["white_level"]),
+        "nis_level": (number(minimum=0.5, maximum=1 - 1e-12), health.DEFAULTS["nis_level"]),
+        "consecutive": (integer(1, 1_000_000), health.DEFAULTS["consecutive"]),
+    }, {}),
     "claims": (list_of({
         "better": (text(max_length=60), REQUIRED),
         "worse": (text(max_length=60), REQUIRED),
@@ -108,10 +121,20 @@ _ROW_KEYS = ("table_id", "s_no", "noise_reading", "noise_param", "noise_sigma", 
              "samples_per_period", "estimator")
 _JOIN = (("s_no", ("s_no",)), ("estimator", ("estimator",)))
 
+MEASUREMENT = "measurement"
+"""Label of the baseline row: the raw measurement taken as the estimate."""
+
 TABLES = {
-    "rmse": TableSpec("rmse.csv", _ROW_KEYS, ("rmse", "rmse_se", "runs", "diverged"),
+    "rmse": TableSpec("rmse.csv", _ROW_KEYS,
+                      ("rmse", "rmse_se", "runs", "diverged", "rmse_all", "rmse_all_se",
+                       "rmse_all_median", "regime", "regime_fraction"),
                       reference=("rmse",), join=_JOIN, title="RMSE (eq 3.42)",
                       reference_ids=("3.1", "3.2", "3.5")),
+    "health": TableSpec("health.csv", _ROW_KEYS,
+                        ("runs", "broken", "diverged", "nees_mean", "nees_in_band", "nis_mean",
+                         "nis_in_band", "white_fraction", "whiteness_lag", "regressor_rank",
+                         "regressor_size", "lambda_at_floor", "p_max_eig"),
+                        title="filter health: consistency, whiteness, divergence, excitation"),
     "residual": TableSpec("residual.csv", _ROW_KEYS,
                           ("residual_mean", "residual_mean_se", "residual_variance",
                            "residual_variance_se", "runs", "diverged"),
@@ -170,12 +193,19 @@ def prepare(spec: dict, source: str) -> Plan:
         path = f"estimators[{i}]"
         if est["label"] in labels:
             raise ConfigError(source, f"{path}.label", f"duplicate label {est['label']!r}")
+        if est["label"] == MEASUREMENT:
+            raise ConfigError(source, f"{path}.label", f"{MEASUREMENT!r} is the label of the "
+                              "raw-measurement baseline row; choose another")
         labels.append(est["label"])
         model = build_model(model_cls, variant, {**spec["model"]["params"], **est["model_params"]},
                             source, f"{path}.model_params")
         estimator = build_estimator(registry.ESTIMATORS[est["type"]], est["settings"], model,
                                     source, f"{path}.settings")
         filters.append((est["label"], estimator, model))
+    regime = spec["regime"]
+    if regime is not None and regime not in truth.regimes:
+        raise ConfigError(source, "regime", f"expected one of {list(truth.regimes)} for "
+                          f"model {spec['model']['name']}, got {regime!r}")
     if not any(spec["tables"].values()):
         raise ConfigError(source, "tables", "expected at least one of tables.rmse and "
                           "tables.residual")
@@ -297,7 +327,7 @@ def simulate_point(exp: Experiment, frequency_hz: float, sigma: float, runs: int
     z = actual + signals.gaussian(rng, noise["measurement_sigma"], actual.shape)
     seen = clean[None] if noise["filters_see"] == "nominal" else source
     return {"t": t[1:], "dt": dt, "x0": x0, "source": source, "clean": clean,
-            "actual": actual, "z": z, "u": truth.source_to_input(seen, dt)}
+            "states": states, "actual": actual, "z": z, "u": truth.source_to_input(seen, dt)}
 
 
 def estimate_point(exp: Experiment, data: dict) -> list:
@@ -306,45 +336,101 @@ def estimate_point(exp: Experiment, data: dict) -> list:
             for _, est, model in exp.plan.filters]
 
 
+def judge(exp: Experiment, data: dict, est, model) -> dict:
+    """One estimator's health on one batch (:mod:`core.health`), per run and summarised."""
+    cfg = exp.spec["health"]
+    nis = None if est.S is None else health.nis(est.innovation, est.S)
+    diverged = health.diverged(est, nis, model.output_range(), cfg["nis_level"],
+                               cfg["consecutive"])
+    out = {"diverged": diverged, "broken": np.asarray(est.broken, bool)}
+    nan = float("nan")
+    out["nees_mean"] = out["nees_in_band"] = out["nis_mean"] = out["nis_in_band"] = nan
+    if est.x_hat is not None and est.P is not None and est.x_hat.shape == data["states"].shape:
+        values = health.nees(data["states"], est.x_hat, est.P)
+        out["nees_mean"], out["nees_in_band"] = health.averaged_in_band(
+            values, est.x_hat.shape[-1], cfg["band"])
+    if nis is not None:
+        out["nis_mean"], out["nis_in_band"] = health.averaged_in_band(
+            nis, est.innovation.shape[-1], cfg["band"])
+    out["white_fraction"] = float(np.mean(health.white(
+        est.innovation, cfg["whiteness_lag"], cfg["whiteness_level"])))
+    out["whiteness_lag"] = health.effective_lag(est.innovation.shape[1], cfg["whiteness_lag"])
+    for key in ("regressor_rank", "regressor_size", "lambda_at_floor", "p_max_eig"):
+        values = est.diagnostics.get(key)
+        out[key] = nan if values is None else float(np.nanmedian(values)) \
+            if np.isfinite(values).any() else nan
+    return out
+
+
+def _rmse_all(actual: np.ndarray, y_hat: np.ndarray) -> tuple[float, float, float]:
+    """Mean (with standard error) and median of the per-run RMSE over every run; a run with
+    a non-finite estimate (the filter broke) has an infinite error."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        per_run = metrics.rmse_per_run(actual, y_hat)
+    per_run = np.where(np.isfinite(per_run), per_run, np.inf)
+    if np.isinf(per_run).any():
+        return float("inf"), float("nan"), float(np.median(per_run))
+    mean, se = metrics.mean_and_se(per_run)
+    return mean, se, float(np.median(per_run))
+
+
 def run_point(exp: Experiment, point: SweepPoint, traces: bool = False) -> tuple[list, dict]:
-    """Table rows (one per estimator) for one sweep point, and with ``traces`` the figure
-    traces of its first run (the figures show the runs the table averages)."""
+    """Table rows (the measurement baseline, then one per estimator) for one sweep point,
+    and with ``traces`` the figure traces of its first run (the figures show the runs the
+    table averages)."""
     mc = exp.spec["monte_carlo"]
     rng = np.random.default_rng(np.random.SeedSequence(mc["seed"], spawn_key=(point.index,)))
     data = simulate_point(exp, point.frequency_hz, point.sigma, mc["runs"], rng)
     estimates = estimate_point(exp, data)
-    rows = []
-    for (label, _, _), est in zip(exp.plan.filters, estimates, strict=True):
-        ok = ~est.diverged
+    regime = exp.spec["regime"]
+    fraction = float("nan") if regime is None else float(np.mean(exp.plan.truth.in_regime(
+        regime, data["states"], data["source"][:, 1:])))
+    common = {"noise_reading": point.reading, "noise_param": point.level,
+              "noise_sigma": point.sigma, "frequency_hz": point.frequency_hz,
+              "samples_per_period": 1.0 / (point.frequency_hz * data["dt"]),
+              "regime": regime or "", "regime_fraction": fraction}
+    runs = data["z"].shape[0]
+    raw = metrics.rmse_per_run(data["actual"], data["z"])
+    mean, se = metrics.mean_and_se(raw)
+    rows = [{**common, "estimator": MEASUREMENT, "rmse": mean, "rmse_se": se, "runs": runs,
+             "diverged": 0, "broken": 0, "rmse_all": mean, "rmse_all_se": se,
+             "rmse_all_median": float(np.median(raw))}]
+    verdicts = []
+    for (label, _, model), est in zip(exp.plan.filters, estimates, strict=True):
+        verdict = judge(exp, data, est, model)
+        verdicts.append(verdict["diverged"])
+        ok = ~verdict["diverged"]
         rmse, rmse_se = metrics.mean_and_se(
             metrics.rmse_per_run(data["actual"][ok], est.y_hat[ok]))
+        rmse_all, rmse_all_se, rmse_median = _rmse_all(data["actual"], est.y_hat)
         res_mean, res_var = metrics.residual_stats(est.innovation[ok])
         mean, mean_se = metrics.mean_and_se(res_mean)
         var, var_se = metrics.mean_and_se(res_var)
         rows.append({
-            "noise_reading": point.reading, "noise_param": point.level,
-            "noise_sigma": point.sigma, "frequency_hz": point.frequency_hz,
-            "samples_per_period": 1.0 / (point.frequency_hz * data["dt"]),
+            **common, **{k: v for k, v in verdict.items() if k not in ("diverged", "broken")},
             "estimator": label, "rmse": rmse, "rmse_se": rmse_se,
+            "rmse_all": rmse_all, "rmse_all_se": rmse_all_se, "rmse_all_median": rmse_median,
             "residual_mean": mean, "residual_mean_se": mean_se,
             "residual_variance": var, "residual_variance_se": var_se,
             "runs": int(ok.sum()), "diverged": int((~ok).sum()),
+            "broken": int(verdict["broken"].sum()),
         })
-    return rows, (_traces(exp, data, estimates) if traces else {})
+    return rows, (_traces(exp, data, estimates, verdicts) if traces else {})
 
 
-def _traces(exp: Experiment, data: dict, estimates: list) -> dict:
+def _traces(exp: Experiment, data: dict, estimates: list, diverged: list) -> dict:
     """What a figure draws of a batch: run 0's signals and every estimator's running RMSE
     over the runs that did not diverge."""
     labels = [label for label, _, _ in exp.plan.filters]
     pairs = list(zip(labels, estimates, strict=True))
+    kept = dict(zip(labels, diverged, strict=True))
     return {
         "t": data["t"], "source": data["source"][0, 1:, 0], "clean": data["clean"][1:, 0],
         "actual": data["actual"][0, :, 0], "z": data["z"][0, :, 0],
         "y_hat": {lab: e.y_hat[0, :, 0] for lab, e in pairs},
         "innovation": {lab: e.innovation[0, :, 0] for lab, e in pairs},
-        "running_rmse": {lab: metrics.running_rmse(data["actual"][~e.diverged],
-                                                   e.y_hat[~e.diverged]) for lab, e in pairs},
+        "running_rmse": {lab: metrics.running_rmse(data["actual"][~kept[lab]],
+                                                   e.y_hat[~kept[lab]]) for lab, e in pairs},
     }
 
 
@@ -439,9 +525,13 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     rows = [row for part, _ in done for row in part]
     known = {key: done[index][1] for index, keys in wanted.items() for key in keys}
     out = Result(tables={})
+    filters_only = [row for row in rows if row["estimator"] != MEASUREMENT]
     for metric, table_id in exp.spec["tables"].items():
         if table_id is not None:
-            out.tables[metric] = result_table(rows, metric, table_id)
+            out.tables[metric] = result_table(rows if metric == "rmse" else filters_only,
+                                              metric, table_id)
+    table_id = exp.spec["tables"]["rmse"] or exp.spec["tables"]["residual"]
+    out.tables["health"] = result_table(filters_only, "health", table_id)
     if exp.spec["claims"]:
         out.tables["claims"] = pd.concat(
             [claims(out.tables["rmse"], c["better"], c["worse"]) for c in exp.spec["claims"]],
@@ -468,7 +558,10 @@ def figure_traces(exp: Experiment, known: dict) -> dict:
         rng = np.random.default_rng(np.random.SeedSequence(mc["seed"],
                                                            spawn_key=(FIGURE_SEED_KEY, i)))
         data = simulate_point(exp, f, sigma, runs, rng)
-        out[key] = _traces(exp, data, estimate_point(exp, data))
+        estimates = estimate_point(exp, data)
+        verdicts = [judge(exp, data, est, model)["diverged"]
+                    for (_, _, model), est in zip(exp.plan.filters, estimates, strict=True)]
+        out[key] = _traces(exp, data, estimates, verdicts)
     return out
 
 

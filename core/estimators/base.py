@@ -9,7 +9,7 @@ optional initial state ``x0`` at ``t_0`` (filters without a state ignore it), an
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -24,16 +24,29 @@ class Estimate:
     ----------
     y_hat : ``(runs, steps, m)`` posterior estimate of the measured output.
     innovation : ``(runs, steps, m)`` prior residual ``z_k - y_hat_{k|k-1}`` (eq 3.84).
-    diverged : ``(runs,)`` runs whose estimate became non-finite or left ``divergence_bound``.
+    broken : ``(runs,)`` runs the filter could not carry on: the estimate became non-finite
+        or left the filter's numerical bound. From that step on the run's outputs are NaN.
+        Divergence in the statistical sense is judged from the outputs by
+        :func:`core.health.diverged`, not here.
     x_hat : ``(runs, steps, n)`` posterior state estimate, or ``None`` for output-only filters.
-    P_diag : ``(runs, steps, n)`` diagonal of the posterior covariance, or ``None``.
+    P : ``(runs, steps, n, n)`` posterior state covariance, or ``None``.
+    S : ``(runs, steps, m, m)`` innovation covariance the filter assumed, or ``None`` for a
+        filter with no noise model (RLS).
+    diagnostics : per-run extras, name -> ``(runs,)`` (RLS: regressor excitation).
     """
 
     y_hat: np.ndarray
     innovation: np.ndarray
-    diverged: np.ndarray
+    broken: np.ndarray
     x_hat: np.ndarray | None = None
-    P_diag: np.ndarray | None = None
+    P: np.ndarray | None = None
+    S: np.ndarray | None = None
+    diagnostics: dict = field(default_factory=dict)
+
+    @property
+    def P_diag(self) -> np.ndarray | None:
+        """``(runs, steps, n)`` diagonal of the posterior covariance, or ``None``."""
+        return None if self.P is None else np.diagonal(self.P, axis1=-2, axis2=-1)
 
 
 def batch_input(u: np.ndarray, runs: int) -> np.ndarray:
@@ -73,11 +86,12 @@ def check_covariance(value, n: int, name: str, definite: bool = False) -> np.nda
 
 
 def joseph_update(x: np.ndarray, P: np.ndarray, innovation: np.ndarray, H: np.ndarray,
-                  R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                  R: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Measurement update (eqs A.5-A.7, A.14-A.16) in Joseph form, batched.
 
     ``x (runs, n)``, ``P (runs, n, n)``, ``innovation (runs, m)``, ``H (runs, m, n)``,
-    ``R (m, m)``. The covariance is ``(I-KH) P (I-KH)^T + K R K^T``, symmetrised.
+    ``R (m, m)``. The covariance is ``(I-KH) P (I-KH)^T + K R K^T``, symmetrised. Returns
+    the updated state and covariance and the innovation covariance ``S = H P H^T + R``.
     """
     Ht = np.swapaxes(H, -1, -2)
     S = H @ P @ Ht + R
@@ -85,4 +99,4 @@ def joseph_update(x: np.ndarray, P: np.ndarray, innovation: np.ndarray, H: np.nd
     x = x + (K @ innovation[..., None])[..., 0]
     IKH = np.eye(P.shape[-1]) - K @ H
     P = IKH @ P @ np.swapaxes(IKH, -1, -2) + K @ R @ np.swapaxes(K, -1, -2)
-    return x, 0.5 * (P + np.swapaxes(P, -1, -2))
+    return x, 0.5 * (P + np.swapaxes(P, -1, -2)), S

@@ -24,8 +24,10 @@ class ExtendedKalmanFilter:
         the actual circuit's DC operating point), else the model's own operating point.
     discretization : one of :data:`core.discretize.METHODS`.
     substeps : discretisation substeps per sample interval.
-    divergence_bound : a run whose prediction or estimate leaves ``|x| <= bound`` is marked
-        diverged and frozen (from that step on its estimates are NaN).
+    divergence_bound : a run whose prediction or estimate leaves ``|x| <= bound`` (or becomes
+        non-finite) is marked broken and frozen (from that step on its estimates are NaN).
+        This only catches numerical breakdown; divergence is judged by
+        :func:`core.health.diverged`.
     noise_units : ``thesis`` (default): ``Q`` and ``P0`` are in the thesis' state units and
         mapped onto the model's states (:meth:`state_covariances`); ``state``: as given.
     """
@@ -93,7 +95,8 @@ class ExtendedKalmanFilter:
         x = np.broadcast_to(x0, (runs, n)).copy()
         P = np.broadcast_to(P0, (runs, n, n)).copy()
         x_hat = np.full((runs, steps, n), np.nan)
-        P_diag = np.full((runs, steps, n), np.nan)
+        P_hist = np.full((runs, steps, n, n), np.nan)
+        S_hist = np.full((runs, steps, m, m), np.nan)
         innovation = np.full((runs, steps, m), np.nan)
         alive = np.ones(runs, bool)
         for k in range(steps):
@@ -105,7 +108,7 @@ class ExtendedKalmanFilter:
                                         self.substeps)
                 Pp = F @ P[idx] @ np.swapaxes(F, -1, -2) + Q
                 nu = z[idx, k] - model.h(xp)
-                xu, Pu = joseph_update(xp, Pp, nu, model.h_jacobian(xp), R)
+                xu, Pu, S = joseph_update(xp, Pp, nu, model.h_jacobian(xp), R)
             ok = (np.all(np.isfinite(xu), axis=1) & np.all(np.isfinite(Pu), axis=(1, 2))
                   & np.all(np.abs(xu) <= self.divergence_bound, axis=1)
                   & np.all(np.abs(xp) <= self.divergence_bound, axis=1))
@@ -113,9 +116,10 @@ class ExtendedKalmanFilter:
             keep = idx[ok]
             x[keep], P[keep] = xu[ok], Pu[ok]
             x_hat[keep, k] = xu[ok]
-            P_diag[keep, k] = np.diagonal(Pu[ok], axis1=-2, axis2=-1)
+            P_hist[keep, k] = Pu[ok]
+            S_hist[keep, k] = S[ok]
             innovation[keep, k] = nu[ok]
         with np.errstate(all="ignore"):
             y_hat = model.h(x_hat)
-        return Estimate(y_hat=y_hat, innovation=innovation, diverged=~alive, x_hat=x_hat,
-                        P_diag=P_diag)
+        return Estimate(y_hat=y_hat, innovation=innovation, broken=~alive, x_hat=x_hat,
+                        P=P_hist, S=S_hist)

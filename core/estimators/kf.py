@@ -53,14 +53,15 @@ class KalmanFilter:
         P = np.broadcast_to(self.P0, (runs, n, n)).copy()
         H = np.broadcast_to(self.C, (runs, m, n))
         x_hat = np.empty((runs, steps, n))
-        P_diag = np.empty((runs, steps, n))
+        P_hist = np.empty((runs, steps, n, n))
+        S_hist = np.empty((runs, steps, m, m))
         innovation = np.empty((runs, steps, m))
         for k in range(steps):
             x = x @ self.A.T + u[:, k, :] @ self.B.T
             P = self.A @ P @ self.A.T + self.Q
             innovation[:, k] = z[:, k] - x @ self.C.T
-            x, P = joseph_update(x, P, innovation[:, k], H, self.R)
+            x, P, S_hist[:, k] = joseph_update(x, P, innovation[:, k], H, self.R)
             x_hat[:, k] = x
-            P_diag[:, k] = np.diagonal(P, axis1=-2, axis2=-1)
+            P_hist[:, k] = P
         return Estimate(y_hat=x_hat @ self.C.T, innovation=innovation,
-                        diverged=np.zeros(runs, bool), x_hat=x_hat, P_diag=P_diag)
+                        broken=np.zeros(runs, bool), x_hat=x_hat, P=P_hist, S=S_hist)

@@ -14,7 +14,20 @@ noisy measurement ``z_k`` as the desired signal ``d_k`` (eq 1.12). Per step, bat
 
 This is the variable-forgetting RLS of Fortescue, Kershenbaum and Ydstie (1981), the form
 the thesis prints: the forgetting enters ``P`` after the update (1.17), so the gain's
-denominator is ``1 + phi^T P phi`` as printed. Fixes to the printed form (notes.md item 17):
+denominator is ``1 + phi^T P phi`` as printed. Diagnostics (per run): ``regressor_rank``, the rank of the regressors once the tap line
+has filled (rows ``k >= M``: the directions the input excites persistently) out of
+``regressor_size``; ``lambda_at_floor``, the fraction of steps where eq 1.16 fell to
+``lambda_min`` or below; ``p_max_eig``, the largest eigenvalue of ``P`` at the end.
+
+Eq 1.16 computes every ``lambda_k`` from that
+step's error, so an initial forgetting factor has no role in it: ``lambda0`` is the constant
+factor of ``forgetting: fixed`` (``lambda_k = lambda0``, exponentially weighted RLS) and is
+refused with ``forgetting: variable`` (earlier versions accepted it there and ignored it).
+
+``p_max`` (not in the thesis; a variant) bounds the covariance: when ``trace P_k`` exceeds
+it, ``P_k`` is scaled down to trace ``p_max``. Under a regressor that excites only some
+directions, eq 1.17 divides the unexcited part of ``P`` by ``lambda_k < 1`` at every step
+and it grows without bound (see ``p_max_eig`` in the diagnostics). Fixes to the printed form (notes.md item 17):
 ``W_{k-1}`` in 1.13, ``M`` taps in both the weights and the regressor, and ``lambda_k``
 bounded to ``[lambda_min, 1]``. The regressor is the filter's input ``u`` (for the MOSFET,
 the slope of the nominal source on each interval). The estimate is the a posteriori output
@@ -26,7 +39,7 @@ from __future__ import annotations
 import numpy as np
 
 from core.estimators.base import Estimate, batch_input
-from core.schema import boolean, integer, number
+from core.schema import boolean, integer, number, text
 
 
 class RecursiveLeastSquares:
@@ -35,17 +48,22 @@ class RecursiveLeastSquares:
     SETTINGS = {
         "order": (integer(1, 200), None),
         "chi": (number(positive=True, maximum=1e12), None),
+        "forgetting": (text({"variable", "fixed"}), None),
         "lambda0": (number(positive=True, maximum=1.0), None),
         "lambda_min": (number(positive=True, maximum=1.0), None),
         "delta": (number(positive=True, maximum=1e12), None),
         "bias": (boolean, None),
+        "p_max": (number(positive=True, maximum=1e300), None),
     }
 
-    def __init__(self, order: int = 10, chi: float = 1.0, lambda0: float = 0.99,
-                 lambda_min: float = 0.9, delta: float = 100.0, bias: bool = True) -> None:
+    def __init__(self, order: int = 10, chi: float = 1.0, forgetting: str = "variable",
+                 lambda0: float | None = None, lambda_min: float = 0.9, delta: float = 100.0,
+                 bias: bool = True, p_max: float | None = None) -> None:
         self.order = int(order)
         self.chi = float(chi)
-        self.lambda0 = float(lambda0)
+        self.forgetting = forgetting
+        self.lambda0 = None if lambda0 is None else float(lambda0)
+        self.p_max = None if p_max is None else float(p_max)
         self.lambda_min = float(lambda_min)
         self.delta = float(delta)
         self.bias = bool(bias)
@@ -56,8 +74,17 @@ class RecursiveLeastSquares:
             raise ValueError(f"order must be >= 1, got {self.order}")
         if not 0 < self.lambda_min <= 1:
             raise ValueError(f"lambda_min must be in (0, 1], got {self.lambda_min}")
-        if not self.lambda_min <= self.lambda0 <= 1:
-            raise ValueError(f"lambda0 must be in [lambda_min, 1], got {self.lambda0}")
+        if self.forgetting not in ("variable", "fixed"):
+            raise ValueError(f"forgetting must be variable or fixed, got {self.forgetting!r}")
+        if self.forgetting == "variable" and self.lambda0 is not None:
+            raise ValueError("lambda0 is the constant factor of forgetting: fixed; with "
+                             "forgetting: variable eq 1.16 computes every lambda_k from its "
+                             "step's error and lambda0 would have no effect")
+        if self.forgetting == "fixed":
+            if self.lambda0 is None:
+                raise ValueError("forgetting: fixed needs lambda0")
+            if not 0 < self.lambda0 <= 1:
+                raise ValueError(f"lambda0 must be in (0, 1], got {self.lambda0}")
         if not (self.chi > 0 and self.delta > 0):
             raise ValueError("chi and delta must be positive")
 
@@ -83,7 +110,7 @@ class RecursiveLeastSquares:
         q = phi.shape[-1]
         W = np.zeros((runs, q, m))
         P = np.broadcast_to(self.delta * np.eye(q), (runs, q, q)).copy()
-        lam = np.full(runs, self.lambda0)
+        floor = np.zeros(runs)
         y_hat = np.empty((runs, steps, m))
         innovation = np.empty((runs, steps, m))
         for k in range(steps):
@@ -93,12 +120,31 @@ class RecursiveLeastSquares:
             denom = 1.0 + np.einsum("ra,ra->r", ph, Pph)
             K = Pph / denom[:, None]
             W = W + K[:, :, None] * zeta[:, None, :]
-            gain = np.einsum("ra,ra->r", ph, K)
-            lam = np.clip(1.0 - (1.0 - gain) * np.sum(zeta**2, axis=1) / self.chi,
-                          self.lambda_min, 1.0)
+            if self.forgetting == "fixed":
+                lam = np.full(runs, self.lambda0)
+            else:
+                gain = np.einsum("ra,ra->r", ph, K)
+                raw = 1.0 - (1.0 - gain) * np.sum(zeta**2, axis=1) / self.chi
+                lam = np.clip(raw, self.lambda_min, 1.0)
+                floor += raw <= self.lambda_min
             P = (P - K[:, :, None] * Pph[:, None, :]) / lam[:, None, None]
             P = 0.5 * (P + np.swapaxes(P, -1, -2))
+            if self.p_max is not None:
+                trace = np.trace(P, axis1=-2, axis2=-1)
+                P = P * np.minimum(1.0, self.p_max / trace)[:, None, None]
             y_hat[:, k] = np.einsum("rq,rqm->rm", ph, W)
             innovation[:, k] = zeta
-        return Estimate(y_hat=y_hat, innovation=innovation, diverged=~np.all(
-            np.isfinite(y_hat), axis=(1, 2)))
+        with np.errstate(all="ignore"):
+            top = np.full(runs, np.nan)
+            finite = np.all(np.isfinite(P), axis=(1, 2))
+            top[finite] = np.linalg.eigvalsh(P[finite])[:, -1]
+        diagnostics = {
+            "regressor_rank": np.linalg.matrix_rank(phi[:, self.order:]).astype(float)
+            if steps > self.order else np.full(runs, np.nan),
+            "regressor_size": np.full(runs, float(q)),
+            "lambda_at_floor": floor / steps,
+            "p_max_eig": top,
+        }
+        return Estimate(y_hat=y_hat, innovation=innovation,
+                        broken=~np.all(np.isfinite(y_hat), axis=(1, 2)),
+                        diagnostics=diagnostics)

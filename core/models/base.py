@@ -149,6 +149,19 @@ class Model:
         H = np.moveaxis((4 * second(h / 2) - second(h)) / 3, -1, 0)
         return 0.5 * (H + np.swapaxes(H, 1, 2))
 
+    regimes: tuple[str, ...] = ()
+    """Operating regimes :meth:`in_regime` can test (the regimes the thesis' tables name)."""
+
+    def in_regime(self, regime: str, x: np.ndarray, source: np.ndarray) -> np.ndarray:
+        """Whether each sample of states ``x (..., n)`` and source values ``source (..., p)``
+        is in ``regime`` (one of :attr:`regimes`), shape ``x.shape[:-1]``."""
+        raise ValueError(f"{self.name} declares no operating regimes")
+
+    def output_range(self) -> tuple[float, float] | None:
+        """The physical range of the measured output: an estimate outside it is no estimate of
+        this circuit (:func:`core.health.diverged`). ``None``: no range."""
+        return None
+
     def kernel(self):
         """``(compiled_fn, P)`` for :mod:`core.compiled`, or ``None`` (the numpy path)."""
         return None

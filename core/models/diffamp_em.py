@@ -136,6 +136,24 @@ class DiffAmpEbersMoll(Model):
                       p.C_par, *head[6:]], float)
         return kernels.DIFFAMP, P
 
+    regimes = ("active",)
+
+    def in_regime(self, regime: str, x: np.ndarray, source: np.ndarray) -> np.ndarray:
+        """``active``: both transistors forward active, ``v_BE > 0.5 V`` (conducting) and
+        ``v_BC < 0`` (collector junction reverse biased) for each; ``source`` holds the base
+        voltages."""
+        if regime not in self.regimes:
+            raise ValueError(f"unknown regime {regime!r}; expected one of {list(self.regimes)}")
+        x, vB = np.asarray(x, float), np.asarray(source, float)[..., 0:2]
+        vBE, vBC = vB - x[..., 0:1], vB - x[..., 2:4]
+        return np.all((vBE > 0.5) & (vBC < 0.0), axis=-1)
+
+    def output_range(self) -> tuple[float, float]:
+        """Both collectors lie between ``V_EE`` and ``V_CC``: their difference within the span
+        of the supplies."""
+        span = self.params.V_CC - self.params.V_EE
+        return -span, span
+
     def h(self, x: np.ndarray) -> np.ndarray:
         x = np.asarray(x)
         return x[..., 2:3] - x[..., 3:4]

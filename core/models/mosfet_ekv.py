@@ -194,6 +194,33 @@ class MosfetEKV(Model):
                             self._Cinv.ravel(), np.diag(self._G), self._i0, self._b])
         return kernels.MOSFET, P
 
+    regimes = ("weak_inversion", "weak_inversion_conduction", "weak_inversion_saturation")
+
+    def in_regime(self, regime: str, x: np.ndarray, source: np.ndarray) -> np.ndarray:
+        """EKV regions (Enz, Krummenacher and Vittoz 1995), source-referred.
+
+        ``weak_inversion``: the forward argument of the EKV law is negative,
+        ``(v_G - v_B - V_T0)/eta < v_S - v_B`` (for eta = 1: ``v_GS < V_T0``), the region
+        where eqs 3.6 and 3.12 hold. ``..._saturation`` adds ``v_DS >= 4 U_T`` (the reverse
+        current below e^-4 = 1.8 % of the forward current: eq 3.12 holds to that accuracy);
+        ``..._conduction`` is the rest of weak inversion (``v_DS < 4 U_T``: the drain term of
+        eq 3.6 matters).
+        """
+        if regime not in self.regimes:
+            raise ValueError(f"unknown regime {regime!r}; expected one of {list(self.regimes)}")
+        p = self.params
+        vG, vB, vS, vD = np.moveaxis(np.asarray(x, float), -1, 0)
+        weak = (vG - vB - p.V_T0) / p.eta < vS - vB
+        if regime == "weak_inversion":
+            return weak
+        saturated = vD - vS >= 4 * p.U_T
+        return weak & (saturated if regime == "weak_inversion_saturation" else ~saturated)
+
+    def output_range(self) -> tuple[float, float]:
+        """The drain lies between ground and ``V_DD`` at DC; a margin of one supply either
+        side allows for capacitive overshoot."""
+        return -self.params.V_DD, 2 * self.params.V_DD
+
     def h(self, x: np.ndarray) -> np.ndarray:
         return np.asarray(x)[..., 3:4]
 

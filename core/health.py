@@ -1,0 +1,155 @@
+"""Filter health over a Monte Carlo batch: consistency, whiteness and divergence.
+
+A Kalman-type filter is *consistent* when its errors match the covariances it reports
+(Bar-Shalom, Li and Kirubarajan 2001, §5.4):
+
+* NEES ``e_k^T P_k^-1 e_k``, ``e_k = x_k - x_hat_k`` (needs the true state), is chi-square
+  with ``n`` degrees of freedom;
+* NIS ``nu_k^T S_k^-1 nu_k`` (the innovation of eq 3.84 and its covariance) is chi-square
+  with ``m`` degrees of freedom.
+
+Averaged over ``N`` runs at one step, ``N`` times the average is chi-square with ``N n``
+(``N m``) degrees of freedom; :func:`averaged_in_band` gives the fraction of steps whose
+run-average falls in the two-sided 95 % band of that law. The innovations of a consistent
+filter are also white: :func:`ljung_box` tests each run's innovations.
+
+A run *diverges* (:func:`diverged`) when the filter broke numerically, when its NIS stays
+above the ``level`` quantile of chi-square(m) for ``consecutive`` steps in a row, or when
+its estimate of the output leaves the model's physical range for ``consecutive`` steps.
+For a filter with no noise model (RLS: no ``S``) only the first and last apply.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import stats
+
+from core.estimators.base import Estimate
+
+DEFAULTS = {
+    "band": 0.95,            # two-sided probability of the NEES/NIS band
+    "lag": 10,               # Ljung-Box lag
+    "white_level": 0.05,     # Ljung-Box test size
+    "nis_level": 0.999,      # a step's NIS above this chi-square quantile is an excess
+    "consecutive": 5,        # excesses in a row that make a run diverged
+}
+
+
+def _quadratic(e: np.ndarray, M: np.ndarray) -> np.ndarray:
+    """``e^T M^-1 e`` over leading axes; NaN where ``e`` or ``M`` is not finite or ``M`` is
+    singular."""
+    out = np.full(e.shape[:-1], np.nan)
+    ok = np.all(np.isfinite(e), axis=-1) & np.all(np.isfinite(M), axis=(-2, -1))
+    if ok.any():
+        with np.errstate(all="ignore"):
+            try:
+                sol = np.linalg.solve(M[ok], e[ok][..., None])[..., 0]
+            except np.linalg.LinAlgError:
+                sol = np.stack([np.linalg.lstsq(a, b, rcond=None)[0]
+                                for a, b in zip(M[ok], e[ok], strict=True)])
+        out[ok] = np.sum(e[ok] * sol, axis=-1)
+    return out
+
+
+def nees(x_true: np.ndarray, x_hat: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """Normalised estimation error squared, ``(runs, steps)``."""
+    return _quadratic(x_true - x_hat, P)
+
+
+def nis(innovation: np.ndarray, S: np.ndarray) -> np.ndarray:
+    """Normalised innovation squared, ``(runs, steps)``."""
+    return _quadratic(innovation, S)
+
+
+def band(dof: int, runs: int, probability: float = DEFAULTS["band"]) -> tuple[float, float]:
+    """Two-sided ``probability`` band of the average of ``runs`` chi-square(``dof``) values."""
+    tail = (1.0 - probability) / 2.0
+    k = dof * runs
+    return float(stats.chi2.ppf(tail, k) / runs), float(stats.chi2.ppf(1.0 - tail, k) / runs)
+
+
+def averaged_in_band(values: np.ndarray, dof: int,
+                     probability: float = DEFAULTS["band"]) -> tuple[float, float]:
+    """Mean of ``values (runs, steps)`` and the fraction of steps whose average over the runs
+    lies in :func:`band`. Runs with a non-finite value anywhere are left out (they broke and
+    are counted as diverged); NaN for both when no run is left."""
+    keep = np.all(np.isfinite(values), axis=1)
+    if not keep.any():
+        return float("nan"), float("nan")
+    avg = np.mean(values[keep], axis=0)
+    lo, hi = band(dof, int(keep.sum()), probability)
+    return float(np.mean(avg)), float(np.mean((avg >= lo) & (avg <= hi)))
+
+
+def effective_lag(steps: int, lag: int = DEFAULTS["lag"]) -> int:
+    """The Ljung-Box lag used on a record of ``steps``: ``lag``, at most a quarter of it."""
+    return max(1, min(lag, steps // 4))
+
+
+def ljung_box(x: np.ndarray, lag: int = DEFAULTS["lag"]) -> np.ndarray:
+    """Ljung-Box p-values of each run of ``x (runs, steps)`` at ``lag`` (Ljung and Box 1978):
+    ``Q = N (N+2) sum_h r_h^2 / (N-h)``, chi-square(``lag``) for a white sequence. NaN for a
+    run with a non-finite value or no variance."""
+    x = np.asarray(x, float)
+    runs, steps = x.shape
+    out = np.full(runs, np.nan)
+    ok = np.all(np.isfinite(x), axis=1)
+    if not ok.any() or not 1 <= lag < steps:
+        return out
+    d = x[ok] - x[ok].mean(axis=1, keepdims=True)
+    denom = np.sum(d * d, axis=1)
+    good = denom > 0
+    h = np.arange(1, lag + 1)
+    r = np.stack([np.sum(d[:, j:] * d[:, :-j], axis=1) for j in h], axis=1)
+    with np.errstate(all="ignore"):
+        r = r / denom[:, None]
+        q = steps * (steps + 2) * np.sum(r**2 / (steps - h), axis=1)
+    p = stats.chi2.sf(q, lag)
+    p[~good] = np.nan
+    out[ok] = p
+    return out
+
+
+def white(innovation: np.ndarray, lag: int = DEFAULTS["lag"],
+          level: float = DEFAULTS["white_level"]) -> np.ndarray:
+    """``(runs,)`` whether each run's innovations ``(runs, steps, m)`` pass the Ljung-Box test
+    at ``level`` (every output, each at ``level / m``). A broken run does not pass."""
+    m = innovation.shape[-1]
+    lag = effective_lag(innovation.shape[1], lag)
+    passed = np.ones(innovation.shape[0], bool)
+    for j in range(m):
+        p = ljung_box(innovation[..., j], lag)
+        passed &= np.nan_to_num(p, nan=-1.0) > level / m
+    return passed
+
+
+def _runs_of(flags: np.ndarray, consecutive: int) -> np.ndarray:
+    """``(runs,)`` whether ``flags (runs, steps)`` holds on ``consecutive`` steps in a row."""
+    count = np.zeros(flags.shape[0], int)
+    longest = np.zeros(flags.shape[0], int)
+    for k in range(flags.shape[1]):
+        count = np.where(flags[:, k], count + 1, 0)
+        longest = np.maximum(longest, count)
+    return longest >= consecutive
+
+
+def diverged(est: Estimate, nis_values: np.ndarray | None = None,
+             output_range: tuple[float, float] | None = None,
+             nis_level: float = DEFAULTS["nis_level"],
+             consecutive: int = DEFAULTS["consecutive"]) -> np.ndarray:
+    """``(runs,)`` runs that diverged by the criterion of the module docstring.
+
+    ``nis_values`` is :func:`nis` of the estimate (``None``: the filter has no ``S``);
+    ``output_range`` the model's physical range of the measured output (``None``: none).
+    """
+    out = np.asarray(est.broken, bool).copy()
+    if nis_values is not None:
+        bound = stats.chi2.ppf(nis_level, est.innovation.shape[-1])
+        with np.errstate(invalid="ignore"):
+            out |= _runs_of(nis_values > bound, consecutive)
+    if output_range is not None:
+        lo, hi = output_range
+        with np.errstate(invalid="ignore"):
+            outside = np.any((est.y_hat < lo) | (est.y_hat > hi), axis=-1)
+        out |= _runs_of(outside, consecutive)
+    return out

@@ -1,0 +1,128 @@
+"""Filter health (core.health) and the RLS settings the audit of issue 11 named."""
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from core import health
+from core.estimators.kf import KalmanFilter
+from core.estimators.rls import RecursiveLeastSquares
+
+A = np.array([[0.95, 0.1], [-0.1, 0.95]])
+C = np.array([[1.0, 0.0]])
+Q, R, P0 = np.diag([0.01, 0.02]), np.array([[0.25]]), np.diag([1.0, 1.0])
+
+
+def linear_gaussian(runs, steps, seed, a=A, drive=0.0):
+    """Truth of ``x_k = a x_{k-1} + [drive, 0] + v``, ``z = C x + w``, ``x_0 ~ N(0, P0)``."""
+    rng = np.random.default_rng(seed)
+    x = rng.multivariate_normal(np.zeros(2), P0, size=runs)
+    states = np.empty((runs, steps, 2))
+    for k in range(steps):
+        x = x @ a.T + [drive, 0.0] + rng.multivariate_normal(np.zeros(2), Q, size=runs)
+        states[:, k] = x
+    z = states @ C.T + rng.normal(scale=np.sqrt(R[0, 0]), size=(runs, steps, 1))
+    return states, z
+
+
+def kf(a=A, q=Q, b=(0.0, 0.0)):
+    return KalmanFilter(A=a, B=np.reshape(b, (2, 1)), C=C, Q=q, R=R, P0=P0, x0=[0.0, 0.0])
+
+
+def test_nees_and_nis_of_a_consistent_kf_fall_in_their_bands_at_the_nominal_rate():
+    states, z = linear_gaussian(100, 400, seed=1)
+    est = kf().run(None, z, np.zeros((400, 1)))
+    nees_mean, nees_in = health.averaged_in_band(health.nees(states, est.x_hat, est.P), 2)
+    nis_mean, nis_in = health.averaged_in_band(health.nis(est.innovation, est.S), 1)
+    assert nees_mean == pytest.approx(2.0, rel=0.05)
+    assert nis_mean == pytest.approx(1.0, rel=0.05)
+    # 400 steps at 95 %: binomial SD 1.1 %; allow 4 SD either side
+    assert 0.905 <= nees_in <= 0.995
+    assert 0.905 <= nis_in <= 0.995
+
+
+def test_nees_of_an_overconfident_kf_leaves_its_band():
+    states, z = linear_gaussian(100, 400, seed=2)
+    est = kf(q=Q / 100).run(None, z, np.zeros((400, 1)))
+    mean, inside = health.averaged_in_band(health.nees(states, est.x_hat, est.P), 2)
+    assert mean > 4 and inside < 0.1
+
+
+def test_band_is_the_chi_square_quantile_of_the_run_average():
+    lo, hi = health.band(4, 30)
+    assert (lo, hi) == pytest.approx((3.05, 5.07), abs=0.01)   # the audit's [3.05, 5.07]
+
+
+def test_ljung_box_p_values_are_uniform_for_white_noise_and_small_for_ar1():
+    rng = np.random.default_rng(3)
+    p = health.ljung_box(rng.normal(size=(400, 300)), lag=10)
+    assert stats.kstest(p, "uniform").pvalue > 1e-3
+    e = rng.normal(size=(50, 300))
+    ar = np.empty_like(e)
+    ar[:, 0] = e[:, 0]
+    for k in range(1, 300):
+        ar[:, k] = 0.5 * ar[:, k - 1] + e[:, k]
+    assert np.all(health.ljung_box(ar, lag=10) < 1e-3)
+
+
+def test_whiteness_of_a_consistent_kf_passes_at_about_the_nominal_rate():
+    _, z = linear_gaussian(300, 300, seed=4)
+    passed = health.white(kf().run(None, z, np.zeros((300, 1))).innovation, lag=10, level=0.05)
+    assert 0.90 <= passed.mean() <= 0.99       # 95 % +- 4 binomial SD of 300 runs
+
+
+def test_divergence_flags_a_wrong_model_and_not_a_consistent_one():
+    """The truth is driven by a known input; the wrong model leaves the input out and
+    trusts its own prediction (Q a thousandth of the truth's)."""
+    runs, steps = 200, 300
+    _, z = linear_gaussian(runs, steps, seed=5, drive=1.0)
+    u = np.ones((steps, 1))
+    good = kf(b=(1.0, 0.0)).run(None, z, u)
+    assert not health.diverged(good, health.nis(good.innovation, good.S)).any()
+    wrong = kf(q=Q / 1000).run(None, z, u)
+    assert health.diverged(wrong, health.nis(wrong.innovation, wrong.S)).all()
+
+
+def test_divergence_by_output_range_for_a_filter_without_noise_model():
+    z = np.random.default_rng(6).normal(size=(4, 50, 1))
+    est = RecursiveLeastSquares(order=2).run(None, z, np.ones((50, 1)))
+    assert not health.diverged(est, None, (-10.0, 10.0)).any()
+    assert health.diverged(est, None, (5.0, 10.0)).all()
+
+
+def test_rls_lambda0_is_refused_where_it_would_do_nothing():
+    with pytest.raises(ValueError, match="lambda0 is the constant factor"):
+        RecursiveLeastSquares(lambda0=0.99).validate(None)
+    with pytest.raises(ValueError, match="needs lambda0"):
+        RecursiveLeastSquares(forgetting="fixed").validate(None)
+
+
+def test_rls_fixed_forgetting_uses_lambda0():
+    """With lambda0 = 1 the recursion is ridge least squares on all data so far (prior
+    W = 0 with P = delta I); a lambda0 below 1 weights recent data more and changes it."""
+    rng = np.random.default_rng(7)
+    u = rng.normal(size=(200, 1))
+    z = rng.normal(size=(1, 200, 1))
+    rls = RecursiveLeastSquares(order=3, forgetting="fixed", lambda0=1.0, delta=10.0)
+    est = rls.run(None, z, u)
+    phi = rls.regressors(u[None])[0]
+    W = np.linalg.solve(phi.T @ phi + np.eye(phi.shape[1]) / 10.0, phi.T @ z[0])
+    assert est.y_hat[0, -1] == pytest.approx(phi[-1] @ W, rel=1e-9)
+    forgetful = RecursiveLeastSquares(order=3, forgetting="fixed", lambda0=0.9,
+                                      delta=10.0).run(None, z, u)
+    assert abs(forgetful.y_hat[0, -1, 0] - est.y_hat[0, -1, 0]) > 1e-3
+
+
+def test_rls_reports_the_sine_regressors_poor_excitation_and_p_max_bounds_it():
+    """A sampled sine excites 2 lag directions plus the bias: rank 3 of 11 regressors; the
+    unexcited part of P grows under forgetting unless the bounded-P variant caps it."""
+    k = np.arange(2000)
+    u = np.sin(2 * np.pi * k / 10)[:, None]
+    z = (0.3 * u + 0.5 * np.random.default_rng(8).normal(size=(2000, 1)))[None]
+    est = RecursiveLeastSquares(order=10).run(None, z, u)
+    d = est.diagnostics
+    assert d["regressor_rank"][0] == 3 and d["regressor_size"][0] == 11
+    assert d["lambda_at_floor"][0] > 0.1
+    assert d["p_max_eig"][0] > 1e6
+    bounded = RecursiveLeastSquares(order=10, p_max=1e3).run(None, z, u)
+    assert bounded.diagnostics["p_max_eig"][0] <= 1e3 * (1 + 1e-9)
