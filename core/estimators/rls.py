@@ -14,24 +14,26 @@ noisy measurement ``z_k`` as the desired signal ``d_k`` (eq 1.12). Per step, bat
 
 This is the variable-forgetting RLS of Fortescue, Kershenbaum and Ydstie (1981), the form
 the thesis prints: the forgetting enters ``P`` after the update (1.17), so the gain's
-denominator is ``1 + phi^T P phi`` as printed. Diagnostics (per run): ``regressor_rank``, the rank of the regressors once the tap line
-has filled (rows ``k >= M``: the directions the input excites persistently) out of
-``regressor_size``; ``lambda_at_floor``, the fraction of steps where eq 1.16 fell to
-``lambda_min`` or below; ``p_max_eig``, the largest eigenvalue of ``P`` at the end.
-
-Eq 1.16 computes every ``lambda_k`` from that
-step's error, so an initial forgetting factor has no role in it: ``lambda0`` is the constant
-factor of ``forgetting: fixed`` (``lambda_k = lambda0``, exponentially weighted RLS) and is
-refused with ``forgetting: variable`` (earlier versions accepted it there and ignored it).
-
-``p_max`` (not in the thesis; a variant) bounds the covariance: when ``trace P_k`` exceeds
-it, ``P_k`` is scaled down to trace ``p_max``. Under a regressor that excites only some
-directions, eq 1.17 divides the unexcited part of ``P`` by ``lambda_k < 1`` at every step
-and it grows without bound (see ``p_max_eig`` in the diagnostics). Fixes to the printed form (notes.md item 17):
+denominator is ``1 + phi^T P phi`` as printed. Fixes to the printed form (notes.md item 17):
 ``W_{k-1}`` in 1.13, ``M`` taps in both the weights and the regressor, and ``lambda_k``
 bounded to ``[lambda_min, 1]``. The regressor is the filter's input ``u`` (for the MOSFET,
 the slope of the nominal source on each interval). The estimate is the a posteriori output
 ``phi_k^T W_k``; the residual is ``zeta_k``.
+
+Eq 1.16 computes every ``lambda_k`` from that step's error, so an initial forgetting factor
+has no role in it: ``lambda0`` is the constant factor of ``forgetting: fixed``
+(``lambda_k = lambda0``, exponentially weighted RLS) and is refused with
+``forgetting: variable`` (earlier versions accepted it there and ignored it).
+
+``p_max`` (not in the thesis; a variant) bounds the covariance: when ``trace P_k`` exceeds
+it, ``P_k`` is scaled down to trace ``p_max``. Under a regressor that excites only some
+directions, eq 1.17 divides the unexcited part of ``P`` by ``lambda_k < 1`` at every step
+and it grows without bound.
+
+Diagnostics (per run): ``regressor_rank``, the rank of the regressors once the tap line has
+filled (rows ``k >= M``: the directions the input excites persistently) out of
+``regressor_size``; ``lambda_at_floor``, the fraction of steps where eq 1.16 fell to
+``lambda_min`` or below; ``p_max_eig``, the largest eigenvalue of ``P`` at the end.
 """
 
 from __future__ import annotations
