@@ -1,4 +1,4 @@
-"""``estim``: run, reproduce, table, check, validate, list.
+"""``estim``: run, reproduce, table, check, tune, validate, list.
 
 Exit codes: 0 ok, 1 a check found differences, 2 a usage or config error, 3 a run failed,
 130 interrupted.
@@ -19,6 +19,7 @@ from pathlib import Path
 import click
 import matplotlib.pyplot as plt
 import pandas as pd
+import yaml
 
 import core
 from cli import project
@@ -409,6 +410,53 @@ def _check_one(exp: Experiment, stored_dir: Path, tmp: Path, jobs: int) -> int:
             click.echo(f"{exp.name}/figures/{name}.png: missing from the stored results")
             differing += 1
     return differing
+
+
+@main.command()
+@click.argument("config", type=click.Path(path_type=Path))
+@click.option("--estimator", "label", required=True, help="Label of the filter to fit.")
+@click.option("--as", "new_label", help="Label of the fitted entry [default: LABEL (fitted Q)].")
+@click.option("--runs", type=click.IntRange(2, 10_000), default=10, show_default=True,
+              help="Training runs per sweep point (drawn apart from the table's runs).")
+@click.option("--fit-r", is_flag=True, help="Fit R too (reported as not identifiable when "
+                                           "the data cannot tell Q from R).")
+@click.option("--out", type=click.Path(dir_okay=False, path_type=Path),
+              help="Overlay file [default: fitted/<config name>.yaml beside the config].")
+@_max_work
+def tune(config, label, new_label, runs, fit_r, out, max_work) -> None:
+    """Fit the Q (and R) of one estimator of CONFIG by maximum likelihood and write the
+    fitted estimator entry to a YAML overlay."""
+    exp = load_all([config], max_work=max_work)[0]
+    analysis = ANALYSES[exp.analysis]
+    if not hasattr(analysis, "tune"):
+        fail(f"{config}: analysis {exp.analysis!r} has no estimators to tune")
+    out = out or Path(config).parent / "fitted" / f"{exp.name}.yaml"
+    start = time.perf_counter()
+    entry, fit = analysis.tune(exp, label, runs, fit_r)
+    entry["label"] = new_label or f"{label} (fitted {'Q, R' if fit_r else 'Q'})"
+    lines = [
+        f"# Written by: estim {' '.join(sys.argv[1:])}",
+        f"# Maximum-likelihood noise covariances of {label!r} (core/tuning.py) on training",
+        f"# draws of {runs} runs per sweep point, apart from the table's draws.",
+        f"# Innovation log-likelihood: {fit.log_likelihood_start:.6g} at the config's values, "
+        f"{fit.log_likelihood:.6g} fitted ({fit.evaluations} evaluations, "
+        f"{time.perf_counter() - start:.0f} s).",
+        f"# {fit.message}",
+        f"# Q diagonal:    {[float(f'{v:.4g}') for v in fit.q]}",
+        f"# standard error {[float(f'{v:.2g}') for v in fit.q_se]}",
+    ]
+    if fit_r:
+        lines += [f"# R diagonal:    {[float(f'{v:.4g}') for v in fit.r]}",
+                  f"# standard error {[float(f'{v:.2g}') for v in fit.r_se]}"]
+    lines.append("# Add the entry below to the config's estimators to run it beside the others.")
+    text = "\n".join(lines) + "\n" + yaml.safe_dump({"estimators": [entry]}, sort_keys=False)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        io.atomic_write_bytes(out, text.encode())
+    except OSError as exc:
+        raise UsageError(f"cannot write {out} ({exc.strerror or exc})") from None
+    click.echo(text, nl=False)
+    click.echo(f"-> {out}", err=True)
 
 
 @main.command()

@@ -270,7 +270,7 @@ def compare_tables(stored: pd.DataFrame, new: pd.DataFrame,
     * ``binomial: k``: a count of runs out of ``n`` (the sum of the ``trials`` columns)
       within ``k sqrt(2 n p (1 - p))``, ``p`` the pooled fraction: for divergence counts.
 
-    NaN equals NaN; with ``se``, a mean with no standard error on either side (fewer than
+    NaN equals NaN and an infinity itself; with ``se``, a mean with no standard error on either side (fewer than
     two runs) is not compared. ``skip: reason`` leaves a column out (the CLI shows why).
     Non-numeric columns must match exactly. A change of shape is one difference.
     """
@@ -290,7 +290,7 @@ def compare_tables(stored: pd.DataFrame, new: pd.DataFrame,
             x, y = a.iloc[i], b.iloc[i]
             if numeric:
                 x, y = float(x) if pd.notna(x) else np.nan, float(y) if pd.notna(y) else np.nan
-                if np.isnan(x) and np.isnan(y):
+                if (np.isnan(x) and np.isnan(y)) or x == y:
                     continue
                 if _too_few_runs(tol, stored, new, col, i):
                     continue

@@ -8,6 +8,7 @@ from __future__ import annotations
 from core.estimators.ekf import ExtendedKalmanFilter
 from core.estimators.kf import KalmanFilter
 from core.estimators.rls import RecursiveLeastSquares
+from core.estimators.ukf import UnscentedKalmanFilter
 from core.models.cco import CrossCoupledOscillator
 from core.models.diffamp_em import DiffAmpEbersMoll
 from core.models.diffamp_exp import DiffAmpExponential
@@ -24,4 +25,5 @@ ESTIMATORS = {
     "ekf": ExtendedKalmanFilter,
     "kf": KalmanFilter,
     "rls": RecursiveLeastSquares,
+    "ukf": UnscentedKalmanFilter,
 }

@@ -110,3 +110,15 @@ def test_stored_results_join_every_thesis_row(path):
             df = tables.with_reference(tables.view(read_table(folder / spec.file), spec), spec)
             filled += int(df[[f"thesis_{v}" for v in spec.reference]].notna().any().any())
     assert filled, f"no thesis value joined to {folder}"
+
+
+@pytest.mark.parametrize("name", ["mosfet_saturation", "diffamp_ekf"])
+def test_fitted_entries_are_the_ones_estim_tune_wrote(name):
+    """A config's "EKF (fitted Q)" carries the values of the overlay `estim tune` wrote."""
+    root = Path(__file__).resolve().parents[1] / "configs"
+    written = yaml.safe_load((root / "fitted" / f"{name}.yaml").read_text())["estimators"][0]
+    config = yaml.safe_load((root / f"{name}.yaml").read_text())
+    entry = next(e for e in config["estimators"] if e["label"] == written["label"])
+    assert entry["type"] == written["type"]
+    assert entry["settings"] == written["settings"]
+    assert (entry.get("model_params") or {}) == (written.get("model_params") or {})

@@ -54,7 +54,7 @@ def write(tmp_path: Path, spec: dict, name: str = "tiny.yaml") -> Path:
     ({"input.samples_per_period": 0}, "input.samples_per_period", "integer from 2 to"),
     ({"input.frequencies_hz": []}, "input.frequencies_hz", "non-empty list"),
     ({"model.name": "bjt_magic"}, "model.name", "mosfet_ekv"),
-    ({"estimators.0.type": "ukf"}, "estimators[0].type", "'ekf', 'kf', 'rls'"),
+    ({"estimators.0.type": "pf"}, "estimators[0].type", "'ekf', 'kf', 'rls', 'ukf'"),
     ({"estimators.1.settings": {"orderr": 3}}, "estimators[1].settings.orderr", "order"),
     ({"model.params": {"V_GG": 1.0}}, "model.params.V_GG", "unknown parameter"),
     ({"model.params": {"drain_current": "spice"}}, "model.params", "drain_current"),
@@ -104,7 +104,9 @@ def test_paired_sweep_follows_the_thesis_rows():
     pairs = [(p.reading, p.level, p.frequency_hz) for p in points]
     assert pairs[:5] == [("sigma", 0.005, 100), ("sigma", 0.01, 1000), ("sigma", 0.025, 10000),
                          ("sigma", 0.05, 100), ("sigma", 0.1, 1000)]
-    assert pairs[5][0] == "variance" and points[6].sigma == 0.1 and len(points) == 10
+    assert pairs[5][0] == "variance" and points[6].sigma == 0.1 and len(points) == 20
+    assert [p.measurement for p in points] == ["noisy"] * 10 + ["noise_free"] * 10
+    assert pairs[10:] == pairs[:10]
 
 
 def test_scipy_solver_backend_gives_the_same_table(tmp_path):
@@ -204,9 +206,12 @@ def test_table_prints_thesis_beside_ours(tmp_path):
     result = runner.invoke(main, ["table", "rmse", "--results", str(tmp_path), "--thesis",
                                   "--partial", "--format", "csv"])
     assert result.exit_code == 0, result.output
-    header, first = result.output.splitlines()[:2]
+    header, *lines = result.output.splitlines()
     assert "thesis_rmse" in header and "ratio_rmse" in header
-    assert ",0.4024," in first       # Table 3.2 row 1, EKF
+    ekf = next(line for line in lines if ",EKF," in line)
+    assert ",0.4024," in ekf         # Table 3.2 row 1, EKF
+    baseline = next(line for line in lines if ",measurement," in line)
+    assert baseline.endswith(",,")   # the raw measurement has no thesis value
     for fmt in ("text", "markdown", "latex"):
         assert runner.invoke(main, ["table", "residual", "--results", str(tmp_path),
                                     "--format", fmt]).exit_code == 0

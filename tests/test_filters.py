@@ -7,6 +7,7 @@ from core.estimators.base import Estimate
 from core.estimators.ekf import ExtendedKalmanFilter
 from core.estimators.kf import KalmanFilter
 from core.estimators.rls import RecursiveLeastSquares
+from core.estimators.ukf import UnscentedKalmanFilter
 from core.models.mosfet_ekv import MosfetEKV
 
 
@@ -36,6 +37,35 @@ def test_ekf_on_linear_model_equals_kf(oscillator):
     np.testing.assert_allclose(b.x_hat, a.x_hat, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(b.P_diag, a.P_diag, rtol=1e-9, atol=1e-14)
     np.testing.assert_allclose(b.innovation, a.innovation, rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("params", [dict(), dict(alpha=0.5, beta=0.0, kappa=1.0)])
+def test_ukf_on_linear_model_equals_kf(oscillator, params):
+    dt = 0.05
+    rng = np.random.default_rng(11)
+    z, u = rng.normal(size=(3, 200, 1)), rng.normal(size=(200, 1))
+    Ad, Bd = oscillator.discrete(dt)
+    settings = dict(Q=[1e-3, 2e-3], R=0.1, P0=[1.0, 1.0], x0=[0.5, 0.0])
+    a = KalmanFilter(A=Ad, B=Bd, C=oscillator.C, **settings).run(oscillator, z, u, dt)
+    b = UnscentedKalmanFilter(**settings, **params).run(oscillator, z, u, dt)
+    np.testing.assert_allclose(b.x_hat, a.x_hat, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(b.P, a.P, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(b.S, a.S, rtol=0, atol=1e-10)
+
+
+def test_ukf_differs_from_ekf_on_a_nonlinear_model():
+    """The sigma points see the curvature of the exponential law that the EKF's Jacobian
+    does not: the two filters agree closely but not exactly."""
+    model = MosfetEKV(V_IN=0.435, drain_current="weak_saturation")
+    x0 = model.operating_point()
+    rng = np.random.default_rng(12)
+    z = x0[3] + 0.1 * rng.normal(size=(2, 40, 1))
+    u = 50 * rng.normal(size=(40, 1))
+    settings = dict(Q=[0.0025, 0.002, 0.002, 0.002], R=0.01, P0=[0.0025, 0.002, 0.002, 0.002])
+    a = ExtendedKalmanFilter(**settings).run(model, z, u, 1e-4, x0=x0)
+    b = UnscentedKalmanFilter(**settings).run(model, z, u, 1e-4, x0=x0)
+    gap = np.abs(a.y_hat - b.y_hat).max()
+    assert 1e-6 < gap < 0.5
 
 
 def test_kf_and_ekf_start_from_the_x0_given_to_run(oscillator):
@@ -118,7 +148,8 @@ def test_every_estimator_returns_an_estimate(name, oscillator):
     Ad, Bd = oscillator.discrete(0.1)
     settings = {"kf": dict(A=Ad, B=Bd, C=oscillator.C, Q=0.01, R=0.1, x0=[0, 0], P0=1.0),
                 "ekf": dict(Q=0.01, R=0.1, P0=1.0, x0=[0.0, 0.0]),
-                "rls": dict(order=3)}[name]
+                "rls": dict(order=3),
+                "ukf": dict(Q=0.01, R=0.1, P0=1.0, x0=[0.0, 0.0])}[name]
     z = np.random.default_rng(4).normal(size=(5, 30, 1))
     est = registry.ESTIMATORS[name](**settings).run(oscillator, z, np.zeros((30, 1)), 0.1)
     assert isinstance(est, Estimate)

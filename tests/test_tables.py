@@ -11,7 +11,8 @@ RMSE = estimation.TABLES["rmse"]
 
 
 def rmse_rows(ekf, rls, ekf_diverged=0, s_no=1):
-    base = {"table_id": "3.2", "s_no": s_no, "noise_reading": "sigma", "noise_param": 0.25,
+    base = {"table_id": "3.2", "s_no": s_no, "measurement": "noisy", "noise_reading": "sigma",
+            "noise_param": 0.25,
             "noise_sigma": 0.25, "frequency_hz": 100.0, "samples_per_period": 10.0,
             "rmse_se": 0.01, "runs": 30}
     return pd.DataFrame([{**base, "estimator": "EKF", "rmse": ekf, "diverged": ekf_diverged},

@@ -24,6 +24,7 @@ can be re-run alone and comes out the same.
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -74,6 +75,8 @@ SCHEMA: dict = {
         "input_levels": (list_of(number(positive=True, maximum=MAX_VOLTS)), REQUIRED),
         "readings": (list_of(_READING, unique=True), ["sigma"]),
         "measurement_sigma": (number(minimum=0.0, maximum=MAX_VOLTS), REQUIRED),
+        "measurement": (list_of(text({"noisy", "noise_free"}), unique=True, max_length=2),
+                        ["noisy"]),
         "filters_see": (text({"nominal", "noisy"}), "nominal"),
         "pairs": (boolean, False),
     }, REQUIRED),
@@ -117,17 +120,17 @@ SCHEMA: dict = {
     }, {}),
 }
 
-_ROW_KEYS = ("table_id", "s_no", "noise_reading", "noise_param", "noise_sigma", "frequency_hz",
-             "samples_per_period", "estimator")
+_ROW_KEYS = ("table_id", "s_no", "measurement", "noise_reading", "noise_param", "noise_sigma",
+             "frequency_hz", "samples_per_period", "estimator")
 _JOIN = (("s_no", ("s_no",)), ("estimator", ("estimator",)))
 
 MEASUREMENT = "measurement"
 """Label of the baseline row: the raw measurement taken as the estimate."""
 
 TABLES = {
-    "rmse": TableSpec("rmse.csv", _ROW_KEYS,
+    "rmse": TableSpec("rmse.csv", (*_ROW_KEYS, "regime"),
                       ("rmse", "rmse_se", "runs", "diverged", "rmse_all", "rmse_all_se",
-                       "rmse_all_median", "regime", "regime_fraction"),
+                       "rmse_all_median", "regime_fraction"),
                       reference=("rmse",), join=_JOIN, title="RMSE (eq 3.42)",
                       reference_ids=("3.1", "3.2", "3.5")),
     "health": TableSpec("health.csv", _ROW_KEYS,
@@ -142,7 +145,8 @@ TABLES = {
                           title="residual (innovation) mean and variance",
                           reference_ids=("3.3", "3.4")),
     "claims": TableSpec("claims.csv",
-                        ("claim", "s_no", "noise_reading", "noise_param", "frequency_hz",
+                        ("claim", "s_no", "measurement", "noise_reading", "noise_param",
+                         "frequency_hz",
                          "better", "worse"),
                         ("rmse_better", "rmse_se_better", "rmse_worse", "rmse_se_worse",
                          "ratio", "ratio_se", "runs", "diverged_better", "diverged_worse",
@@ -251,6 +255,7 @@ def work_size(spec: dict) -> int:
     batches = len(spec["noise"]["readings"]) * len(spec["noise"]["input_levels"])
     if spec["noise"]["pairs"]:
         batches = len(spec["noise"]["readings"])
+    batches *= len(spec["noise"]["measurement"])
     figures = 2 + len(spec["figures"]["extra_noisy"])
     return int(mc["runs"] * n * (per_freq * batches + figures * per_freq))
 
@@ -263,7 +268,8 @@ def tiny(spec: dict) -> dict:
     else:
         spec["input"]["duration_s"] = 2.0 / spec["input"]["frequencies_hz"][0]
     spec["noise"].update(input_levels=spec["noise"]["input_levels"][:1],
-                         readings=spec["noise"].get("readings", ["sigma"])[:1])
+                         readings=spec["noise"].get("readings", ["sigma"])[:1],
+                         measurement=spec["noise"].get("measurement", ["noisy"])[:1])
     spec["monte_carlo"]["runs"] = 3
     spec["figures"] = {"names": spec.get("figures", {}).get("names", {})}
     return spec
@@ -272,6 +278,7 @@ def tiny(spec: dict) -> dict:
 @dataclass(frozen=True)
 class SweepPoint:
     index: int
+    measurement: str
     reading: str
     level: float
     sigma: float
@@ -279,18 +286,22 @@ class SweepPoint:
 
 
 def sweep(exp: Experiment) -> list[SweepPoint]:
-    """Sweep points in thesis row order: reading, then noise level, then frequency (or the
-    (level, frequency) pairs in the order given, with ``noise.pairs``)."""
+    """Sweep points in thesis row order: measurement reading, noise reading, noise level,
+    then frequency (or the (level, frequency) pairs in the order given, with
+    ``noise.pairs``). ``noise.measurement``: ``noisy``, the measured output plus white noise
+    of ``measurement_sigma``; ``noise_free``, the actual output itself (the filters keep
+    their ``R``)."""
     noise, inp = exp.spec["noise"], exp.spec["input"]
     if noise["pairs"]:
         cells = list(zip(noise["input_levels"], inp["frequencies_hz"], strict=True))
     else:
         cells = [(level, f) for level in noise["input_levels"] for f in inp["frequencies_hz"]]
     points = []
-    for reading in noise["readings"]:
-        for level, f in cells:
-            points.append(SweepPoint(len(points), reading, float(level),
-                                     signals.noise_sigma(level, reading), float(f)))
+    for measurement in noise["measurement"]:
+        for reading in noise["readings"]:
+            for level, f in cells:
+                points.append(SweepPoint(len(points), measurement, reading, float(level),
+                                         signals.noise_sigma(level, reading), float(f)))
     return points
 
 
@@ -308,7 +319,7 @@ def sampling(exp: Experiment, frequency_hz: float) -> tuple[float, int]:
 
 
 def simulate_point(exp: Experiment, frequency_hz: float, sigma: float, runs: int,
-                   rng: np.random.Generator) -> dict:
+                   rng: np.random.Generator, measurement: str = "noisy") -> dict:
     """Actual trajectories and measurements for one frequency and input-noise level."""
     inp, noise = exp.spec["input"], exp.spec["noise"]
     truth = exp.plan.truth
@@ -325,6 +336,8 @@ def simulate_point(exp: Experiment, frequency_hz: float, sigma: float, runs: int
                                     rtol=sim["rtol"], atol=sim["atol"])
     actual = truth.h(states)
     z = actual + signals.gaussian(rng, noise["measurement_sigma"], actual.shape)
+    if measurement == "noise_free":
+        z = actual.copy()
     seen = clean[None] if noise["filters_see"] == "nominal" else source
     return {"t": t[1:], "dt": dt, "x0": x0, "source": source, "clean": clean,
             "states": states, "actual": actual, "z": z, "u": truth.source_to_input(seen, dt)}
@@ -380,12 +393,13 @@ def run_point(exp: Experiment, point: SweepPoint, traces: bool = False) -> tuple
     table averages)."""
     mc = exp.spec["monte_carlo"]
     rng = np.random.default_rng(np.random.SeedSequence(mc["seed"], spawn_key=(point.index,)))
-    data = simulate_point(exp, point.frequency_hz, point.sigma, mc["runs"], rng)
+    data = simulate_point(exp, point.frequency_hz, point.sigma, mc["runs"], rng,
+                          point.measurement)
     estimates = estimate_point(exp, data)
     regime = exp.spec["regime"]
     fraction = float("nan") if regime is None else float(np.mean(exp.plan.truth.in_regime(
         regime, data["states"], data["source"][:, 1:])))
-    common = {"noise_reading": point.reading, "noise_param": point.level,
+    common = {"measurement": point.measurement, "noise_reading": point.reading, "noise_param": point.level,
               "noise_sigma": point.sigma, "frequency_hz": point.frequency_hz,
               "samples_per_period": 1.0 / (point.frequency_hz * data["dt"]),
               "regime": regime or "", "regime_fraction": fraction}
@@ -483,7 +497,7 @@ def claims(rmse: pd.DataFrame, better: str, worse: str) -> pd.DataFrame:
     and any divergence of ``worse`` (with none of ``better``) makes it hold; otherwise the
     RMSEs decide. ``ratio_se`` is the delta-method standard error of the ratio.
     """
-    keys = ["noise_reading", "noise_param", "frequency_hz"]
+    keys = ["measurement", "noise_reading", "noise_param", "frequency_hz"]
     a = rmse.loc[rmse["estimator"] == better, ["s_no", *keys, "rmse", "rmse_se", "runs",
                                                 "diverged"]]
     b = rmse.loc[rmse["estimator"] == worse, [*keys, "rmse", "rmse_se", "diverged"]]
@@ -516,7 +530,8 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     points = sweep(exp)
     wanted: dict[int, list[str]] = {}
     for key, f, level, reading in figure_cases(exp):
-        match = next((p for p in points if p.reading == reading and np.isclose(p.level, level)
+        match = next((p for p in points if p.measurement == points[0].measurement
+                      and p.reading == reading and np.isclose(p.level, level)
                       and np.isclose(p.frequency_hz, f)), None)
         if match is not None:
             wanted.setdefault(match.index, []).append(key)
@@ -557,7 +572,7 @@ def figure_traces(exp: Experiment, known: dict) -> dict:
             continue
         rng = np.random.default_rng(np.random.SeedSequence(mc["seed"],
                                                            spawn_key=(FIGURE_SEED_KEY, i)))
-        data = simulate_point(exp, f, sigma, runs, rng)
+        data = simulate_point(exp, f, sigma, runs, rng, exp.spec["noise"]["measurement"][0])
         estimates = estimate_point(exp, data)
         verdicts = [judge(exp, data, est, model)["diverged"]
                     for (_, _, model), est in zip(exp.plan.filters, estimates, strict=True)]
@@ -591,6 +606,61 @@ def summary(result: Result) -> str:
     df = result.tables.get("rmse")
     if df is None:
         return ""
-    view = df.pivot(index=["noise_reading", "noise_param", "frequency_hz"],
+    view = df.pivot(index=["measurement", "noise_reading", "noise_param", "frequency_hz"],
                     columns="estimator", values="rmse")
     return view.to_string(float_format=lambda v: f"{v:.4g}")
+
+
+TUNE_SEED_KEY = 2**32
+"""Training draws of :func:`tune` use ``spawn_key=(TUNE_SEED_KEY, point)``: independent of
+every table and figure batch."""
+
+
+def tune(exp: Experiment, label: str, runs: int, fit_r: bool = False) -> tuple[dict, object]:
+    """Maximum-likelihood ``Q`` (and ``R``) of estimator ``label`` (:mod:`core.tuning`) on
+    training draws of ``runs`` runs at every sweep point, pooled: one setting for the table,
+    as the thesis uses one (points with a noise-free measurement are left out when noisy
+    ones exist: the likelihood assumes the measurement noise ``R`` describes). Returns the estimator's config entry with the fitted diagonals
+    and the :class:`core.tuning.Fit`."""
+    from core import tuning
+    from core.errors import UsageError
+    from core.estimators.base import as_matrix
+
+    found = [(i, est, model) for i, (lab, est, model) in enumerate(exp.plan.filters)
+             if lab == label]
+    if not found:
+        raise UsageError(f"{exp.name}: no estimator labelled {label!r}; expected one of "
+                         f"{[lab for lab, _, _ in exp.plan.filters]}")
+    index, est, model = found[0]
+    if not (hasattr(est, "Q") and hasattr(est, "R")):
+        raise UsageError(f"{exp.name}: {label!r} has no noise covariances to fit")
+    mc = exp.spec["monte_carlo"]
+    batches = []
+    points = sweep(exp)
+    noisy = [p for p in points if p.measurement == "noisy"]
+    for p in noisy or points:
+        rng = np.random.default_rng(np.random.SeedSequence(mc["seed"],
+                                                           spawn_key=(TUNE_SEED_KEY, p.index)))
+        batches.append(simulate_point(exp, p.frequency_hz, p.sigma, runs, rng, p.measurement))
+    n, m = model.n_states, model.n_outputs
+    q0 = np.diag(as_matrix(est.Q, n, "Q")).copy()
+    r0 = np.diag(as_matrix(est.R, m, "R")).copy()
+    q0[q0 <= 0] = 1e-12 * max(float(q0.max()), 1e-300)
+
+    def evaluate(q, r):
+        trial = copy.copy(est)
+        trial.Q, trial.R = list(q), list(r)
+        total = 0.0
+        for data in batches:
+            out = trial.run(model, data["z"], data["u"], data["dt"], x0=data["x0"])
+            total += tuning.log_likelihood(out.innovation, out.S)
+            if not np.isfinite(total):
+                return -np.inf
+        return total
+
+    result = tuning.fit(evaluate, q0, r0, fit_r=fit_r)
+    entry = copy.deepcopy(exp.spec["estimators"][index])
+    entry["settings"]["Q"] = [float(f"{v:.6g}") for v in result.q]
+    if fit_r:
+        entry["settings"]["R"] = [float(f"{v:.6g}") for v in result.r]
+    return entry, result

@@ -14,6 +14,14 @@ from core.estimators.base import Estimate, as_matrix, batch_input, check_covaria
 from core.schema import REQUIRED, integer, list_of, matrix, number, text
 
 
+def thesis_to_state(M: np.ndarray, model) -> np.ndarray:
+    """A covariance given in the thesis' state units (volts) in the model's own units:
+    ``S M S`` with ``S = diag(model.state_scales)``, so a state that is a charge ``q = C v``
+    where the thesis has ``v`` gets ``C^2`` times the printed variance."""
+    S = np.asarray(model.state_scales, float)
+    return S[:, None] * M * S[None, :]
+
+
 class ExtendedKalmanFilter:
     """EKF with additive process noise ``Q`` and measurement noise ``R`` (L = M = I).
 
@@ -67,18 +75,11 @@ class ExtendedKalmanFilter:
             raise ValueError(f"x0: expected {n} values for {list(model.state_names)}")
 
     def state_covariances(self, model) -> tuple[np.ndarray, np.ndarray]:
-        """``Q`` and ``P0`` in the model's own state units.
-
-        With ``noise_units: thesis`` (the default) the settings are read in the thesis' state
-        units (volts) and scaled by the model's ``state_scales`` (``S Q S``, ``S`` diagonal):
-        a model whose state is a charge ``q = C v`` gets ``C^2`` times the printed variance.
-        With ``state`` they are taken as they are.
-        """
+        """``Q`` and ``P0`` in the model's own state units (:func:`thesis_to_state`)."""
         n = model.n_states
         Q, P0 = as_matrix(self.Q, n, "Q"), as_matrix(self.P0, n, "P0")
         if self.noise_units == "thesis":
-            S = np.asarray(model.state_scales, float)
-            Q, P0 = S[:, None] * Q * S[None, :], S[:, None] * P0 * S[None, :]
+            Q, P0 = thesis_to_state(Q, model), thesis_to_state(P0, model)
         return Q, P0
 
     def run(self, model, z: np.ndarray, u: np.ndarray, dt: float,

@@ -1,0 +1,151 @@
+"""Unscented Kalman filter, batched over Monte Carlo runs (not in the thesis; issue 11).
+
+Julier and Uhlmann's unscented transform with the scaled sigma points of van der Merwe
+(2004): ``2n + 1`` points ``x``, ``x +- sqrt((n + lambda) P)`` columns, ``lambda = alpha^2
+(n + kappa) - n``, mean weights ``lambda/(n+lambda)`` and ``1/(2(n+lambda))``, covariance
+weight of the centre ``lambda/(n+lambda) + 1 - alpha^2 + beta``.
+
+Per step, for every run at once:
+
+* prediction: each sigma point is carried over the sample interval by the same
+  discretisation as the EKF (:mod:`core.discretize`), its Jacobian unused; the predicted
+  mean and covariance are the weighted sample moments plus ``Q`` (additive noise, as in the
+  EKF of Appendix A.2);
+* update: sigma points are redrawn from the prediction and passed through ``h``; ``S`` and
+  the cross covariance ``P_xz`` are their weighted moments, ``K = P_xz S^-1``. The covariance
+  is updated in Joseph form with the statistically linearised ``H = P_xz^T P^-1`` (which is
+  the model's ``C`` for a linear model, so the filter is then exactly the KF).
+
+Settings are the EKF's (``Q``, ``R`` and ``P0`` in the thesis' state units by default) plus
+``alpha``, ``beta`` and ``kappa``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from core import discretize, linalg
+from core.estimators.base import Estimate, as_matrix, batch_input, joseph_update
+from core.estimators.ekf import ExtendedKalmanFilter
+from core.schema import number
+
+
+def sqrt_psd(P: np.ndarray) -> np.ndarray:
+    """Lower square roots ``L L^T = P`` of a stack of covariances: Cholesky, and where it
+    fails (a semidefinite ``P``) the symmetric root of ``P`` with negative eigenvalues
+    (rounding) set to zero. Non-finite ``P`` gives NaN."""
+    out = np.full(P.shape, np.nan)
+    finite = np.all(np.isfinite(P), axis=(-2, -1))
+    try:
+        out[finite] = np.linalg.cholesky(P[finite])
+        return out
+    except np.linalg.LinAlgError:
+        pass
+    for i in np.flatnonzero(finite):
+        try:
+            out[i] = np.linalg.cholesky(P[i])
+        except np.linalg.LinAlgError:
+            w, V = np.linalg.eigh(P[i])
+            out[i] = V * np.sqrt(np.clip(w, 0.0, None))
+    return out
+
+
+class UnscentedKalmanFilter(ExtendedKalmanFilter):
+    """UKF with additive ``Q`` and ``R``; see the module docstring."""
+
+    SETTINGS = {
+        **ExtendedKalmanFilter.SETTINGS,
+        "alpha": (number(positive=True, maximum=10.0), None),
+        "beta": (number(minimum=0.0, maximum=100.0), None),
+        "kappa": (number(minimum=-100.0, maximum=100.0), None),
+    }
+
+    def __init__(self, Q, R, P0, x0=None, discretization: str = "exponential",
+                 substeps: int = 1, divergence_bound: float = 1e3,
+                 noise_units: str = "thesis", alpha: float = 1.0, beta: float = 2.0,
+                 kappa: float = 0.0) -> None:
+        super().__init__(Q, R, P0, x0, discretization, substeps, divergence_bound, noise_units)
+        self.alpha, self.beta, self.kappa = float(alpha), float(beta), float(kappa)
+
+    def validate(self, model) -> None:
+        super().validate(model)
+        if not model.n_states + self.scaling(model.n_states) > 0:
+            raise ValueError(f"alpha^2 (n + kappa) must be positive (n = {model.n_states})")
+
+    def scaling(self, n: int) -> float:
+        """``lambda = alpha^2 (n + kappa) - n``."""
+        return self.alpha**2 * (n + self.kappa) - n
+
+    def weights(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """Mean and covariance weights of the ``2n + 1`` sigma points."""
+        lam = self.scaling(n)
+        wm = np.full(2 * n + 1, 0.5 / (n + lam))
+        wm[0] = lam / (n + lam)
+        wc = wm.copy()
+        wc[0] += 1.0 - self.alpha**2 + self.beta
+        return wm, wc
+
+    def sigma_points(self, x: np.ndarray, P: np.ndarray) -> np.ndarray:
+        """``(runs, 2n+1, n)`` sigma points of means ``x (runs, n)`` and covariances ``P``."""
+        n = x.shape[-1]
+        L = np.sqrt(n + self.scaling(n)) * sqrt_psd(P)
+        cols = np.swapaxes(L, -1, -2)
+        return np.concatenate([x[:, None, :], x[:, None, :] + cols, x[:, None, :] - cols],
+                              axis=1)
+
+    def run(self, model, z: np.ndarray, u: np.ndarray, dt: float,
+            x0: np.ndarray | None = None) -> Estimate:
+        runs, steps, m = z.shape
+        n = model.n_states
+        Q, P0 = self.state_covariances(model)
+        R = as_matrix(self.R, m, "R")
+        wm, wc = self.weights(n)
+        if self.x0 is not None:
+            x0 = np.asarray(self.x0, float)
+        elif x0 is None:
+            x0 = model.operating_point()
+        u = batch_input(u, runs)
+        x = np.broadcast_to(x0, (runs, n)).copy()
+        P = np.broadcast_to(P0, (runs, n, n)).copy()
+        x_hat = np.full((runs, steps, n), np.nan)
+        P_hist = np.full((runs, steps, n, n), np.nan)
+        S_hist = np.full((runs, steps, m, m), np.nan)
+        innovation = np.full((runs, steps, m), np.nan)
+        alive = np.ones(runs, bool)
+        points = 2 * n + 1
+        for k in range(steps):
+            idx = np.flatnonzero(alive)
+            if idx.size == 0:
+                break
+            with np.errstate(all="ignore"):
+                X = self.sigma_points(x[idx], P[idx])
+                uk = np.repeat(u[idx, k, :], points, axis=0)
+                Xp, _ = discretize.step(model, X.reshape(-1, n), uk, dt, self.discretization,
+                                        self.substeps)
+                Xp = Xp.reshape(idx.size, points, n)
+                xp = np.einsum("i,rin->rn", wm, Xp)
+                D = Xp - xp[:, None, :]
+                Pp = np.einsum("i,rin,rim->rnm", wc, D, D) + Q
+                Pp = 0.5 * (Pp + np.swapaxes(Pp, -1, -2))
+                X = self.sigma_points(xp, Pp)
+                Z = model.h(X)
+                zp = np.einsum("i,rim->rm", wm, Z)
+                DX, DZ = X - xp[:, None, :], Z - zp[:, None, :]
+                Pxz = np.einsum("i,rin,rim->rnm", wc, DX, DZ)
+                H = np.swapaxes(linalg.solve(Pp, Pxz), -1, -2)
+                nu = z[idx, k] - zp
+                xu, Pu, S = joseph_update(xp, Pp, nu, H, R)
+            ok = (np.all(np.isfinite(xu), axis=1) & np.all(np.isfinite(Pu), axis=(1, 2))
+                  & np.all(np.abs(xu) <= self.divergence_bound, axis=1)
+                  & np.all(np.abs(xp) <= self.divergence_bound, axis=1))
+            alive[idx[~ok]] = False
+            keep = idx[ok]
+            x[keep], P[keep] = xu[ok], Pu[ok]
+            x_hat[keep, k] = xu[ok]
+            P_hist[keep, k] = Pu[ok]
+            S_hist[keep, k] = S[ok]
+            innovation[keep, k] = nu[ok]
+        with np.errstate(all="ignore"):
+            y_hat = model.h(x_hat)
+        return Estimate(y_hat=y_hat, innovation=innovation, broken=~alive, x_hat=x_hat,
+                        P=P_hist, S=S_hist)

@@ -1,0 +1,133 @@
+"""Maximum-likelihood noise covariances for a Kalman-type filter (issue 11, not in the thesis).
+
+For a filter with a Gaussian noise model the innovations ``nu_k`` are, given the past,
+``N(0, S_k)``; the log-likelihood of a batch of measurement records is
+
+    log L = -1/2 sum_runs sum_k ( log det(2 pi S_k) + nu_k^T S_k^-1 nu_k )
+
+(the prediction-error decomposition; Schweppe 1965). :func:`fit` maximises it over the
+diagonal of ``Q`` (and optionally ``R``), each entry as ``exp(theta)`` so it stays positive,
+with scipy's L-BFGS-B (forward-difference gradients on a step of 1e-4 in ``theta``: a
+likelihood summed over 1e5 innovations carries rounding of ~1e-10 relative, which the
+default 1e-8 step turns into gradient noise larger than the gradient). Standard errors come from the inverse of the finite-difference
+Hessian of ``-log L`` in ``theta`` (the observed information), mapped by the delta method
+(``se(q) = q se(theta)``). When that Hessian is not positive definite, or its condition
+number exceeds :data:`IDENTIFIABLE_CONDITION`, or an entry's standard error exceeds the
+entry itself, the fit is reported as not identifiable from these data, naming the entries:
+an entry the likelihood does not depend on (a state the output never sees) has no standard
+error and an arbitrary value.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import optimize
+
+IDENTIFIABLE_CONDITION = 1e8
+"""Largest condition number of the observed information at which the fit is reported."""
+
+
+def log_likelihood(innovation: np.ndarray, S: np.ndarray) -> float:
+    """Innovation log-likelihood of a batch, ``-inf`` if any run broke (NaN innovation)."""
+    if not (np.all(np.isfinite(innovation)) and np.all(np.isfinite(S))):
+        return -np.inf
+    m = innovation.shape[-1]
+    sign, logdet = np.linalg.slogdet(S)
+    if np.any(sign <= 0):
+        return -np.inf
+    quad = np.sum(innovation * np.linalg.solve(S, innovation[..., None])[..., 0], axis=-1)
+    return float(-0.5 * np.sum(logdet + quad + m * np.log(2 * np.pi)))
+
+
+@dataclass(frozen=True)
+class Fit:
+    """Result of :func:`fit`: fitted diagonals, their standard errors (NaN where not
+    identifiable), log-likelihoods at the start and the optimum, and a verdict."""
+
+    q: np.ndarray
+    q_se: np.ndarray
+    r: np.ndarray
+    r_se: np.ndarray
+    log_likelihood_start: float
+    log_likelihood: float
+    identifiable: bool
+    message: str
+    evaluations: int
+
+
+def _hessian(fun: Callable[[np.ndarray], float], x: np.ndarray, step: float = 1e-2) -> np.ndarray:
+    """Central second differences of ``fun`` at ``x``."""
+    n = x.size
+    H = np.empty((n, n))
+    f0 = fun(x)
+    for i in range(n):
+        ei = np.zeros(n)
+        ei[i] = step
+        H[i, i] = (fun(x + ei) - 2 * f0 + fun(x - ei)) / step**2
+        for j in range(i):
+            ej = np.zeros(n)
+            ej[j] = step
+            H[i, j] = H[j, i] = (fun(x + ei + ej) - fun(x + ei - ej) - fun(x - ei + ej)
+                                 + fun(x - ei - ej)) / (4 * step**2)
+    return H
+
+
+def fit(evaluate: Callable[[np.ndarray, np.ndarray], float], q0: np.ndarray, r0: np.ndarray,
+        fit_r: bool = False, max_iterations: int = 200) -> Fit:
+    """Maximise ``evaluate(q_diag, r_diag)`` (a log-likelihood) over ``q`` (and ``r``).
+
+    ``q0`` and ``r0`` are the starting diagonals; with ``fit_r`` false ``r`` stays ``r0``.
+    """
+    q0, r0 = np.asarray(q0, float), np.asarray(r0, float)
+    nq = q0.size
+    count = [0]
+
+    def split(theta):
+        q = np.exp(theta[:nq])
+        r = np.exp(theta[nq:]) if fit_r else r0
+        return q, r
+
+    def nll(theta):
+        count[0] += 1
+        value = evaluate(*split(theta))
+        return 1e300 if not np.isfinite(value) else -value
+
+    theta0 = np.log(np.concatenate([q0, r0]) if fit_r else q0)
+    start = -nll(theta0)
+    res = optimize.minimize(nll, theta0, method="L-BFGS-B",
+                            bounds=[(t - 25.0, t + 25.0) for t in theta0],
+                            options={"maxiter": max_iterations, "eps": 1e-4})
+    q, r = split(res.x)
+    H = 0.5 * (_hessian(nll, res.x) + _hessian(nll, res.x).T)
+    scale = float(np.max(np.abs(np.diag(H)), initial=0.0))
+    flat = ~(np.diag(H) > 1e-8 * scale) if scale > 0 else np.ones(theta0.size, bool)
+    se = np.full(theta0.size, np.nan)
+    condition = np.inf
+    if not flat.all():
+        sub = H[np.ix_(~flat, ~flat)]
+        eig = np.linalg.eigvalsh(sub)
+        if eig[0] > 0:
+            condition = eig[-1] / eig[0]
+            se[~flat] = np.sqrt(np.diag(np.linalg.inv(sub))) * np.exp(res.x[~flat])
+    names = [f"Q[{i}]" for i in range(nq)] + ([f"R[{i}]" for i in range(r0.size)]
+                                              if fit_r else [])
+    loose = [name for name, s_, v in zip(names, se, np.exp(res.x), strict=True)
+             if not s_ < v]
+    identifiable = not loose and condition < IDENTIFIABLE_CONDITION
+    if condition >= IDENTIFIABLE_CONDITION:
+        se[:] = np.nan
+        loose = names
+    if identifiable:
+        message = f"converged: {res.message}" if res.success else f"stopped: {res.message}"
+    else:
+        message = (f"not identifiable from these data: {', '.join(loose)} (the likelihood is "
+                   "flat along them, or their standard error exceeds the value; their fitted "
+                   "values are arbitrary)")
+    q_se = se[:nq]
+    r_se = se[nq:] if fit_r else np.full(r0.size, np.nan)
+    return Fit(q=q, q_se=q_se, r=np.asarray(r, float), r_se=r_se,
+               log_likelihood_start=float(start), log_likelihood=float(-res.fun),
+               identifiable=identifiable, message=message, evaluations=count[0])
