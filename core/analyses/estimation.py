@@ -399,7 +399,8 @@ def run_point(exp: Experiment, point: SweepPoint, traces: bool = False) -> tuple
     regime = exp.spec["regime"]
     fraction = float("nan") if regime is None else float(np.mean(exp.plan.truth.in_regime(
         regime, data["states"], data["source"][:, 1:])))
-    common = {"measurement": point.measurement, "noise_reading": point.reading, "noise_param": point.level,
+    common = {"measurement": point.measurement, "noise_reading": point.reading,
+              "noise_param": point.level,
               "noise_sigma": point.sigma, "frequency_hz": point.frequency_hz,
               "samples_per_period": 1.0 / (point.frequency_hz * data["dt"]),
               "regime": regime or "", "regime_fraction": fraction}
@@ -620,8 +621,8 @@ def tune(exp: Experiment, label: str, runs: int, fit_r: bool = False) -> tuple[d
     """Maximum-likelihood ``Q`` (and ``R``) of estimator ``label`` (:mod:`core.tuning`) on
     training draws of ``runs`` runs at every sweep point, pooled: one setting for the table,
     as the thesis uses one (points with a noise-free measurement are left out when noisy
-    ones exist: the likelihood assumes the measurement noise ``R`` describes). Returns the estimator's config entry with the fitted diagonals
-    and the :class:`core.tuning.Fit`."""
+    ones exist: the likelihood assumes the measurement noise ``R`` describes). Returns the
+    estimator's config entry with the fitted diagonals and the :class:`core.tuning.Fit`."""
     from core import tuning
     from core.errors import UsageError
     from core.estimators.base import as_matrix
