@@ -272,7 +272,8 @@ def compare_tables(stored: pd.DataFrame, new: pd.DataFrame,
 
     NaN equals NaN and an infinity itself; with ``se``, a mean with no standard error on
     either side (fewer than two runs) is not compared. ``skip: reason`` leaves a column out
-    (the CLI shows why). Non-numeric columns must match exactly. A change of shape is one difference.
+    (the CLI shows why). Non-numeric columns must match exactly. A change of shape is one
+    difference.
     """
     if list(stored.columns) != list(new.columns) or len(stored) != len(new):
         return [{"row": "-", "column": "(shape)",

@@ -11,7 +11,8 @@ with scipy's L-BFGS-B (forward-difference gradients on a step of 1e-4 in ``theta
 likelihood summed over 1e5 innovations carries rounding of ~1e-10 relative, which the
 default 1e-8 step turns into gradient noise larger than the gradient). Standard errors
 come from the inverse of the finite-difference Hessian of ``-log L`` in ``theta`` (the
-observed information), mapped by the delta method (``se(q) = q se(theta)``). When that Hessian is not positive definite, or its condition
+observed information), mapped by the delta method (``se(q) = q se(theta)``). When that
+Hessian is not positive definite, or its condition
 number exceeds :data:`IDENTIFIABLE_CONDITION`, or an entry's standard error exceeds the
 entry itself, the fit is reported as not identifiable from these data, naming the entries:
 an entry the likelihood does not depend on (a state the output never sees) has no standard
