@@ -125,12 +125,11 @@ def white(innovation: np.ndarray, lag: int = DEFAULTS["lag"],
 
 def _runs_of(flags: np.ndarray, consecutive: int) -> np.ndarray:
     """``(runs,)`` whether ``flags (runs, steps)`` holds on ``consecutive`` steps in a row."""
-    count = np.zeros(flags.shape[0], int)
-    longest = np.zeros(flags.shape[0], int)
-    for k in range(flags.shape[1]):
-        count = np.where(flags[:, k], count + 1, 0)
-        longest = np.maximum(longest, count)
-    return longest >= consecutive
+    if consecutive > flags.shape[1]:
+        return np.zeros(flags.shape[0], bool)
+    window = np.lib.stride_tricks.sliding_window_view(np.asarray(flags, bool), consecutive,
+                                                      axis=1)
+    return np.any(np.all(window, axis=-1), axis=1)
 
 
 def diverged(est: Estimate, nis_values: np.ndarray | None = None,

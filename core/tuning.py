@@ -102,7 +102,7 @@ def fit(evaluate: Callable[[np.ndarray, np.ndarray], float], q0: np.ndarray, r0:
                             bounds=[(t - 25.0, t + 25.0) for t in theta0],
                             options={"maxiter": max_iterations, "eps": 1e-4})
     q, r = split(res.x)
-    H = 0.5 * (_hessian(nll, res.x) + _hessian(nll, res.x).T)
+    H = _hessian(nll, res.x)
     scale = float(np.max(np.abs(np.diag(H)), initial=0.0))
     flat = ~(np.diag(H) > 1e-8 * scale) if scale > 0 else np.ones(theta0.size, bool)
     se = np.full(theta0.size, np.nan)

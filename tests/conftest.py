@@ -39,3 +39,9 @@ class LinearModel(Model):
 @pytest.fixture
 def oscillator():
     return LinearModel([[0.0, 1.0], [-4.0, -0.4]], [[0.0], [1.0]], [[1.0, 0.0]])
+
+
+@pytest.fixture
+def linear_model():
+    """The :class:`LinearModel` class, for tests that build their own linear system."""
+    return LinearModel

@@ -35,13 +35,11 @@ def test_fit_recovers_a_known_q_within_its_standard_error(oscillator):
     assert np.all(np.abs(fit.q - q_true) < 3 * fit.q_se), (fit.q, fit.q_se)
 
 
-def test_fit_says_when_q_and_r_cannot_be_told_apart(oscillator):
+def test_fit_says_when_q_and_r_cannot_be_told_apart(linear_model):
     """A state that forgets itself within one step is white noise of variance Q; measured
     with noise R, only Q + R reaches the innovations: the split is not identifiable, the
     sum is."""
-    from tests.conftest import LinearModel
-
-    static = LinearModel([[-1e6]], [[0.0]], [[1.0]])      # forgets at once: x_k ~ N(0, Q)
+    static = linear_model([[-1e6]], [[0.0]], [[1.0]])      # forgets at once: x_k ~ N(0, Q)
     z = np.random.default_rng(22).normal(size=(20, 200, 1)) * np.sqrt(0.3)
     u = np.zeros((200, 1))
 

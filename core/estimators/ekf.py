@@ -82,6 +82,18 @@ class ExtendedKalmanFilter:
             Q, P0 = thesis_to_state(Q, model), thesis_to_state(P0, model)
         return Q, P0
 
+    def cycle(self, model, x: np.ndarray, P: np.ndarray, z: np.ndarray, u: np.ndarray,
+              dt: float, Q: np.ndarray, R: np.ndarray):
+        """One prediction and update for the runs given (eqs A.10-A.16): returns the
+        prediction ``xp``, the updated ``x`` and ``P``, the innovation covariance ``S`` and
+        the innovation. :meth:`run` keeps the batch and its bookkeeping; a filter that
+        differs only here (the UKF) overrides this."""
+        xp, F = discretize.step(model, x, u, dt, self.discretization, self.substeps)
+        Pp = F @ P @ np.swapaxes(F, -1, -2) + Q
+        nu = z - model.h(xp)
+        xu, Pu, S = joseph_update(xp, Pp, nu, model.h_jacobian(xp), R)
+        return xp, xu, Pu, S, nu
+
     def run(self, model, z: np.ndarray, u: np.ndarray, dt: float,
             x0: np.ndarray | None = None) -> Estimate:
         runs, steps, m = z.shape
@@ -105,11 +117,8 @@ class ExtendedKalmanFilter:
             if idx.size == 0:
                 break
             with np.errstate(all="ignore"):
-                xp, F = discretize.step(model, x[idx], u[idx, k, :], dt, self.discretization,
-                                        self.substeps)
-                Pp = F @ P[idx] @ np.swapaxes(F, -1, -2) + Q
-                nu = z[idx, k] - model.h(xp)
-                xu, Pu, S = joseph_update(xp, Pp, nu, model.h_jacobian(xp), R)
+                xp, xu, Pu, S, nu = self.cycle(model, x[idx], P[idx], z[idx, k], u[idx, k],
+                                               dt, Q, R)
             ok = (np.all(np.isfinite(xu), axis=1) & np.all(np.isfinite(Pu), axis=(1, 2))
                   & np.all(np.abs(xu) <= self.divergence_bound, axis=1)
                   & np.all(np.abs(xp) <= self.divergence_bound, axis=1))

@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from core import discretize, linalg
-from core.estimators.base import Estimate, as_matrix, batch_input, joseph_update
+from core.estimators.base import joseph_update
 from core.estimators.ekf import ExtendedKalmanFilter
 from core.schema import number
 
@@ -93,59 +93,26 @@ class UnscentedKalmanFilter(ExtendedKalmanFilter):
         return np.concatenate([x[:, None, :], x[:, None, :] + cols, x[:, None, :] - cols],
                               axis=1)
 
-    def run(self, model, z: np.ndarray, u: np.ndarray, dt: float,
-            x0: np.ndarray | None = None) -> Estimate:
-        runs, steps, m = z.shape
-        n = model.n_states
-        Q, P0 = self.state_covariances(model)
-        R = as_matrix(self.R, m, "R")
+    def cycle(self, model, x: np.ndarray, P: np.ndarray, z: np.ndarray, u: np.ndarray,
+              dt: float, Q: np.ndarray, R: np.ndarray):
+        """Unscented prediction and update (module docstring); the batch bookkeeping is the
+        EKF's :meth:`~core.estimators.ekf.ExtendedKalmanFilter.run`."""
+        runs, n = x.shape
         wm, wc = self.weights(n)
-        if self.x0 is not None:
-            x0 = np.asarray(self.x0, float)
-        elif x0 is None:
-            x0 = model.operating_point()
-        u = batch_input(u, runs)
-        x = np.broadcast_to(x0, (runs, n)).copy()
-        P = np.broadcast_to(P0, (runs, n, n)).copy()
-        x_hat = np.full((runs, steps, n), np.nan)
-        P_hist = np.full((runs, steps, n, n), np.nan)
-        S_hist = np.full((runs, steps, m, m), np.nan)
-        innovation = np.full((runs, steps, m), np.nan)
-        alive = np.ones(runs, bool)
         points = 2 * n + 1
-        for k in range(steps):
-            idx = np.flatnonzero(alive)
-            if idx.size == 0:
-                break
-            with np.errstate(all="ignore"):
-                X = self.sigma_points(x[idx], P[idx])
-                uk = np.repeat(u[idx, k, :], points, axis=0)
-                Xp, _ = discretize.step(model, X.reshape(-1, n), uk, dt, self.discretization,
-                                        self.substeps)
-                Xp = Xp.reshape(idx.size, points, n)
-                xp = np.einsum("i,rin->rn", wm, Xp)
-                D = Xp - xp[:, None, :]
-                Pp = np.einsum("i,rin,rim->rnm", wc, D, D) + Q
-                Pp = 0.5 * (Pp + np.swapaxes(Pp, -1, -2))
-                X = self.sigma_points(xp, Pp)
-                Z = model.h(X)
-                zp = np.einsum("i,rim->rm", wm, Z)
-                DX, DZ = X - xp[:, None, :], Z - zp[:, None, :]
-                Pxz = np.einsum("i,rin,rim->rnm", wc, DX, DZ)
-                H = np.swapaxes(linalg.solve(Pp, Pxz), -1, -2)
-                nu = z[idx, k] - zp
-                xu, Pu, S = joseph_update(xp, Pp, nu, H, R)
-            ok = (np.all(np.isfinite(xu), axis=1) & np.all(np.isfinite(Pu), axis=(1, 2))
-                  & np.all(np.abs(xu) <= self.divergence_bound, axis=1)
-                  & np.all(np.abs(xp) <= self.divergence_bound, axis=1))
-            alive[idx[~ok]] = False
-            keep = idx[ok]
-            x[keep], P[keep] = xu[ok], Pu[ok]
-            x_hat[keep, k] = xu[ok]
-            P_hist[keep, k] = Pu[ok]
-            S_hist[keep, k] = S[ok]
-            innovation[keep, k] = nu[ok]
-        with np.errstate(all="ignore"):
-            y_hat = model.h(x_hat)
-        return Estimate(y_hat=y_hat, innovation=innovation, broken=~alive, x_hat=x_hat,
-                        P=P_hist, S=S_hist)
+        X = self.sigma_points(x, P)
+        Xp, _ = discretize.step(model, X.reshape(-1, n), np.repeat(u, points, axis=0), dt,
+                                self.discretization, self.substeps)
+        Xp = Xp.reshape(runs, points, n)
+        xp = np.einsum("i,rin->rn", wm, Xp)
+        D = Xp - xp[:, None, :]
+        Pp = np.einsum("i,rin,rim->rnm", wc, D, D) + Q
+        Pp = 0.5 * (Pp + np.swapaxes(Pp, -1, -2))
+        X = self.sigma_points(xp, Pp)
+        Z = model.h(X)
+        zp = np.einsum("i,rim->rm", wm, Z)
+        Pxz = np.einsum("i,rin,rim->rnm", wc, X - xp[:, None, :], Z - zp[:, None, :])
+        H = np.swapaxes(linalg.solve(Pp, Pxz), -1, -2)
+        nu = z - zp
+        xu, Pu, S = joseph_update(xp, Pp, nu, H, R)
+        return xp, xu, Pu, S, nu
