@@ -84,6 +84,25 @@ def write(tmp_path: Path, spec: dict, name: str = "tiny.yaml") -> Path:
     ({"figures.extra_noisy": [{"noise_level": 0, "name": "x"}]},
      "figures.extra_noisy[0].noise_level", "positive number"),
     ({"figures.names": {"noisey": "fig"}}, "figures.names.noisey", "unknown figure kind"),
+    ({"regime": "triode"}, "regime", "expected one of ['weak_inversion'"),
+    ({"regime": 3}, "regime", "non-empty string"),
+    ({"health": {"consecutive": 0}}, "health.consecutive", "integer from 1"),
+    ({"health": {"nis_level": 1.5}}, "health.nis_level", "number <="),
+    ({"health": {"whiteness_lag": "ten"}}, "health.whiteness_lag", "integer"),
+    ({"health": {"band": 0.1}}, "health.band", "number >= 0.5"),
+    ({"health": {"nees": 1}}, "health.nees", "unknown key"),
+    ({"noise.measurement": ["clean"]}, "noise.measurement[0]", "noise_free"),
+    ({"noise.measurement": ["noisy", "noisy"]}, "noise.measurement[1]", "repeats"),
+    ({"estimators.0.label": "measurement"}, "estimators[0].label", "baseline row"),
+    ({"estimators.1.settings.lambda0": 0.99}, "estimators[1].settings",
+     "lambda0 is the constant factor of forgetting: fixed"),
+    ({"estimators.1.settings.forgetting": "fixed"}, "estimators[1].settings",
+     "forgetting: fixed needs lambda0"),
+    ({"estimators.1.settings.forgetting": "sometimes"}, "estimators[1].settings.forgetting",
+     "variable"),
+    ({"estimators.1.settings.p_max": -1.0}, "estimators[1].settings.p_max", "positive number"),
+    ({"estimators.3.settings.alpha": 0.0}, "estimators[3].settings.alpha", "positive number"),
+    ({"estimators.3.settings.kappa": "x"}, "estimators[3].settings.kappa", "number"),
 ])
 def test_config_errors_exit_2_naming_file_and_key(tmp_path, changes, key, expected):
     path = write(tmp_path, tiny_config(**changes))
@@ -335,3 +354,23 @@ def test_list_outside_a_project_uses_the_shipped_configs(tmp_path, monkeypatch):
     assert result.exit_code == 0, result.output
     assert "configs shipped with estim" in result.output
     assert "mosfet_saturation" in result.output
+
+
+def test_tune_writes_an_overlay_and_refuses_what_it_cannot_fit(tmp_path):
+    path = write(tmp_path, tiny_config())
+    runner = CliRunner()
+    for label, message in (("EFK", "no estimator labelled 'EFK'"),
+                           ("RLS", "'RLS' has no noise covariances to fit")):
+        bad = runner.invoke(main, ["tune", str(path), "--estimator", label])
+        assert bad.exit_code == 2 and message in bad.output, bad.output
+    perturbation = ROOT / "configs" / "mosfet_distortion.yaml"
+    bad = runner.invoke(main, ["tune", str(perturbation), "--estimator", "EKF"])
+    assert bad.exit_code == 2 and "no estimators to tune" in bad.output, bad.output
+    out = tmp_path / "fit.yaml"
+    good = runner.invoke(main, ["tune", str(path), "--estimator", "EKF", "--runs", "2",
+                                "--out", str(out)])
+    assert good.exit_code == 0, good.output
+    entry = yaml.safe_load(out.read_text())["estimators"][0]
+    assert entry["label"] == "EKF (fitted Q)" and entry["type"] == "ekf"
+    assert len(entry["settings"]["Q"]) == 4 and all(q > 0 for q in entry["settings"]["Q"])
+    assert "Innovation log-likelihood" in out.read_text()

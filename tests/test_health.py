@@ -5,6 +5,7 @@ import pytest
 from scipy import stats
 
 from core import health
+from core.estimators.base import Estimate
 from core.estimators.kf import KalmanFilter
 from core.estimators.rls import RecursiveLeastSquares
 
@@ -126,3 +127,17 @@ def test_rls_reports_the_sine_regressors_poor_excitation_and_p_max_bounds_it():
     assert d["p_max_eig"][0] > 1e6
     bounded = RecursiveLeastSquares(order=10, p_max=1e3).run(None, z, u)
     assert bounded.diagnostics["p_max_eig"][0] <= 1e3 * (1 + 1e-9)
+
+
+def test_divergence_needs_the_stated_number_of_consecutive_excesses():
+    """NIS above the bound on 4 steps in a row is not divergence at 5; on 5 it is, and
+    excesses that are not consecutive never are."""
+    steps = 20
+    nu = np.zeros((3, steps, 1))
+    nu[0, 3:7] = 10.0                      # 4 in a row
+    nu[1, 3:8] = 10.0                      # 5 in a row
+    nu[2, ::2] = 10.0                      # every other step
+    S = np.ones((3, steps, 1, 1))
+    est = Estimate(y_hat=np.zeros_like(nu), innovation=nu, broken=np.zeros(3, bool), S=S)
+    flagged = health.diverged(est, health.nis(nu, S), consecutive=5)
+    assert flagged.tolist() == [False, True, False]
