@@ -41,6 +41,7 @@ def main(biases: list[float]) -> None:
                     true_mean=float(np.mean(data["actual"])),
                     prior_mean=float(np.nanmean(prior)),
                     prior_negative=float(np.nanmean(prior < 0)),
+                    prior_above=float(np.nanmean(prior > exp.plan.truth.params.V_DD)),
                     residual_mean=float(np.nanmean(est.innovation)),
                     rmse=float(np.nanmean(metrics.rmse_per_run(data["actual"], est.y_hat))))
         a, b, c = out["nominal", 0.25], out["nominal", 0.0], out["noisy", 0.25]
@@ -48,11 +49,12 @@ def main(biases: list[float]) -> None:
         print(f"  true drain mean: {a['true_mean']:.4f} V with input noise, "
               f"{b['true_mean']:.4f} V without (shift {a['true_mean'] - b['true_mean']:+.4f})")
         print(f"  EKF predicted drain: mean {a['prior_mean']:.4f} V, below ground in "
-              f"{100 * a['prior_negative']:.0f} % of steps; residual mean "
+              f"{100 * a['prior_negative']:.0f} % of steps, above V_DD in "
+              f"{100 * a['prior_above']:.0f} %; residual mean "
               f"{a['residual_mean']:.4f} V; RMSE {a['rmse']:.4f} V")
         print(f"  EKF given the true noisy input: residual mean {c['residual_mean']:.4f} V, "
               f"RMSE {c['rmse']:.4f} V; predicted drain below ground in "
-              f"{100 * c['prior_negative']:.0f} %")
+              f"{100 * c['prior_negative']:.0f} %, above V_DD in {100 * c['prior_above']:.0f} %")
 
 
 if __name__ == "__main__":
