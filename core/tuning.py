@@ -31,16 +31,33 @@ IDENTIFIABLE_CONDITION = 1e8
 """Largest condition number of the observed information at which the fit is reported."""
 
 
-def log_likelihood(innovation: np.ndarray, S: np.ndarray) -> float:
-    """Innovation log-likelihood of a batch, ``-inf`` if any run broke (NaN innovation)."""
-    if not (np.all(np.isfinite(innovation)) and np.all(np.isfinite(S))):
-        return -np.inf
+LOST_STEP_NIS = 100.0
+"""A step lost to a broken run scores as an innovation of this NIS (10 standard deviations
+for one output) with ``S = R``: worse than any step a working filter plausibly has."""
+
+
+def log_likelihood(innovation: np.ndarray, S: np.ndarray, R: np.ndarray | None = None) -> float:
+    """Innovation log-likelihood of a batch ``(runs, steps, m)``.
+
+    A step without a finite innovation (the run broke before it) makes the result ``-inf``;
+    with ``R`` given it scores as :data:`LOST_STEP_NIS` instead, so that a fit started where
+    some runs break can still climb towards settings that keep them.
+    """
     m = innovation.shape[-1]
-    sign, logdet = np.linalg.slogdet(S)
-    if np.any(sign <= 0):
+    with np.errstate(invalid="ignore"):
+        sign, logdet = np.linalg.slogdet(np.where(np.isfinite(S), S, np.eye(m)))
+    ok = (np.all(np.isfinite(innovation), axis=-1) & np.all(np.isfinite(S), axis=(-2, -1))
+          & (sign > 0))
+    if not ok.all() and R is None:
         return -np.inf
-    quad = np.sum(innovation * np.linalg.solve(S, innovation[..., None])[..., 0], axis=-1)
-    return float(-0.5 * np.sum(logdet + quad + m * np.log(2 * np.pi)))
+    quad = np.sum(innovation[ok] * np.linalg.solve(S[ok], innovation[ok][..., None])[..., 0],
+                  axis=-1)
+    total = -0.5 * np.sum(logdet[ok] + quad + m * np.log(2 * np.pi))
+    lost = int(np.sum(~ok))
+    if lost:
+        total -= 0.5 * lost * (np.linalg.slogdet(np.atleast_2d(R))[1] + LOST_STEP_NIS * m
+                               + m * np.log(2 * np.pi))
+    return float(total)
 
 
 @dataclass(frozen=True)

@@ -58,3 +58,17 @@ def test_log_likelihood_is_minus_infinity_for_a_broken_run():
     nu = np.zeros((2, 3, 1))
     nu[1, 2, 0] = np.nan
     assert tuning.log_likelihood(nu, np.ones((2, 3, 1, 1))) == -np.inf
+
+
+def test_a_lost_step_scores_below_any_plausible_step():
+    """With R given, a broken run's missing steps cost a 10-sigma innovation each: a batch
+    that loses steps scores below the same batch whole, yet stays finite."""
+    rng = np.random.default_rng(23)
+    nu = rng.normal(size=(2, 50, 1)) * 0.1
+    S = np.full((2, 50, 1, 1), 0.01)
+    whole = tuning.log_likelihood(nu, S, R=np.array([[0.01]]))
+    assert whole == tuning.log_likelihood(nu, S)
+    nu[1, 30:] = np.nan
+    S[1, 30:] = np.nan
+    broken = tuning.log_likelihood(nu, S, R=np.array([[0.01]]))
+    assert np.isfinite(broken) and broken < whole - 20 * 0.5 * (tuning.LOST_STEP_NIS - 1)

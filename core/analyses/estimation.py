@@ -654,7 +654,7 @@ def tune(exp: Experiment, label: str, runs: int, fit_r: bool = False) -> tuple[d
         total = 0.0
         for data in batches:
             out = trial.run(model, data["z"], data["u"], data["dt"], x0=data["x0"])
-            total += tuning.log_likelihood(out.innovation, out.S)
+            total += tuning.log_likelihood(out.innovation, out.S, R=as_matrix(r, m, "R"))
             if not np.isfinite(total):
                 return -np.inf
         return total
