@@ -9,7 +9,9 @@ For a filter with a Gaussian noise model the innovations ``nu_k`` are, given the
 diagonal of ``Q`` (and optionally ``R``), each entry as ``exp(theta)`` so it stays positive,
 with scipy's L-BFGS-B (forward-difference gradients on a step of 1e-4 in ``theta``: a
 likelihood summed over 1e5 innovations carries rounding of ~1e-10 relative, which the
-default 1e-8 step turns into gradient noise larger than the gradient). Standard errors
+default 1e-8 step turns into gradient noise larger than the gradient). Where L-BFGS-B stops
+without converging (a likelihood with runs that break is not smooth), Nelder-Mead continues
+from its point with a simplex of one unit (a factor e) in each entry. Standard errors
 come from the inverse of the finite-difference Hessian of ``-log L`` in ``theta`` (the
 observed information), mapped by the delta method (``se(q) = q se(theta)``). When that
 Hessian is not positive definite, or its condition
@@ -118,6 +120,13 @@ def fit(evaluate: Callable[[np.ndarray, np.ndarray], float], q0: np.ndarray, r0:
     res = optimize.minimize(nll, theta0, method="L-BFGS-B",
                             bounds=[(t - 25.0, t + 25.0) for t in theta0],
                             options={"maxiter": max_iterations, "eps": 1e-4})
+    if not res.success:
+        steps = np.eye(theta0.size)
+        simplex = np.vstack([res.x, res.x + steps])
+        res = optimize.minimize(nll, res.x, method="Nelder-Mead",
+                                options={"initial_simplex": simplex, "maxfev": 40 * theta0.size**2,
+                                         "xatol": 1e-2, "fatol": 1e-1})
+        res.message = f"L-BFGS-B stopped, Nelder-Mead from there: {res.message}"
     q, r = split(res.x)
     H = _hessian(nll, res.x)
     scale = float(np.max(np.abs(np.diag(H)), initial=0.0))
