@@ -112,7 +112,7 @@ def test_stored_results_join_every_thesis_row(path):
     assert filled, f"no thesis value joined to {folder}"
 
 
-@pytest.mark.parametrize("name", ["mosfet_saturation", "diffamp_ekf"])
+@pytest.mark.parametrize("name", ["mosfet_conduction", "mosfet_saturation", "diffamp_ekf"])
 def test_fitted_entries_are_the_ones_estim_tune_wrote(name):
     """A config's "EKF (fitted Q)" carries the values of the overlay `estim tune` wrote."""
     root = Path(__file__).resolve().parents[1] / "configs"

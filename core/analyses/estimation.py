@@ -31,9 +31,10 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from core import health, metrics, plots, registry, signals, tables
+from core import health, metrics, plots, registry, signals, tables, tuning
 from core.analyses.base import Result, TableSpec, map_tasks
-from core.errors import ConfigError
+from core.errors import ConfigError, UsageError
+from core.estimators.base import as_matrix
 from core.schema import (
     MAX_VOLTS,
     REQUIRED,
@@ -369,9 +370,9 @@ def judge(exp: Experiment, data: dict, est, model) -> dict:
         est.innovation, cfg["whiteness_lag"], cfg["whiteness_level"])))
     out["whiteness_lag"] = health.effective_lag(est.innovation.shape[1], cfg["whiteness_lag"])
     for key in ("regressor_rank", "regressor_size", "lambda_at_floor", "p_max_eig"):
-        values = est.diagnostics.get(key)
-        out[key] = nan if values is None else float(np.nanmedian(values)) \
-            if np.isfinite(values).any() else nan
+        values = np.asarray(est.diagnostics.get(key, []), float)
+        finite = values[np.isfinite(values)]
+        out[key] = float(np.median(finite)) if finite.size else nan
     return out
 
 
@@ -623,10 +624,6 @@ def tune(exp: Experiment, label: str, runs: int, fit_r: bool = False) -> tuple[d
     as the thesis uses one (points with a noise-free measurement are left out when noisy
     ones exist: the likelihood assumes the measurement noise ``R`` describes). Returns the
     estimator's config entry with the fitted diagonals and the :class:`core.tuning.Fit`."""
-    from core import tuning
-    from core.errors import UsageError
-    from core.estimators.base import as_matrix
-
     found = [(i, est, model) for i, (lab, est, model) in enumerate(exp.plan.filters)
              if lab == label]
     if not found:
