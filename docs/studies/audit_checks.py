@@ -8,7 +8,10 @@ batches (seed 2019, 30 runs) and prints one line:
 * RLS on the saturation stage: the largest eigenvalue of ``P`` and the fraction of steps at
   ``lambda_min`` after 200, 800 and 2000 samples (the record-length dependence);
 * the amplifier's row 2 (sigma 0.01, 1 kHz): ``Q`` fitted by maximum likelihood on that row
-  alone, and the EKF's RMSE with it.
+  alone, and the EKF's RMSE with it; and an empirical causal Wiener bound: the best causal
+  FIR filter of the measurements (40 taps and a constant, fitted by least squares on 300
+  training runs) applied to the table's draws;
+* conduction: the spread (standard deviation over samples and runs) of the true drain per row.
 """
 
 from __future__ import annotations
@@ -97,6 +100,9 @@ def amplifier_row_2() -> None:
         return tuning.log_likelihood(out.innovation, out.S)
 
     fit = tuning.fit(evaluate, np.full(4, 0.01), np.array([0.1]))
+    wiener_train = estimation.simulate_point(exp, point.frequency_hz, point.sigma, 300,
+                                             np.random.default_rng(np.random.SeedSequence(
+                                                 2019, spawn_key=(2**33, point.index))))
     test = batch(exp, point)
     for label, q in (("thesis Q", [0.01] * 4), ("Q fitted on row 2", list(fit.q))):
         trial = copy.copy(est)
@@ -105,9 +111,34 @@ def amplifier_row_2() -> None:
         rmse = np.mean(metrics.rmse_per_run(test["actual"], out.y_hat))
         shown = ", ".join(f"{v:.3g}" for v in q)
         print(f"amplifier row 2, EKF with {label} [{shown}]: RMSE {rmse:.3f} V")
+    taps = 40
+    X, y = fir_design(wiener_train["z"][..., 0], taps), wiener_train["actual"][..., 0]
+    w = np.linalg.lstsq(X.reshape(-1, X.shape[-1]), y.reshape(-1), rcond=None)[0]
+    estimate = fir_design(test["z"][..., 0], taps) @ w
+    rmse = np.mean(np.sqrt(np.mean((estimate - test["actual"][..., 0]) ** 2, axis=1)))
+    print(f"amplifier row 2, causal Wiener FIR ({taps} taps) of the measurements: RMSE "
+          f"{rmse:.3f} V; raw measurement "
+          f"{np.mean(metrics.rmse_per_run(test['actual'], test['z'])):.3f} V")
+
+
+def fir_design(z: np.ndarray, taps: int) -> np.ndarray:
+    """``(runs, steps, taps + 1)``: ``[1, z_k, z_{k-1}, ..., z_{k-taps+1}]`` (zeros before
+    the record)."""
+    runs, steps = z.shape
+    padded = np.concatenate([np.zeros((runs, taps - 1)), z], axis=1)
+    lagged = [padded[:, taps - 1 - j: taps - 1 - j + steps] for j in range(taps)]
+    return np.stack([np.ones((runs, steps)), *lagged], axis=-1)
+
+
+def conduction_drain_spread() -> None:
+    exp = load("mosfet_conduction", ("RLS",))
+    spread = [float(np.std(batch(exp, point)["actual"])) for point in estimation.sweep(exp)]
+    print("conduction, true drain spread per row (V): "
+          + " ".join(f"{s:.3f}" for s in spread))
 
 
 if __name__ == "__main__":
     conduction()
     rls_record_length()
     amplifier_row_2()
+    conduction_drain_spread()
