@@ -25,3 +25,23 @@ def noise_sigma(level: float, reading: str) -> float:
 def gaussian(rng: np.random.Generator, sigma: float, shape: tuple[int, ...]) -> np.ndarray:
     """Zero-mean white Gaussian samples of standard deviation ``sigma``."""
     return sigma * rng.standard_normal(shape)
+
+
+def ornstein_uhlenbeck(rng: np.random.Generator, sigma: float, gamma: float, dt: float,
+                       shape: tuple[int, int]) -> np.ndarray:
+    """Exact samples of ``dv = -gamma v dt + sigma dbeta`` (thesis eqs 4.8-4.9) at ``t_k = k dt``
+    from ``v(0) = 0``, shape ``(runs, steps + 1)`` for ``shape = (runs, steps)``.
+
+    Each step is ``v_{k+1} = a v_k + s xi_k`` with ``a = e^{-gamma dt}`` and
+    ``s = sigma sqrt((1 - a^2) / (2 gamma))``: the transition of the process itself, with no
+    discretisation error at any ``dt`` (unlike Euler-Maruyama). One noise source drives the
+    input; its effect on every node follows from the circuit.
+    """
+    from scipy import signal as sps
+
+    a = float(np.exp(-gamma * dt))
+    s = sigma * float(np.sqrt(-np.expm1(-2 * gamma * dt) / (2 * gamma)))
+    xi = rng.standard_normal(shape)
+    out = np.zeros((shape[0], shape[1] + 1))
+    out[:, 1:] = sps.lfilter([s], [1.0, -a], xi, axis=1)
+    return out

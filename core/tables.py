@@ -68,6 +68,8 @@ def _join_one(part: pd.DataFrame, table_id: str, spec: TableSpec, named: dict[st
     on = []
     for ours, accepted in spec.join:
         theirs = next((c for c in accepted if c in ref.columns), None)
+        if theirs is None and ours in spec.optional_join:
+            continue
         if theirs is None:
             raise ReferenceJoinError(f"Table {table_id}: no column {' or '.join(accepted)} "
                                      f"to join our {ours!r} on")

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from core.analyses import estimation, perturbation
+from core.analyses import estimation, kronecker, perturbation
 
 ANALYSES = {
     "estimation": estimation,
+    "kronecker": kronecker,
     "perturbation": perturbation,
 }

@@ -46,6 +46,9 @@ class TableSpec:
     title: str = ""
     reference_ids: tuple[str, ...] = ()
     """The reference tables a config may name for this table (``tables.<metric>``)."""
+    optional_join: tuple[str, ...] = ()
+    """Join keys a reference table may lack (Table 4.1 has no W/L columns): where it does,
+    rows are joined on the other keys."""
 
     @property
     def columns(self) -> list[str]:

@@ -492,14 +492,15 @@ def result_table(rows: list[dict], metric: str, table_id: str | None) -> pd.Data
     return df[TABLES[metric].columns].reset_index(drop=True)
 
 
-def claims(rmse: pd.DataFrame, better: str, worse: str) -> pd.DataFrame:
+def claims(rmse: pd.DataFrame, better: str, worse: str,
+           keys: list[str] | None = None) -> pd.DataFrame:
     """A headline claim row by row: RMSE of ``better`` below that of ``worse``.
 
     A diverged run has an unbounded error, so any divergence of ``better`` fails the claim
     and any divergence of ``worse`` (with none of ``better``) makes it hold; otherwise the
     RMSEs decide. ``ratio_se`` is the delta-method standard error of the ratio.
     """
-    keys = ["measurement", "noise_reading", "noise_param", "frequency_hz"]
+    keys = keys or ["measurement", "noise_reading", "noise_param", "frequency_hz"]
     a = rmse.loc[rmse["estimator"] == better, ["s_no", *keys, "rmse", "rmse_se", "runs",
                                                 "diverged"]]
     b = rmse.loc[rmse["estimator"] == worse, [*keys, "rmse", "rmse_se", "diverged"]]
@@ -513,7 +514,7 @@ def claims(rmse: pd.DataFrame, better: str, worse: str) -> pd.DataFrame:
                           dtype="boolean")
     j.insert(0, "claim", f"{better} RMSE < {worse} RMSE")
     j["better"], j["worse"] = better, worse
-    return j[TABLES["claims"].columns]
+    return j
 
 
 def _verdict(better: float, worse: float, diverged_better: int, diverged_worse: int):
@@ -552,7 +553,7 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     if exp.spec["claims"]:
         out.tables["claims"] = pd.concat(
             [claims(out.tables["rmse"], c["better"], c["worse"]) for c in exp.spec["claims"]],
-            ignore_index=True)
+            ignore_index=True)[TABLES["claims"].columns]
     out.figures = figures(exp, known)
     if on_done:
         on_done()

@@ -149,6 +149,11 @@ class Model:
         H = np.moveaxis((4 * second(h / 2) - second(h)) / 3, -1, 0)
         return 0.5 * (H + np.swapaxes(H, 1, 2))
 
+    input_affine: bool = False
+    """``f`` is affine in ``u`` (the input enters through a constant matrix): its second
+    derivatives involving ``u`` are exactly zero, and :func:`core.kronecker.from_model` sets
+    them so instead of keeping the rounding of a numerical Hessian."""
+
     regimes: tuple[str, ...] = ()
     """Operating regimes :meth:`in_regime` can test (the regimes the thesis' tables name)."""
 

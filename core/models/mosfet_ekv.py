@@ -96,6 +96,7 @@ class MosfetEKV(Model):
     state_names = ("v_G", "v_B", "v_S", "v_D")
     input_names = ("dv_in/dt",)
     output_names = ("v_D",)
+    input_affine = True
     Params = MosfetParams
     variants = {
         "completed": {},

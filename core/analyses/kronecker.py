@@ -1,0 +1,397 @@
+"""EKF on the Kronecker-product model vs LMS on the wavelet representation (thesis Chapter 4,
+Tables 4.1-4.2, Figs 4.3-4.7).
+
+For each W/L column x noise reading x noise level x input frequency (thesis row order
+within a column):
+
+1. the source is the nominal sine (``amplitude_v``) plus an Ornstein-Uhlenbeck process
+   (eqs 4.8-4.9) with decay ``gamma`` and diffusion ``sigma`` read from the printed noise
+   number, sampled exactly (:func:`core.signals.ornstein_uhlenbeck`), piecewise linear
+   between samples;
+2. the actual circuit with the column's W/L (and, with ``area_scaled_caps``, capacitances
+   scaled by W L over ``reference_area_um2``) is integrated by the stiff solver from its DC
+   point; ``truth.params`` overrides the actual circuit only (Table 4.1's stand-in);
+3. every state is measured with white noise of ``measurement_sigma`` (and an ADC of
+   ``adc_bits`` over ``adc_range_v`` when set); each estimator gets the measurements it is
+   said to see (the Kronecker EKF the output, eq 4.49; the wavelet method its ``measures``,
+   eq 4.16) and the nominal input;
+4. RMSE of the output (eq 4.60 on ``v_D``) over the runs that did not diverge and over all
+   runs, the raw measurement as a baseline row, filter health (:mod:`core.health`), and the
+   headline claim row by row.
+
+The noise draws of a sweep point are shared by every W/L column (``spawn_key`` without the
+column), so columns differ only by the circuit.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from core import metrics, plots, registry, signals
+from core.analyses import estimation
+from core.analyses.base import Result, TableSpec, map_tasks
+from core.errors import ConfigError
+from core.schema import (
+    MAX_VOLTS,
+    REQUIRED,
+    Experiment,
+    boolean,
+    build_estimator,
+    build_model,
+    file_name,
+    integer,
+    list_of,
+    mapping,
+    model_block,
+    number,
+    operating_point,
+    simulation_block,
+    text,
+)
+from core.simulate import SOLVERS
+
+_READING = text({"sigma", "variance"})
+CAPACITANCES = ("C_S", "C_D", "C_B", "C_BS", "C_BD")
+"""The device capacitances that scale with gate area under ``area_scaled_caps``."""
+
+SCHEMA: dict = {
+    "model": model_block(registry.MODELS),
+    "geometry": ({
+        "columns": (list_of({
+            "w_um": (number(positive=True, maximum=1e6), REQUIRED),
+            "l_um": (number(positive=True, maximum=1e6), REQUIRED),
+        }, max_length=20), REQUIRED),
+        "area_scaled_caps": (boolean, False),
+        "reference_area_um2": (number(positive=True, maximum=1e12), 4.0),
+    }, REQUIRED),
+    "input": ({
+        "amplitude_v": (number(minimum=0.0, maximum=MAX_VOLTS), REQUIRED),
+        "frequencies_hz": (list_of(number(minimum=1e-3, maximum=1e9)), REQUIRED),
+        "samples_per_period": (integer(4, 10_000), 32),
+        "periods": (integer(1, 100_000), 16),
+    }, REQUIRED),
+    "noise": ({
+        "input_levels": (list_of(number(positive=True, maximum=MAX_VOLTS)), REQUIRED),
+        "readings": (list_of(_READING, unique=True), ["variance"]),
+        "gamma": (number(positive=True, maximum=1e12), 1.0),
+        "measurement_sigma": (number(minimum=0.0, maximum=MAX_VOLTS), REQUIRED),
+        "adc_bits": (integer(1, 32), None),
+        "adc_range_v": (list_of(number(minimum=-MAX_VOLTS, maximum=MAX_VOLTS), max_length=2),
+                        [0.0, 1.0]),
+    }, REQUIRED),
+    "truth": ({
+        "data_source": (text(max_length=60), "simulated"),
+        "params": (mapping, {}),
+    }, {}),
+    "simulation": simulation_block(rtol=1e-6, atol=1e-9),
+    "estimators": (list_of({
+        "label": (text(max_length=60), REQUIRED),
+        "type": (text(registry.ESTIMATORS), REQUIRED),
+        "model": (text(registry.MODELS), None),
+        "model_params": (mapping, {}),
+        "settings": (mapping, {}),
+    }, max_length=20), REQUIRED),
+    "monte_carlo": ({
+        "runs": (integer(1, 1_000_000), REQUIRED),
+        "seed": (integer(0, 2**63 - 1), REQUIRED),
+    }, REQUIRED),
+    "tables": ({"rmse": (text(), None)}, REQUIRED),
+    "health": estimation.SCHEMA["health"],
+    "claims": estimation.SCHEMA["claims"],
+    "figures": ({
+        "frequency_hz": (number(minimum=1e-3, maximum=1e9), None),
+        "noise_level": (number(positive=True, maximum=MAX_VOLTS), None),
+        "reading": (_READING, None),
+        "names": (list_of({
+            "w_um": (number(positive=True, maximum=1e6), REQUIRED),
+            "l_um": (number(positive=True, maximum=1e6), REQUIRED),
+            "name": (file_name, REQUIRED),
+        }, nonempty=False, max_length=20), []),
+    }, {}),
+}
+
+_KEYS = ("table_id", "s_no", "data_source", "noise_reading", "noise_param", "noise_sigma",
+         "frequency_hz", "w_um", "l_um", "area_scaled_caps", "estimator", "measures")
+MEASUREMENT = estimation.MEASUREMENT
+
+TABLES = {
+    "rmse": TableSpec("rmse.csv", _KEYS,
+                      ("rmse", "rmse_se", "runs", "diverged", "rmse_all", "rmse_all_se",
+                       "rmse_all_median", "kept_fraction", "lms_ls_gap"),
+                      reference=("rmse",),
+                      join=(("s_no", ("s_no",)), ("estimator", ("estimator",)),
+                            ("w_um", ("w_um",)), ("l_um", ("l_um",))),
+                      optional_join=("w_um", "l_um"),
+                      title="RMSE of the output (eqs 3.42, 4.60)",
+                      reference_ids=("4.1", "4.2")),
+    "health": TableSpec("health.csv", _KEYS[:-1],
+                        ("runs", "broken", "diverged", "nees_mean", "nees_in_band", "nis_mean",
+                         "nis_in_band", "white_fraction", "whiteness_lag"),
+                        title="filter health: consistency, whiteness, divergence"),
+    "claims": TableSpec("claims.csv",
+                        ("claim", "s_no", "noise_reading", "noise_param", "frequency_hz",
+                         "w_um", "l_um", "better", "worse"),
+                        estimation.TABLES["claims"].values,
+                        title="headline claim, row by row"),
+}
+
+
+@dataclass(frozen=True)
+class Column:
+    w_um: float
+    l_um: float
+    truth: object
+    x0: np.ndarray
+    filters: tuple      # (label, estimator, model, measured state indices or None)
+
+
+def _geometry(spec: dict, model_cls, column: dict) -> dict:
+    """Parameter overrides a W/L column makes on a model that has them."""
+    fields = set(model_cls.Params.__dataclass_fields__)
+    out = {}
+    if "W_L" in fields:
+        out["W_L"] = column["w_um"] / column["l_um"]
+    geometry = spec["geometry"]
+    if geometry["area_scaled_caps"]:
+        factor = column["w_um"] * column["l_um"] / geometry["reference_area_um2"]
+        for name in CAPACITANCES:
+            if name in fields:
+                out[name] = model_cls.Params.__dataclass_fields__[name].default * factor
+    return out
+
+
+def prepare(spec: dict, source: str) -> tuple[Column, ...]:
+    """Builds the actual circuit and every estimator's model per W/L column."""
+    model_cls = registry.MODELS[spec["model"]["name"]]
+    variant = spec["model"]["variant"]
+    columns = spec["geometry"]["columns"]
+    for i, c in enumerate(columns):
+        if c in columns[:i]:
+            raise ConfigError(source, f"geometry.columns[{i}]", f"repeats {c}")
+    for key in ("input.frequencies_hz", "noise.input_levels"):
+        section, name = key.split(".")
+        values = spec[section][name]
+        for i, v in enumerate(values):
+            if v in values[:i]:
+                raise ConfigError(source, f"{key}[{i}]", f"repeats {v!r}")
+    lo_hi = spec["noise"]["adc_range_v"]
+    if len(lo_hi) != 2 or not lo_hi[0] < lo_hi[1]:
+        raise ConfigError(source, "noise.adc_range_v", f"expected [low, high] with low < high, "
+                          f"got {lo_hi!r}")
+    labels = []
+    for i, est in enumerate(spec["estimators"]):
+        if est["label"] in labels or est["label"] == MEASUREMENT:
+            raise ConfigError(source, f"estimators[{i}].label",
+                              f"duplicate or reserved label {est['label']!r}")
+        labels.append(est["label"])
+    for i, claim in enumerate(spec["claims"]):
+        for side in ("better", "worse"):
+            if claim[side] not in labels:
+                raise ConfigError(source, f"claims[{i}].{side}",
+                                  f"expected an estimator label {labels}, got {claim[side]!r}")
+    for i, fig in enumerate(spec["figures"]["names"]):
+        if {"w_um": fig["w_um"], "l_um": fig["l_um"]} not in columns:
+            raise ConfigError(source, f"figures.names[{i}]",
+                              f"no geometry column W = {fig['w_um']:g}, L = {fig['l_um']:g} um")
+    built = []
+    for c in columns:
+        geo = _geometry(spec, model_cls, c)
+        truth_params = {**spec["model"]["params"], **geo, **spec["truth"]["params"]}
+        truth = build_model(model_cls, variant, truth_params, source, "truth.params")
+        x0 = operating_point(truth, [0.0] * truth.n_inputs, source, "model.params")
+        filters = []
+        for i, est in enumerate(spec["estimators"]):
+            path = f"estimators[{i}]"
+            cls = registry.MODELS[est["model"]] if est["model"] else model_cls
+            params = dict(est["model_params"]) if est["model"] else {
+                **spec["model"]["params"], **est["model_params"]}
+            params = {**_geometry(spec, cls, c), **params}
+            model = build_model(cls, None if est["model"] else variant, params, source,
+                                f"{path}.model_params")
+            estimator = build_estimator(registry.ESTIMATORS[est["type"]], est["settings"],
+                                        model, source, f"{path}.settings")
+            if model.n_outputs != truth.n_outputs:
+                raise ConfigError(source, f"{path}.model", f"{model.name} has "
+                                  f"{model.n_outputs} outputs, the circuit {truth.n_outputs}")
+            seen = (estimator.measured_states(model)
+                    if hasattr(estimator, "measured_states") else None)
+            if seen is not None and model.n_states != truth.n_states:
+                raise ConfigError(source, f"{path}.model", "an estimator that measures states "
+                                  "needs a model with the circuit's states")
+            filters.append((est["label"], estimator, model, seen))
+        built.append(Column(c["w_um"], c["l_um"], truth, x0, tuple(filters)))
+    return tuple(built)
+
+
+@dataclass(frozen=True)
+class SweepPoint:
+    key: tuple[int, int, int]
+    reading: str
+    level: float
+    sigma: float
+    frequency_hz: float
+
+
+def sweep(exp: Experiment) -> list[SweepPoint]:
+    noise, inp = exp.spec["noise"], exp.spec["input"]
+    return [SweepPoint((r, i, j), reading, float(level), signals.noise_sigma(level, reading),
+                       float(f))
+            for r, reading in enumerate(noise["readings"])
+            for i, level in enumerate(noise["input_levels"])
+            for j, f in enumerate(inp["frequencies_hz"])]
+
+
+def work_units(exp: Experiment) -> int:
+    return len(sweep(exp)) * len(exp.plan)
+
+
+def work_size(spec: dict) -> int:
+    n = len(registry.MODELS[spec["model"]["name"]].state_names)
+    inp = spec["input"]
+    steps = inp["samples_per_period"] * inp["periods"]
+    points = (len(spec["noise"]["readings"]) * len(spec["noise"]["input_levels"])
+              * len(inp["frequencies_hz"]))
+    stages = spec["model"]["params"].get("stages", 1)
+    stages = stages if isinstance(stages, int) else 1
+    return int(spec["monte_carlo"]["runs"] * n * stages * steps * points
+               * len(spec["geometry"]["columns"]))
+
+
+def tiny(spec: dict) -> dict:
+    spec["input"].update(frequencies_hz=spec["input"]["frequencies_hz"][:1], periods=2)
+    spec["noise"].update(input_levels=spec["noise"]["input_levels"][:1],
+                         readings=spec["noise"].get("readings", ["variance"])[:1])
+    spec["geometry"]["columns"] = spec["geometry"]["columns"][:1]
+    spec["monte_carlo"]["runs"] = 3
+    spec["figures"] = {}
+    for est in spec["estimators"]:
+        if est["type"] == "wavelet_lms":
+            est["settings"]["epochs"] = 2
+    return spec
+
+
+def simulate_point(exp: Experiment, column: Column, point: SweepPoint, runs: int) -> dict:
+    """Actual trajectories and measurements of every state for one column and point."""
+    inp, noise = exp.spec["input"], exp.spec["noise"]
+    rng = np.random.default_rng(np.random.SeedSequence(exp.spec["monte_carlo"]["seed"],
+                                                       spawn_key=point.key))
+    f = point.frequency_hz
+    dt = 1.0 / (inp["samples_per_period"] * f)
+    steps = inp["samples_per_period"] * inp["periods"]
+    t = np.arange(steps + 1) * dt
+    clean = signals.sine(inp["amplitude_v"], f, t)
+    ou = signals.ornstein_uhlenbeck(rng, point.sigma, noise["gamma"], dt, (runs, steps))
+    source = clean[None] + ou[..., None]
+    sim = exp.spec["simulation"]
+    truth = column.truth
+    states = SOLVERS[sim["solver"]](truth, column.x0, truth.source_to_input(source, dt), dt,
+                                    rtol=sim["rtol"], atol=sim["atol"])
+    measured = states + signals.gaussian(rng, noise["measurement_sigma"], states.shape)
+    if noise["adc_bits"] is not None:
+        lo, hi = noise["adc_range_v"]
+        lsb = (hi - lo) / 2 ** noise["adc_bits"]
+        measured = lo + lsb * np.clip(np.round((measured - lo) / lsb), 0, 2 ** noise["adc_bits"] - 1)
+    out = int(np.argmax(np.abs(np.asarray(truth.h_jacobian(column.x0)).reshape(-1))))
+    return {"t": t[1:], "dt": dt, "x0": column.x0, "source": source, "clean": clean,
+            "states": states, "actual": truth.h(states), "measured": measured,
+            "z": measured[..., out:out + 1]}
+
+
+def run_point(exp: Experiment, index: int, point: SweepPoint, traces: bool) -> tuple[list, dict]:
+    """Rows (measurement baseline, then each estimator) for one column and sweep point."""
+    column = exp.plan[index]
+    data = simulate_point(exp, column, point, exp.spec["monte_carlo"]["runs"])
+    common = {"data_source": exp.spec["truth"]["data_source"], "noise_reading": point.reading,
+              "noise_param": point.level, "noise_sigma": point.sigma,
+              "frequency_hz": point.frequency_hz, "w_um": column.w_um, "l_um": column.l_um,
+              "area_scaled_caps": bool(exp.spec["geometry"]["area_scaled_caps"]),
+              "kept_fraction": float("nan"), "lms_ls_gap": float("nan")}
+    raw = metrics.rmse_per_run(data["actual"], data["z"])
+    mean, se = metrics.mean_and_se(raw)
+    out_name = column.truth.state_names[int(np.argmax(np.abs(np.asarray(
+        column.truth.h_jacobian(column.x0)).reshape(-1))))]
+    rows = [{**common, "estimator": MEASUREMENT, "measures": out_name, "rmse": mean,
+             "rmse_se": se, "runs": len(raw), "diverged": 0, "rmse_all": mean,
+             "rmse_all_se": se, "rmse_all_median": float(np.median(raw))}]
+    estimates = {}
+    for label, est, model, seen in column.filters:
+        z = data["z"] if seen is None else data["measured"][..., seen]
+        u = model.source_to_input(data["clean"][None], data["dt"])[0]
+        result = est.run(model, z, u, data["dt"], x0=data["x0"])
+        estimates[label] = result
+        verdict = estimation.judge(exp, data, result, model)
+        ok = ~verdict["diverged"]
+        rmse, rmse_se = metrics.mean_and_se(metrics.rmse_per_run(data["actual"][ok],
+                                                                 result.y_hat[ok]))
+        rmse_all, rmse_all_se, median = estimation._rmse_all(data["actual"], result.y_hat)
+        extra = {key: float(np.nanmedian(result.diagnostics[key]))
+                 for key in ("kept_fraction", "lms_ls_gap") if key in result.diagnostics}
+        names = out_name if seen is None else " ".join(model.state_names[i] for i in seen)
+        rows.append({**common, **extra, **{k: v for k, v in verdict.items()
+                                           if k not in ("diverged", "broken")},
+                     "estimator": label, "measures": names, "rmse": rmse, "rmse_se": rmse_se,
+                     "rmse_all": rmse_all, "rmse_all_se": rmse_all_se,
+                     "rmse_all_median": median, "runs": int(ok.sum()),
+                     "diverged": int((~ok).sum()), "broken": int(verdict["broken"].sum())})
+    trace = {}
+    if traces:
+        trace = {"t": data["t"], "source": data["source"][0, 1:, 0],
+                 "clean": data["clean"][1:, 0], "actual": data["actual"][0, :, 0],
+                 "z": data["z"][0, :, 0],
+                 "y_hat": {lab: e.y_hat[0, :, 0] for lab, e in estimates.items()}}
+    return rows, trace
+
+
+def _run_point_args(args):
+    return run_point(*args)
+
+
+def _figure_point(exp: Experiment, points: list[SweepPoint]) -> SweepPoint:
+    fig = exp.spec["figures"]
+    f = fig["frequency_hz"] or exp.spec["input"]["frequencies_hz"][0]
+    level = fig["noise_level"] or exp.spec["noise"]["input_levels"][0]
+    reading = fig["reading"] or exp.spec["noise"]["readings"][0]
+    hit = [p for p in points if p.reading == reading and np.isclose(p.level, level)
+           and np.isclose(p.frequency_hz, f)]
+    return hit[0] if hit else points[0]
+
+
+def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = None) -> Result:
+    points = sweep(exp)
+    shown = _figure_point(exp, points)
+    named = {(f["w_um"], f["l_um"]): f["name"] for f in exp.spec["figures"]["names"]}
+    tasks = [(exp, i, p, p == shown and (c.w_um, c.l_um) in named)
+             for i, c in enumerate(exp.plan) for p in points]
+    done = map_tasks(_run_point_args, tasks, jobs, on_done)
+    rows = [row for part, _ in done for row in part]
+    table_id = exp.spec["tables"]["rmse"]
+    df = pd.DataFrame(rows)
+    df.insert(0, "table_id", table_id or "")
+    df.insert(1, "s_no", estimation.thesis_row_numbers(df, table_id))
+    out = Result(tables={"rmse": df[TABLES["rmse"].columns].reset_index(drop=True)})
+    filters = df[df["estimator"] != MEASUREMENT]
+    out.tables["health"] = filters[TABLES["health"].columns].reset_index(drop=True)
+    if exp.spec["claims"]:
+        keys = ["noise_reading", "noise_param", "frequency_hz", "w_um", "l_um"]
+        parts = [estimation.claims(out.tables["rmse"], c["better"], c["worse"], keys=keys)
+                 for c in exp.spec["claims"]]
+        out.tables["claims"] = pd.concat(parts, ignore_index=True)[TABLES["claims"].columns]
+    for (_, i, p, wanted), (_, trace) in zip(tasks, done, strict=True):
+        if wanted:
+            c = exp.plan[i]
+            title = (f"{exp.spec['title'] or exp.name}: W = {c.w_um:g} um, L = {c.l_um:g} um, "
+                     f"{p.frequency_hz:g} Hz, input noise {p.level:g} ({p.reading})")
+            out.figures[named[(c.w_um, c.l_um)]] = plots.estimates(trace, title)
+    return out
+
+
+def summary(result: Result) -> str:
+    df = result.tables["rmse"]
+    view = df.pivot_table(index=["noise_reading", "noise_param", "frequency_hz"],
+                          columns=["w_um", "l_um", "estimator"], values="rmse", sort=False)
+    return view.to_string(float_format=lambda v: f"{v:.4g}")
+
