@@ -294,7 +294,8 @@ def simulate_point(exp: Experiment, column: Column, point: SweepPoint, runs: int
     if noise["adc_bits"] is not None:
         lo, hi = noise["adc_range_v"]
         lsb = (hi - lo) / 2 ** noise["adc_bits"]
-        measured = lo + lsb * np.clip(np.round((measured - lo) / lsb), 0, 2 ** noise["adc_bits"] - 1)
+        codes = np.clip(np.round((measured - lo) / lsb), 0, 2 ** noise["adc_bits"] - 1)
+        measured = lo + lsb * codes
     out = int(np.argmax(np.abs(np.asarray(truth.h_jacobian(column.x0)).reshape(-1))))
     return {"t": t[1:], "dt": dt, "x0": column.x0, "source": source, "clean": clean,
             "states": states, "actual": truth.h(states), "measured": measured,
