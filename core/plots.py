@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import matplotlib
+import numpy as np
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
@@ -82,5 +83,59 @@ def perturbation(trace: dict, title: str) -> Figure:
     ax_nl.set_ylabel("nonlinear part [V]")
     ax_nl.set_title("(c) first-order output and the true nonlinear part")
     ax_nl.legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def burden(timing, slopes) -> Figure:
+    """Multiplications counted and wall time per step against ``n_x``, log-log (Tables 4.3,
+    4.4), with the fitted slopes in the legend."""
+    fig, (ax_c, ax_t) = plt.subplots(1, 2, figsize=(10.0, 4.5))
+    for est, part in timing.groupby("estimator", sort=False):
+        fit = slopes[slopes["estimator"] == est].set_index("quantity")["slope"]
+        ax_c.loglog(part["n_x"], part["counted_per_step"], "o-",
+                    label=f"{est} (slope {fit.get('counted', float('nan')):.2f})")
+        ax_t.loglog(part["n_x"], part["seconds_per_step"], "o-",
+                    label=f"{est} (slope {fit.get('seconds', float('nan')):.2f})")
+    ax_c.set_title("(a) multiplications per step (counted)")
+    ax_t.set_title("(b) wall time per step (this machine)")
+    for ax, label in ((ax_c, "multiplications"), (ax_t, "seconds")):
+        ax.set_xlabel("n_x (states)")
+        ax.set_ylabel(label)
+        ax.legend(fontsize=8, loc="upper left")
+        ax.grid(True, which="both", lw=0.3)
+    fig.tight_layout()
+    return fig
+
+
+def estimates_clipped(trace: dict, title: str) -> Figure:
+    """Input (a) and output (b) like :func:`estimates`, with the output axis held to the
+    actual signal's range: an estimate that leaves it (or breaks) is drawn until then and
+    named in the legend with the time it left (Figs 4.3-4.7). Legend outside the data."""
+    fig, (ax_in, ax_out) = plt.subplots(2, 1, figsize=(10.0, 6.0), sharex=True)
+    t_ms = trace["t"] * 1e3
+    ax_in.plot(t_ms, trace["source"], lw=0.8, label="source (as applied)")
+    ax_in.plot(t_ms, trace["clean"], lw=1.2, label="nominal input")
+    ax_in.set_ylabel("v_in [V]")
+    ax_in.set_title(f"(a) input - {title}", fontsize=10)
+    ax_in.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+    actual = trace["actual"]
+    span = float(np.ptp(actual)) or 1e-3
+    lo, hi = float(actual.min()) - span, float(actual.max()) + span
+    ax_out.plot(t_ms, trace["z"], ".", ms=2, color="0.6", label="measurement")
+    ax_out.plot(t_ms, actual, lw=1.6, color="k", label="actual")
+    for label, y in trace["y_hat"].items():
+        outside = ~np.isfinite(y) | (y < lo) | (y > hi)
+        if outside.any():
+            k = int(np.argmax(outside))
+            where = f"leaves the axis at {t_ms[k]:.3g} ms" if k else "off the axis"
+            label = f"{label} ({where})"
+            y = np.where(np.arange(y.size) < k, y, np.nan)
+        ax_out.plot(t_ms, y, lw=1.0, label=label)
+    ax_out.set_ylim(lo, hi)
+    ax_out.set_xlabel("time [ms]")
+    ax_out.set_ylabel("output v_D [V]")
+    ax_out.set_title("(b) estimated output (run 1 of the batch)", fontsize=10)
+    ax_out.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     fig.tight_layout()
     return fig

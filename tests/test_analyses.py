@@ -107,7 +107,11 @@ def test_stored_results_join_every_thesis_row(path):
     filled = 0
     for spec in ANALYSES[exp.analysis].TABLES.values():
         if spec.join and (folder / spec.file).is_file():
+            # with_reference raises when a thesis row matches none of ours
             df = tables.with_reference(tables.view(read_table(folder / spec.file), spec), spec)
+            if not spec.reference:      # a table of printed formulas (4.3, 4.4): rows only
+                filled += len(df)
+                continue
             filled += int(df[[f"thesis_{v}" for v in spec.reference]].notna().any().any())
     assert filled, f"no thesis value joined to {folder}"
 

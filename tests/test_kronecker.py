@@ -192,3 +192,21 @@ def test_without_area_scaled_caps_equal_w_over_l_gives_equal_columns():
     scaled = _tiny_table(cols, True)
     a, b = scaled[scaled["w_um"] == 2], scaled[scaled["w_um"] == 20]
     assert not np.allclose(a["rmse"].to_numpy(), b["rmse"].to_numpy(), rtol=1e-6)
+
+
+def test_burden_counts_equal_the_closed_forms_of_what_the_code_does():
+    from core.analyses import burden
+
+    spec = yaml.safe_load(open("configs/kronecker_burden.yaml"))
+    spec = burden.tiny(copy.deepcopy(spec))
+    result = burden.run(parse_data(spec, "b.yaml", "b"))
+    for name in ("burden_ekf", "burden_wt"):
+        df = result.tables[name]
+        assert (df["counted"] > 0).all()
+        assert np.array_equal(df["counted"].to_numpy(), df["ours_value"].to_numpy()), name
+    ekf = result.tables["burden_ekf"]
+    at4 = ekf[ekf["n_x"] == 4].set_index("row_order")
+    # the thesis' A.12 omits the n^3 of F2 (x (x) x): 36 printed, 100 done
+    assert at4.loc[1, "printed"] == 36 and at4.loc[1, "counted"] == 100
+    slopes = result.tables["slopes"].set_index(["estimator", "quantity"])["slope"]
+    assert 2.5 < slopes[("Kronecker EKF", "counted")] < 3.0

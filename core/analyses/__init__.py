@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from core.analyses import estimation, kronecker, perturbation
+from core.analyses import burden, estimation, kronecker, perturbation
 
 ANALYSES = {
+    "burden": burden,
     "estimation": estimation,
     "kronecker": kronecker,
     "perturbation": perturbation,

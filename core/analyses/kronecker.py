@@ -384,9 +384,9 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     for (_, i, p, wanted), (_, trace) in zip(tasks, done, strict=True):
         if wanted:
             c = exp.plan[i]
-            title = (f"{exp.spec['title'] or exp.name}: W = {c.w_um:g} um, L = {c.l_um:g} um, "
-                     f"{p.frequency_hz:g} Hz, input noise {p.level:g} ({p.reading})")
-            out.figures[named[(c.w_um, c.l_um)]] = plots.estimates(trace, title)
+            title = (f"W = {c.w_um:g} um, L = {c.l_um:g} um, {p.frequency_hz:g} Hz, "
+                     f"O.U. input noise {p.level:g} ({p.reading})")
+            out.figures[named[(c.w_um, c.l_um)]] = plots.estimates_clipped(trace, title)
     return out
 
 
