@@ -149,7 +149,9 @@ def test_every_estimator_returns_an_estimate(name, oscillator):
     settings = {"kf": dict(A=Ad, B=Bd, C=oscillator.C, Q=0.01, R=0.1, x0=[0, 0], P0=1.0),
                 "ekf": dict(Q=0.01, R=0.1, P0=1.0, x0=[0.0, 0.0]),
                 "rls": dict(order=3),
-                "ukf": dict(Q=0.01, R=0.1, P0=1.0, x0=[0.0, 0.0])}[name]
+                "ukf": dict(Q=0.01, R=0.1, P0=1.0, x0=[0.0, 0.0]),
+                "kronecker_ekf": dict(Q=0.01, R=0.1, P0=1.0, x0=[0.0, 0.0]),
+                "wavelet_lms": dict(measures=["x0"], epochs=2)}[name]
     z = np.random.default_rng(4).normal(size=(5, 30, 1))
     est = registry.ESTIMATORS[name](**settings).run(oscillator, z, np.zeros((30, 1)), 0.1)
     assert isinstance(est, Estimate)
