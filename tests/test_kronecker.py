@@ -36,6 +36,20 @@ def test_kronecker_model_error_is_third_order_and_linear_second_order():
     assert np.all(np.abs(orders[:, 1] - 2.0) < 0.3), orders
 
 
+@pytest.mark.parametrize("name", ["cco", "mosfet_darlington"])
+def test_kronecker_form_of_other_registered_models_is_third_order(name):
+    from core import registry
+
+    m = registry.MODELS[name]()
+    x, u = m.operating_point(), np.zeros(m.n_inputs)
+    terms = kronecker.from_model(m, x, u)
+    direction = np.random.default_rng(0).standard_normal(m.n_states)
+    errors = [np.linalg.norm(m.f(x + a * direction, u) - terms.drift(x + a * direction, u))
+              for a in (4e-3, 2e-3, 1e-3)]
+    orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
+    assert np.all(np.abs(orders - 3.0) < 0.2), orders
+
+
 def test_kronecker_jacobian_is_the_derivative_of_the_drift():
     m = MosfetEKV("completed", **CIRCUIT)
     terms = kronecker.from_model(m, m.operating_point())
