@@ -49,6 +49,41 @@ class Estimate:
         return None if self.P is None else np.diagonal(self.P, axis1=-2, axis2=-1)
 
 
+def run_batch(cycle, x0: np.ndarray, P0: np.ndarray, z: np.ndarray, u: np.ndarray,
+              bound: float) -> tuple[np.ndarray, ...]:
+    """The batch bookkeeping every state filter shares: ``cycle(x, P, z_k, u_k)`` (one
+    prediction and update for the runs still alive, returning the prediction, the updated
+    state and covariance, ``S`` and the innovation) is applied step by step; a run whose
+    estimate or prediction becomes non-finite or leaves ``|x| <= bound`` is marked broken
+    and frozen, its outputs NaN from that step on. Returns ``x_hat``, ``P``, ``S``, the
+    innovations and the runs still alive at the end."""
+    runs, steps, m = z.shape
+    n = np.shape(x0)[-1]
+    x = np.broadcast_to(x0, (runs, n)).copy()
+    P = np.broadcast_to(P0, (runs, n, n)).copy()
+    x_hat = np.full((runs, steps, n), np.nan)
+    P_hist = np.full((runs, steps, n, n), np.nan)
+    S_hist = np.full((runs, steps, m, m), np.nan)
+    innovation = np.full((runs, steps, m), np.nan)
+    alive = np.ones(runs, bool)
+    for k in range(steps):
+        idx = np.flatnonzero(alive)
+        if idx.size == 0:
+            break
+        with np.errstate(all="ignore"):
+            xp, xu, Pu, S, nu = cycle(x[idx], P[idx], z[idx, k], u[idx, k])
+        ok = (np.all(np.isfinite(xu), axis=1) & np.all(np.isfinite(Pu), axis=(1, 2))
+              & np.all(np.abs(xu) <= bound, axis=1) & np.all(np.abs(xp) <= bound, axis=1))
+        alive[idx[~ok]] = False
+        keep = idx[ok]
+        x[keep], P[keep] = xu[ok], Pu[ok]
+        x_hat[keep, k] = xu[ok]
+        P_hist[keep, k] = Pu[ok]
+        S_hist[keep, k] = S[ok]
+        innovation[keep, k] = nu[ok]
+    return x_hat, P_hist, S_hist, innovation, alive
+
+
 def batch_input(u: np.ndarray, runs: int) -> np.ndarray:
     """Broadcast an input of shape ``(steps, p)`` or ``(runs, steps, p)`` to the batch."""
     u = np.asarray(u, float)

@@ -10,7 +10,14 @@ from __future__ import annotations
 import numpy as np
 
 from core import discretize
-from core.estimators.base import Estimate, as_matrix, batch_input, check_covariance, joseph_update
+from core.estimators.base import (
+    Estimate,
+    as_matrix,
+    batch_input,
+    check_covariance,
+    joseph_update,
+    run_batch,
+)
 from core.schema import REQUIRED, integer, list_of, matrix, number, text
 
 
@@ -96,39 +103,16 @@ class ExtendedKalmanFilter:
 
     def run(self, model, z: np.ndarray, u: np.ndarray, dt: float,
             x0: np.ndarray | None = None) -> Estimate:
-        runs, steps, m = z.shape
-        n = model.n_states
+        runs, _, m = z.shape
         Q, P0 = self.state_covariances(model)
         R = as_matrix(self.R, m, "R")
         if self.x0 is not None:
             x0 = np.asarray(self.x0, float)
         elif x0 is None:
             x0 = model.operating_point()
-        u = batch_input(u, runs)
-        x = np.broadcast_to(x0, (runs, n)).copy()
-        P = np.broadcast_to(P0, (runs, n, n)).copy()
-        x_hat = np.full((runs, steps, n), np.nan)
-        P_hist = np.full((runs, steps, n, n), np.nan)
-        S_hist = np.full((runs, steps, m, m), np.nan)
-        innovation = np.full((runs, steps, m), np.nan)
-        alive = np.ones(runs, bool)
-        for k in range(steps):
-            idx = np.flatnonzero(alive)
-            if idx.size == 0:
-                break
-            with np.errstate(all="ignore"):
-                xp, xu, Pu, S, nu = self.cycle(model, x[idx], P[idx], z[idx, k], u[idx, k],
-                                               dt, Q, R)
-            ok = (np.all(np.isfinite(xu), axis=1) & np.all(np.isfinite(Pu), axis=(1, 2))
-                  & np.all(np.abs(xu) <= self.divergence_bound, axis=1)
-                  & np.all(np.abs(xp) <= self.divergence_bound, axis=1))
-            alive[idx[~ok]] = False
-            keep = idx[ok]
-            x[keep], P[keep] = xu[ok], Pu[ok]
-            x_hat[keep, k] = xu[ok]
-            P_hist[keep, k] = Pu[ok]
-            S_hist[keep, k] = S[ok]
-            innovation[keep, k] = nu[ok]
+        x_hat, P_hist, S_hist, innovation, alive = run_batch(
+            lambda x, P, zk, uk: self.cycle(model, x, P, zk, uk, dt, Q, R),
+            x0, P0, z, batch_input(u, runs), self.divergence_bound)
         with np.errstate(all="ignore"):
             y_hat = model.h(x_hat)
         return Estimate(y_hat=y_hat, innovation=innovation, broken=~alive, x_hat=x_hat,

@@ -23,7 +23,13 @@ from __future__ import annotations
 import numpy as np
 
 from core import kronecker, opcount
-from core.estimators.base import Estimate, as_matrix, batch_input, check_covariance
+from core.estimators.base import (
+    Estimate,
+    as_matrix,
+    batch_input,
+    check_covariance,
+    run_batch,
+)
 from core.schema import REQUIRED, integer, list_of, matrix, number, text
 
 
@@ -116,7 +122,7 @@ class KroneckerEKF:
 
     def run(self, model, z: np.ndarray, u: np.ndarray, dt: float,
             x0: np.ndarray | None = None) -> Estimate:
-        runs, steps, m = z.shape
+        runs, _, m = z.shape
         n = model.n_states
         D = self.discrete(model, dt)
         H = np.asarray(model.h_jacobian(D.terms.x_op), float)
@@ -126,30 +132,9 @@ class KroneckerEKF:
             x0 = np.asarray(self.x0, float)
         elif x0 is None:
             x0 = D.terms.x_op
-        u = batch_input(u, runs)
-        x = np.broadcast_to(x0, (runs, n)).copy()
-        P = np.broadcast_to(P0, (runs, n, n)).copy()
-        x_hat = np.full((runs, steps, n), np.nan)
-        P_hist = np.full((runs, steps, n, n), np.nan)
-        S_hist = np.full((runs, steps, m, m), np.nan)
-        innovation = np.full((runs, steps, m), np.nan)
-        alive = np.ones(runs, bool)
-        bound = self.divergence_bound
-        for k in range(steps):
-            idx = np.flatnonzero(alive)
-            if idx.size == 0:
-                break
-            with np.errstate(all="ignore"):
-                xp, xu, Pu, S, nu = self.cycle(D, H, x[idx], P[idx], z[idx, k], u[idx, k], Q, R)
-                ok = (np.all(np.isfinite(xu), axis=1) & np.all(np.isfinite(Pu), axis=(1, 2))
-                      & np.all(np.abs(xu) <= bound, axis=1) & np.all(np.abs(xp) <= bound, axis=1))
-            alive[idx[~ok]] = False
-            keep = idx[ok]
-            x[keep], P[keep] = xu[ok], Pu[ok]
-            x_hat[keep, k] = xu[ok]
-            P_hist[keep, k] = Pu[ok]
-            S_hist[keep, k] = S[ok]
-            innovation[keep, k] = nu[ok]
+        x_hat, P_hist, S_hist, innovation, alive = run_batch(
+            lambda x, P, zk, uk: self.cycle(D, H, x, P, zk, uk, Q, R),
+            x0, P0, z, batch_input(u, runs), self.divergence_bound)
         with np.errstate(all="ignore"):
             y_hat = x_hat @ H.T
         return Estimate(y_hat=y_hat, innovation=innovation, broken=~alive, x_hat=x_hat,

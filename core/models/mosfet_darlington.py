@@ -13,41 +13,30 @@ computational-burden measurements of Tables 4.3-4.4 (``n_x = 4 stages``).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
-from core.models.base import Model, check_params, param
-from core.models.mosfet_ekv import MosfetEKV
+from core.models.base import Model, param
+from core.models.mosfet_ekv import MosfetEKV, MosfetParams
 
 
 @dataclass(frozen=True)
-class ChainParams:
-    stages: int = param(2, "-", "number of stages (2: the Darlington pair of Fig 4.2)")
-    U_T: float = param(0.0256, "V", "thermal voltage")
-    V_T0: float = param(0.5, "V", "equilibrium threshold voltage")
-    eta: float = param(1.0, "-", "subthreshold slope factor")
-    I_0: float = param(1.0e-9, "A", "unary specific current")
+class ChainParams(MosfetParams):
+    """The stage's parameters (:class:`core.models.mosfet_ekv.MosfetParams`) with the
+    Chapter 4 defaults, and the number of stages."""
+
     W_L: float = param(1.0, "-", "aspect ratio W/L of every stage")
-    R_in: float = param(3.0e3, "Ohm", "gate bias resistor")
-    C_GX: float = param(1.0e-5, "F", "coupling capacitor into each gate")
-    C_S: float = param(1.5e-10, "F", "gate-source capacitance")
-    C_D: float = param(1.5e-10, "F", "gate-drain capacitance")
-    C_B: float = param(4.0e-10, "F", "gate-bulk capacitance")
-    C_BS: float = param(0.99e-11, "F", "bulk-source capacitance")
-    C_BD: float = param(1.0e-11, "F", "bulk-drain capacitance")
     V_IN: float = param(0.5, "V", "DC gate bias of every stage")
-    V_DD: float = param(1.0, "V", "drain supply")
-    R_D: float = param(1.0e9, "Ohm", "drain load")
-    R_S: float = param(1.0e3, "Ohm", "source to ground")
-    R_B: float = param(1.0e5, "Ohm", "bulk to ground")
+    R_D: float = param(1.0e9, "Ohm", "drain load of every stage")
+    stages: int = param(2, "-", "number of stages (2: the Darlington pair of Fig 4.2)")
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         if not isinstance(self.stages, int) or isinstance(self.stages, bool) \
                 or not 1 <= self.stages <= 64:
             raise ValueError(f"stages must be an integer in [1, 64], got {self.stages!r}")
-        check_params(self, positive=("U_T", "eta", "I_0", "W_L", "R_in", "C_GX", "C_S", "C_D",
-                                     "C_B", "C_BS", "C_BD", "R_D", "R_S", "R_B"))
 
 
 class MosfetDarlington(Model):
@@ -66,10 +55,8 @@ class MosfetDarlington(Model):
         k = p.stages
         self.state_names = tuple(f"{v}{i + 1}" for i in range(k)
                                  for v in ("v_G", "v_B", "v_S", "v_D"))
-        stage_params = {name: getattr(p, name) for name in (
-            "U_T", "V_T0", "eta", "I_0", "W_L", "R_in", "C_GX", "C_S", "C_D", "C_B", "C_BS",
-            "C_BD", "V_IN", "V_DD", "R_D", "R_S", "R_B")}
-        self.stage = MosfetEKV("completed", **stage_params)
+        stage = {f.name: getattr(p, f.name) for f in dataclasses.fields(MosfetParams)}
+        self.stage = MosfetEKV("completed", **stage)
         n = 4 * k
         C = np.zeros((n, n))
         for s in range(k):
