@@ -1,0 +1,66 @@
+"""Chapter 5: sparse field operators and time steppers."""
+
+import numpy as np
+import pytest
+
+from core.fields import operators as ops
+
+
+def _grid(n, length=1.0):
+    spacing = length / (n + 1)
+    x = spacing * np.arange(1, n + 1)
+    X, Y, Z = np.meshgrid(x, x, x, indexing="ij")
+    return spacing, X, Y, Z
+
+
+def test_laplacian_converges_at_second_order():
+    errors = []
+    for n in (15, 31, 63):
+        h, X, Y, Z = _grid(n)
+        u = np.sin(np.pi * X) * np.sin(2 * np.pi * Y) * np.sin(np.pi * Z)
+        exact = -(np.pi**2) * (1 + 4 + 1) * u
+        got = ops.laplacian(n, h) @ u.ravel()
+        errors.append(np.max(np.abs(got - exact.ravel())))
+    orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
+    assert np.all(np.abs(orders - 2.0) < 0.1), orders
+
+
+def test_div_curl_and_curl_grad_vanish():
+    n, h = 9, 0.1
+    rng = np.random.default_rng(0)
+    vector, scalar = rng.standard_normal(3 * n**3), rng.standard_normal(n**3)
+    scale = 1 / (2 * h) ** 2        # two centred differences; the random values are O(1)
+    assert np.max(np.abs(ops.divergence(n, h) @ (ops.curl(n, h) @ vector))) < 1e-12 * scale
+    assert np.max(np.abs(ops.curl(n, h) @ (ops.gradient(n, h) @ scalar))) < 1e-12 * scale
+
+
+def _highest_mode(n):
+    """The Dirichlet eigenvector of the 7-point Laplacian with the largest |eigenvalue|."""
+    h, X, Y, Z = _grid(n)
+    k = n * np.pi
+    return h, (np.sin(k * X) * np.sin(k * Y) * np.sin(k * Z)).ravel()
+
+
+def _growth(method, courant, n=12):
+    """Spectral radius of one step on the highest mode: the 2 x 2 map the stepper applies
+    to (mode amplitude, its rate), read off the real stepper."""
+    from core.fields import wave
+
+    h, mode = _highest_mode(n)
+    L = ops.laplacian(n, h)
+    dt = courant * h
+    columns = []
+    for u, v in ((mode, 0 * mode), (0 * mode, mode)):
+        u1, v1 = wave.step(u, v, L.dot, 1.0, dt, method=method)
+        columns.append([u1 @ mode / (mode @ mode), v1 @ mode / (mode @ mode)])
+    return float(np.max(np.abs(np.linalg.eigvals(np.array(columns).T))))
+
+
+def test_leapfrog_is_stable_below_the_courant_limit_and_not_above():
+    assert _growth("leapfrog", 0.57) <= 1 + 1e-12
+    assert _growth("leapfrog", 0.60) > 1.001
+
+
+@pytest.mark.parametrize("courant", [0.05, 0.3, 0.57])
+def test_forward_euler_grows_at_every_step_size(courant):
+    assert _growth("euler", courant) > 1.0
