@@ -64,3 +64,21 @@ def test_leapfrog_is_stable_below_the_courant_limit_and_not_above():
 @pytest.mark.parametrize("courant", [0.05, 0.3, 0.57])
 def test_forward_euler_grows_at_every_step_size(courant):
     assert _growth("euler", courant) > 1.0
+
+
+def test_dipole_fields_follow_from_its_potentials():
+    from core.fields.dipole import Dipole
+
+    d = Dipole()
+    r, th, h = np.array([0.11, 0.4, 2.3]), np.array([0.7, 1.2, 2.0]), 1e-6
+    f = d.phasors(r, th)
+    dr = {k: (d.phasors(r + h, th)[k] - d.phasors(r - h, th)[k]) / (2 * h) for k in f}
+    dth = {k: (d.phasors(r, th + h)[k] - d.phasors(r, th - h)[k]) / (2 * h) for k in f}
+    jw = 1j * d.omega
+    E_r = -dr["Phi"] - jw * f["A_r"]
+    E_th = -dth["Phi"] / r - jw * f["A_theta"]
+    H_phi = ((f["A_theta"] + r * dr["A_theta"]) - dth["A_r"]) / (r * d.mu0)
+    for got, want in ((E_r, f["E_r"]), (E_th, f["E_theta"]), (H_phi, f["H_phi"])):
+        np.testing.assert_allclose(got, want, rtol=1e-6)
+    far = d.phasors(np.array([200.0]), np.array([np.pi / 2]))
+    assert abs(far["E_theta"][0]) / abs(far["H_phi"][0]) == pytest.approx(d.eta, rel=1e-4)
