@@ -164,6 +164,15 @@ HOSTILE = [
     ("kronecker_burden", {"wavelet.step": 3}, "wavelet", "stability bound"),
     ("kronecker_burden", {"ekf.order": 3}, "ekf.order", "integer from 1 to 2"),
     ("kronecker_burden", {"tables.burden_ekf": "9.9"}, "tables.burden_ekf", "9.9"),
+    ("dipole_literal", {"zones.0.r": [0.2, 0.1]}, "zones[0].r", "low < high"),
+    ("dipole_literal", {"zones.1.name": "near"}, "zones[1].name", "repeats 'near'"),
+    ("dipole_literal", {"kf.Q": [1e-4, 1e-3]}, "kf.Q", "4 diagonal entries"),
+    ("dipole_literal", {"kf.R": 0}, "kf.R", "positive number"),
+    ("dipole_literal", {"rls.lambda0": 1.5}, "rls.lambda0", "number <= 1"),
+    ("dipole_literal", {"variant": "field"}, "variant", "'literal'"),
+    ("dipole_literal", {"zones.0.theta_deg": [0, 90]}, "zones[0].theta_deg[0]", ">= 1"),
+    ("dipole_literal", {"time.samples_per_period": 4}, "time.samples_per_period",
+     "integer from 8"),
 ]
 
 

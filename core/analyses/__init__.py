@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-from core.analyses import burden, estimation, kronecker, perturbation
+from core.analyses import burden, dipole, estimation, kronecker, perturbation
 
 ANALYSES = {
     "burden": burden,
+    "dipole": dipole,
     "estimation": estimation,
     "kronecker": kronecker,
     "perturbation": perturbation,

@@ -1,0 +1,351 @@
+"""The thesis' Chapter 5 experiment as printed: a Kalman filter and RLS per grid point for
+the potentials of a Hertzian dipole, fields from the estimates (Tables 5.1-5.12).
+
+Variant ``literal`` (eqs 5.42-5.47). On a grid of points ``(r, theta)`` in each zone:
+
+1. per point and per potential ``q`` in ``A_r, A_theta, Phi`` the state ``[q, q']`` (eq
+   5.42's ``[A, V, Phi, Psi]``, ``A`` with two components) follows ``F = [[1, T], [0, 1]]``
+   driven by the analytic solution through ``Z_k`` (chosen so that the analytic potentials
+   satisfy the recursion exactly) and by the source noise on the rates, ``T c^2 w``
+   (``B^(3)``; the thesis puts the current noise on ``A``, docs/deviations.md);
+2. ``A_r, A_theta, Phi`` are measured at every point with white noise ``sqrt(R_k)`` (eqs
+   5.46-5.47);
+3. the KF (Appendix A.1, the project's :class:`~core.estimators.kf.KalmanFilter`) runs per
+   point with the printed ``Q``, ``R``, ``P0`` from the analytic initial state; RLS (the
+   project's :class:`~core.estimators.rls.RecursiveLeastSquares`, fixed forgetting, its
+   regressor the taps of ``cos(omega t)``: a sinusoid of the known frequency per point)
+   smooths each measured potential, rates by a backward difference;
+4. ``E = -grad Phi - V`` (eq 5.25) and ``H = curl A / mu0`` (eq 5.27) by finite differences
+   on the ``(r, theta)`` grid; RMSE (eq 3.42) against the analytic field, for the real part
+   (the experiment driven by ``Re{. e^{j omega t}}``), the imaginary part (a second,
+   independent experiment driven by ``Im{.}``) and the magnitude ``|E|`` formed from the two.
+
+Besides KF and RLS: ``measurement`` (fields from the raw measured potentials) and
+``exact potentials`` (fields from the analytic potentials by the same finite differences:
+the grid's own floor). Normalised units: ``c = mu0 = eps0 = 1``, period 1, wavelength 1,
+``I0 dl = 1`` (``source``); the thesis gives none of ``N, Delta, dl, I0, omega``, the
+distances or the units.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from core import metrics, signals
+from core.analyses.base import Result, TableSpec, map_tasks
+from core.errors import ConfigError
+from core.estimators.base import as_matrix
+from core.estimators.kf import KalmanFilter
+from core.estimators.rls import RecursiveLeastSquares
+from core.fields.dipole import Dipole
+from core.schema import REQUIRED, Experiment, integer, list_of, number, text
+
+_READING = text({"sigma", "variance"})
+COMPONENTS = ("E_r", "E_theta", "H_phi")
+PARTS = ("imag", "real", "abs")
+KF, RLS = "KF", "RLS"
+TABLE_IDS = {(c, z, e): f"5.{1 + 3 * k + i}" for k, (z, e) in enumerate(
+    (("near", KF), ("near", RLS), ("far", KF), ("far", RLS))) for i, c in enumerate(COMPONENTS)}
+"""Thesis table of each (component, zone, estimator): 5.1-5.3 KF near, 5.4-5.6 RLS near,
+5.7-5.9 KF far, 5.10-5.12 RLS far."""
+
+SCHEMA: dict = {
+    "variant": (text({"literal"}), "literal"),
+    "source": ({
+        "I0_dl": (number(positive=True, maximum=1e6), 1.0),
+        "frequency": (number(positive=True, maximum=1e12), 1.0),
+        "c": (number(positive=True, maximum=1e12), 1.0),
+        "mu0": (number(positive=True, maximum=1e6), 1.0),
+    }, {}),
+    "zones": (list_of({
+        "name": (text({"near", "far"}), REQUIRED),
+        "r": (list_of(number(positive=True, maximum=1e6), max_length=2), REQUIRED),
+        "theta_deg": (list_of(number(minimum=1.0, maximum=179.0), max_length=2), [30.0, 150.0]),
+        "points_r": (integer(3, 200), 5),
+        "points_theta": (integer(3, 200), 5),
+    }, max_length=2, unique=False), REQUIRED),
+    "time": ({
+        "samples_per_period": (integer(8, 10_000), 50),
+        "periods": (integer(1, 1000), 4),
+    }, {}),
+    "noise": ({
+        "source_levels": (list_of(number(positive=True, maximum=1e3)), REQUIRED),
+        "readings": (list_of(_READING, unique=True), ["sigma", "variance"]),
+        "measurement_sigma": (number(positive=True, maximum=1e3), 0.1),
+    }, REQUIRED),
+    "kf": ({
+        "Q": (list_of(number(minimum=0.0, maximum=1e6), max_length=4), [1e-4, 1e-3, 1e-4, 1e-2]),
+        "R": (number(positive=True, maximum=1e6), 0.01),
+        "P0": (list_of(number(minimum=0.0, maximum=1e6), max_length=4), [1e-4] * 4),
+    }, {}),
+    "rls": ({
+        "lambda0": (number(minimum=0.5, maximum=1.0), 0.98),
+        "delta": (number(positive=True, maximum=1e12), 100.0),
+    }, {}),
+    "monte_carlo": ({
+        "runs": (integer(2, 100_000), REQUIRED),
+        "seed": (integer(0, 2**63 - 1), REQUIRED),
+    }, REQUIRED),
+}
+
+_KEYS = ("table_id", "s_no", "zone", "noise_reading", "noise_param", "noise_sigma", "estimator",
+         "field_component", "part")
+TABLES = {
+    "rmse": TableSpec("rmse.csv", _KEYS, ("rmse", "rmse_se", "runs", "field_rms"),
+                      reference=("rmse",),
+                      join=(("s_no", ("s_no",)), ("part", ("part",))),
+                      title="RMSE of the fields (eq 3.42) against the analytic dipole",
+                      reference_ids=tuple(TABLE_IDS.values())),
+    "claims": TableSpec("claims.csv", ("claim", "zone", "noise_reading", "noise_param",
+                                       "field_component", "part"),
+                        ("rmse_kf", "rmse_se_kf", "rmse_rls", "rmse_se_rls", "ratio", "holds"),
+                        title="KF RMSE below RLS RMSE, cell by cell"),
+}
+
+
+@dataclass(frozen=True)
+class Zone:
+    name: str
+    r: np.ndarray
+    theta: np.ndarray
+
+
+def prepare(spec: dict, source: str) -> dict:
+    zones = []
+    for i, z in enumerate(spec["zones"]):
+        for key in ("r", "theta_deg"):
+            lo_hi = z[key]
+            if len(lo_hi) != 2 or not lo_hi[0] < lo_hi[1]:
+                raise ConfigError(source, f"zones[{i}].{key}",
+                                  f"expected [low, high] with low < high, got {lo_hi!r}")
+        if z["name"] in [other.name for other in zones]:
+            raise ConfigError(source, f"zones[{i}].name", f"repeats {z['name']!r}")
+        zones.append(Zone(z["name"], np.linspace(*z["r"], z["points_r"]),
+                          np.radians(np.linspace(*z["theta_deg"], z["points_theta"]))))
+    s = spec["source"]
+    dipole = Dipole(I0=s["I0_dl"], dl=1.0, omega=2 * np.pi * s["frequency"], c=s["c"],
+                    mu0=s["mu0"])
+    for key in ("Q", "P0"):
+        if len(spec["kf"][key]) != 4:
+            raise ConfigError(source, f"kf.{key}", "expected 4 diagonal entries for "
+                              "[A, V, Phi, Psi] (eq 5.42)")
+    return {"zones": tuple(zones), "dipole": dipole}
+
+
+@dataclass(frozen=True)
+class Point:
+    key: tuple[int, int, int]
+    zone: int
+    reading: str
+    level: float
+    sigma: float
+
+
+def sweep(exp: Experiment) -> list[Point]:
+    noise = exp.spec["noise"]
+    return [Point((z, r, i), z, reading, float(level), signals.noise_sigma(level, reading))
+            for z in range(len(exp.plan["zones"]))
+            for r, reading in enumerate(noise["readings"])
+            for i, level in enumerate(noise["source_levels"])]
+
+
+def work_units(exp: Experiment) -> int:
+    return len(sweep(exp))
+
+
+def work_size(spec: dict) -> int:
+    t = spec["time"]
+    points = sum(z.get("points_r", 5) * z.get("points_theta", 5) for z in spec["zones"])
+    return int(spec["monte_carlo"]["runs"] * points * 12 * t["samples_per_period"]
+               * t["periods"] * len(spec["noise"]["source_levels"])
+               * len(spec["noise"].get("readings", ["sigma", "variance"])))
+
+
+def tiny(spec: dict) -> dict:
+    spec["noise"].update(source_levels=spec["noise"]["source_levels"][:1],
+                         readings=spec["noise"].get("readings", ["sigma"])[:1])
+    spec["zones"] = spec["zones"][:1]
+    spec["time"] = {**spec.get("time", {}), "periods": 1}
+    spec["monte_carlo"]["runs"] = 3
+    return spec
+
+
+POTENTIALS = ("A_r", "A_theta", "Phi")
+
+
+def analytic(dipole: Dipole, zone: Zone, t: np.ndarray) -> dict[str, np.ndarray]:
+    """Real and imaginary experiments of every potential, its rate and every field:
+    ``(2, nr, ntheta, steps)``, parts in the order (imag, real)."""
+    R, TH = np.meshgrid(zone.r, zone.theta, indexing="ij")
+    phasors = dipole.phasors(R, TH)
+    turn = np.exp(1j * dipole.omega * t)
+    out = {}
+    for name, F in phasors.items():
+        signal = F[..., None] * turn
+        rate = 1j * dipole.omega * signal
+        out[name] = np.stack([signal.imag, signal.real])
+        out[name + "_rate"] = np.stack([rate.imag, rate.real])
+    return out
+
+
+def fields(zone: Zone, mu0: float, A_r, A_theta, Phi, V_r, V_theta) -> dict[str, np.ndarray]:
+    """E (eq 5.25) and H (eq 5.27) by finite differences on the ``(r, theta)`` grid (axes
+    -3 and -2 of every array; time last)."""
+    r = zone.r[:, None, None]
+    dPhi_dr = np.gradient(Phi, zone.r, axis=-3)
+    dPhi_dth = np.gradient(Phi, zone.theta, axis=-2)
+    d_rAth_dr = np.gradient(r * A_theta, zone.r, axis=-3)
+    dAr_dth = np.gradient(A_r, zone.theta, axis=-2)
+    return {"E_r": -dPhi_dr - V_r, "E_theta": -dPhi_dth / r - V_theta,
+            "H_phi": (d_rAth_dr - dAr_dth) / (mu0 * r)}
+
+
+def kf_per_point(truth: dict, z: np.ndarray, dt: float, spec: dict,
+                 measured: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """The per-point KF of eqs 5.45-5.47 on every series: ``z`` the measured potentials
+    ``(series, steps, 3)``, ``truth`` the analytic potentials and rates ``(series, steps+1, 3)``
+    each (the forcing ``Z_k`` and the initial state). Series where ``measured`` is False get
+    no measurement: their estimate is the open loop. Returns potentials and rates,
+    ``(series, steps, 3)`` each."""
+    q, rate = truth["q"], truth["rate"]
+    series, steps, _ = z.shape
+    F1 = np.array([[1.0, dt], [0.0, 1.0]])
+    F = np.kron(np.eye(3), F1)
+    x_all = np.stack([q, rate], axis=-1).reshape(series, steps + 1, 6)
+    Z = x_all[:, 1:] - x_all[:, :-1] @ F.T           # the analytic solution fits exactly
+    Qd, P0d = spec["kf"]["Q"], spec["kf"]["P0"]
+    Q = np.diag([Qd[0], Qd[1], Qd[0], Qd[1], Qd[2], Qd[3]])
+    P0 = np.diag([P0d[0], P0d[1], P0d[0], P0d[1], P0d[2], P0d[3]])
+    C = np.kron(np.eye(3), [[1.0, 0.0]])
+    kf = KalmanFilter(A=F, B=np.eye(6), C=C, Q=Q, R=as_matrix(spec["kf"]["R"], 3, "R"), P0=P0)
+    measured = np.ones(series, bool) if measured is None else np.asarray(measured, bool)
+    x_hat = np.empty((series, steps, 6))
+    if measured.any():
+        x_hat[measured] = kf.run(None, z[measured], Z[measured], dt,
+                                 x0=x_all[measured, 0]).x_hat
+    if (~measured).any():
+        x = x_all[~measured, 0]
+        for k in range(steps):
+            x = x @ F.T + Z[~measured, k]
+            x_hat[~measured, k] = x
+    x_hat = x_hat.reshape(series, steps, 3, 2)
+    return {"q": x_hat[..., 0], "rate": x_hat[..., 1]}
+
+
+def rls_per_point(z: np.ndarray, t: np.ndarray, omega: float, dt: float,
+                  spec: dict) -> dict[str, np.ndarray]:
+    """RLS on each measured potential with the taps of ``cos(omega t)`` as regressor (a
+    sinusoid of the known frequency and an offset); rates by a backward difference."""
+    rls = RecursiveLeastSquares(order=2, forgetting="fixed", lambda0=spec["rls"]["lambda0"],
+                                delta=spec["rls"]["delta"])
+    u = np.cos(omega * t[:-1])[:, None]
+    smooth = rls.run(None, z, u).y_hat
+    return {"q": smooth, "rate": _backward_rate(smooth, dt)}
+
+
+def _backward_rate(q: np.ndarray, dt: float) -> np.ndarray:
+    rate = np.empty_like(q)
+    rate[:, 1:] = (q[:, 1:] - q[:, :-1]) / dt
+    rate[:, 0] = rate[:, 1]
+    return rate
+
+
+def run_point(exp: Experiment, point: Point) -> list[dict]:
+    """Rows of one zone, noise reading and level: every estimator, component and part."""
+    spec, plan = exp.spec, exp.plan
+    zone, dipole = plan["zones"][point.zone], plan["dipole"]
+    runs = spec["monte_carlo"]["runs"]
+    dt = 1.0 / (spec["source"]["frequency"] * spec["time"]["samples_per_period"])
+    steps = spec["time"]["samples_per_period"] * spec["time"]["periods"]
+    t = np.arange(steps + 1) * dt
+    rng = np.random.default_rng(np.random.SeedSequence(spec["monte_carlo"]["seed"],
+                                                       spawn_key=point.key))
+    exact = analytic(dipole, zone, t)
+    nr, nth = zone.r.size, zone.theta.size
+    shape = (runs, 2, nr, nth)
+    # analytic potentials and rates as (series, steps+1, 3), series = runs x parts x points
+    q = np.stack([np.broadcast_to(exact[p], shape + (steps + 1,)) for p in POTENTIALS], -1)
+    rate = np.stack([np.broadcast_to(exact[p + "_rate"], shape + (steps + 1,))
+                     for p in POTENTIALS], -1)
+    q, rate = (a.reshape(-1, steps + 1, 3) for a in (q, rate))
+    # the source noise enters the rates (T c^2 w, eq 5.42's B^(3)) and accumulates
+    c2dt = spec["source"]["c"] ** 2 * dt
+    kick = c2dt * signals.gaussian(rng, point.sigma, (q.shape[0], steps, 3))
+    drift_rate = np.zeros_like(rate)
+    drift_rate[:, 1:] = np.cumsum(kick, axis=1)
+    drift_q = np.zeros_like(q)
+    drift_q[:, 1:] = dt * np.cumsum(drift_rate[:, :-1], axis=1)
+    actual_q = q + drift_q
+    z = actual_q[:, 1:] + signals.gaussian(rng, spec["noise"]["measurement_sigma"],
+                                           actual_q[:, 1:].shape)
+    estimates = {
+        KF: kf_per_point({"q": q, "rate": rate}, z, dt, spec),
+        RLS: rls_per_point(z, t, dipole.omega, dt, spec),
+        "measurement": {"q": z, "rate": _backward_rate(z, dt)},
+        "exact potentials": {"q": q[:, 1:], "rate": rate[:, 1:]},
+    }
+    truth_fields = {c: exact[c][..., 1:] for c in COMPONENTS}
+    mu0 = spec["source"]["mu0"]
+    rows = []
+    for label, est in estimates.items():
+        grid = [a.reshape(runs, 2, nr, nth, steps, 3) for a in (est["q"], est["rate"])]
+        pot, rt = grid
+        got = fields(zone, mu0, pot[..., 0], pot[..., 1], pot[..., 2], rt[..., 0], rt[..., 1])
+        for comp in COMPONENTS:
+            want = truth_fields[comp]
+            for part in PARTS:
+                if part == "abs":
+                    g, w = np.hypot(got[comp][:, 0], got[comp][:, 1]), np.hypot(want[0], want[1])
+                else:
+                    i = PARTS.index(part)
+                    g, w = got[comp][:, i], want[i]
+                err = (g - w).reshape(runs, -1)
+                per_run = np.sqrt(np.mean(err**2, axis=1))
+                mean, se = metrics.mean_and_se(per_run)
+                table_id = TABLE_IDS.get((comp, zone.name, label), "")
+                rows.append({"table_id": table_id, "zone": zone.name,
+                             "noise_reading": point.reading, "noise_param": point.level,
+                             "noise_sigma": point.sigma, "estimator": label,
+                             "field_component": comp, "part": part, "rmse": mean,
+                             "rmse_se": se, "runs": runs,
+                             "field_rms": float(np.sqrt(np.mean(np.broadcast_to(w, g.shape[1:])
+                                                                ** 2)))})
+    return rows
+
+
+def _run_point_args(args):
+    return run_point(*args)
+
+
+def _s_no(levels: list[float], level: float) -> int:
+    return levels.index(level) + 1
+
+
+def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = None) -> Result:
+    points = sweep(exp)
+    done = map_tasks(_run_point_args, [(exp, p) for p in points], jobs, on_done)
+    df = pd.DataFrame([row for part in done for row in part])
+    levels = [float(v) for v in exp.spec["noise"]["source_levels"]]
+    df.insert(1, "s_no", [_s_no(levels, v) for v in df["noise_param"]])
+    df = df[TABLES["rmse"].columns].reset_index(drop=True)
+    keys = ["zone", "noise_reading", "noise_param", "field_component", "part"]
+    kf = df[df["estimator"] == KF].set_index(keys)
+    rls = df[df["estimator"] == RLS].set_index(keys)
+    claims = pd.DataFrame({"rmse_kf": kf["rmse"], "rmse_se_kf": kf["rmse_se"],
+                           "rmse_rls": rls["rmse"], "rmse_se_rls": rls["rmse_se"]}).reset_index()
+    claims["ratio"] = claims["rmse_kf"] / claims["rmse_rls"]
+    claims["holds"] = claims["rmse_kf"] < claims["rmse_rls"]
+    claims.insert(0, "claim", "KF RMSE < RLS RMSE")
+    return Result(tables={"rmse": df, "claims": claims[TABLES["claims"].columns]})
+
+
+def summary(result: Result) -> str:
+    df = result.tables["rmse"]
+    view = df[df["part"] == "abs"].pivot_table(
+        index=["zone", "noise_reading", "noise_param", "field_component"],
+        columns="estimator", values="rmse", sort=False)
+    return view.to_string(float_format=lambda v: f"{v:.3g}")
