@@ -4,7 +4,7 @@ eqs 5.33-5.41, corrected), for a z-directed current ``I0 cos(omega t)`` of lengt
 With ``beta = omega / c``, ``eta = mu0 c`` and the ``e^{j omega t}`` convention (a quantity is
 ``Re{F e^{j omega t}}``):
 
-    A_z   = mu0 I0 dl e^{-j beta r} / (4 pi r)        A_r = A_z cos(theta), A_theta = -A_z sin(theta)
+    A_z   = mu0 I0 dl e^{-j beta r} / (4 pi r),  A_r = A_z cos(theta),  A_th = -A_z sin(theta)
     Phi   = I0 dl cos(theta) / (4 pi eps0 omega) (beta / r - j / r^2) e^{-j beta r}
                                                    (Lorenz gauge: div A + j omega Phi / c^2 = 0)
     E_r   = eta I0 dl cos(theta) / (2 pi r^2) (1 + 1/(j beta r)) e^{-j beta r}
