@@ -375,3 +375,16 @@ def test_tune_writes_an_overlay_and_refuses_what_it_cannot_fit(tmp_path):
     assert entry["label"] == "EKF (fitted Q)" and entry["type"] == "ekf"
     assert len(entry["settings"]["Q"]) == 4 and all(q > 0 for q in entry["settings"]["Q"])
     assert "Innovation log-likelihood" in out.read_text()
+
+
+def test_every_package_of_the_tree_is_shipped():
+    """A fresh-clone install failed once because a new package was not in pyproject.toml."""
+    import tomllib
+
+    root = Path(__file__).resolve().parents[1]
+    listed = set(tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]
+                 ["packages"])
+    for top in ("core", "cli"):
+        for init in (root / top).rglob("__init__.py"):
+            name = ".".join(init.parent.relative_to(root).parts)
+            assert name in listed, f"{name} is not in pyproject.toml's packages"
