@@ -1,0 +1,155 @@
+"""The potentials of a dipole on a 3-D grid (thesis eqs 5.48-5.49, the chapter's Remark):
+
+    A_z'' = c^2 lap A_z + c^2 mu0 J_z,      Phi'' = c^2 lap Phi + c^2 rho / eps0,
+
+with the Remark's consistent source: ``J_z = I0 cos(omega t) j(x)`` on a short segment and
+``rho = (I0 / omega) sin(omega t) r(x)`` with ``r = -d/dz j`` (the discrete divergence of the
+profile), so ``d rho/dt + div J = 0`` holds on the grid and the Lorenz gauge is kept.
+``j`` is a smooth delta in x and y (a Gaussian of width ``width`` cells) times a smoothed
+segment of length ``dl`` in z, scaled so its integral is ``dl``.
+
+Time stepping is the three-level leapfrog ``u+ = 2u - u- + T^2 (c^2 L u + s)`` (the same
+scheme as :func:`core.fields.wave.step`'s kick-drift-kick, stable up to ``c T / Delta =
+0.577``), with Mur's first-order absorbing boundary on the six faces: a face value is
+advanced as a wave leaving the box, ``u0+ = u1 + (cT - Delta)/(cT + Delta) (u1+ - u0)``.
+A Dirichlet box instead reflects every outgoing wave back in (docs/deviations.md).
+
+Fields: ``E = -grad Phi - dA/dt`` (eq 5.25), ``H = curl A / mu0`` (eq 5.27) with the centred
+operators of :mod:`core.fields.operators`; ``dA/dt`` by the centred difference of the
+leapfrog levels. Everything works on a leading batch axis (ensemble members).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.special import erf
+
+from core.fields import operators as ops
+from core.fields.dipole import Dipole
+
+
+@dataclass
+class Grid:
+    """``n`` points per axis, spacing ``spacing``, centred on the dipole (``n`` even: no
+    point sits on the source's centre)."""
+
+    n: int
+    spacing: float
+    laplacian: sp.csr_matrix = field(init=False, repr=False)
+    grad: sp.csr_matrix = field(init=False, repr=False)
+    curl: sp.csr_matrix = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self.laplacian = ops.laplacian(self.n, self.spacing)
+        self.grad = ops.gradient(self.n, self.spacing)
+        self.curl = ops.curl(self.n, self.spacing)
+        x = (np.arange(self.n) - (self.n - 1) / 2) * self.spacing
+        self.axis = x
+        X, Y, Z = np.meshgrid(x, x, x, indexing="ij")
+        self.xyz = np.stack([X.ravel(), Y.ravel(), Z.ravel()], axis=-1)
+        self.r = np.linalg.norm(self.xyz, axis=-1)
+        self.theta = np.arccos(np.clip(self.xyz[:, 2] / self.r, -1, 1))
+        self.phi = np.arctan2(self.xyz[:, 1], self.xyz[:, 0])
+        shape = (self.n,) * 3
+        index = np.indices(shape)
+        faces, inner = [], []
+        for axis in range(3):
+            for edge, neighbour in ((0, 1), (self.n - 1, self.n - 2)):
+                on = index[axis] == edge
+                faces.append(np.flatnonzero(on.ravel()))
+                moved = [a[on] for a in index]
+                moved[axis] = np.full(moved[axis].shape, neighbour)
+                inner.append(np.ravel_multi_index(moved, shape))
+        self.faces, self.inner = faces, inner
+
+    @property
+    def size(self) -> int:
+        return self.n**3
+
+
+def source_profiles(grid: Grid, dl: float, width: float) -> tuple[np.ndarray, np.ndarray]:
+    """``j`` (current density per unit current, along z) and ``r = -d/dz j`` (charge
+    density per unit ``I0 / omega``) on the grid."""
+    s = width * grid.spacing
+    x, y, z = grid.xyz.T
+    across = np.exp(-(x**2 + y**2) / (2 * s**2)) / (2 * np.pi * s**2)
+    along = 0.5 * (erf((z + dl / 2) / (np.sqrt(2) * s)) - erf((z - dl / 2) / (np.sqrt(2) * s)))
+    j = across * along
+    j *= dl / (j.sum() * grid.spacing**3)
+    _, _, dz = ops.partials(grid.n, grid.spacing)
+    return j, -(dz @ j)
+
+
+@dataclass
+class Simulation:
+    """Leapfrog for ``[A_z, Phi]`` with Mur boundaries; ``state`` has shape
+    ``(members, 2, 2, n^3)``: (previous, current) x (A_z, Phi)."""
+
+    grid: Grid
+    dipole: Dipole
+    dt: float
+    dl: float
+    width: float = 1.0
+    boundary: str = "mur"
+
+    def __post_init__(self) -> None:
+        if self.boundary not in ("mur", "dirichlet"):
+            raise ValueError(f"boundary {self.boundary!r}; expected 'mur' or 'dirichlet'")
+        self.j, self.rho = source_profiles(self.grid, self.dl, self.width)
+        c, h = self.dipole.c, self.grid.spacing
+        self.mur = (c * self.dt - h) / (c * self.dt + h)
+
+    def source(self, t: float, amplitude: np.ndarray) -> np.ndarray:
+        """``c^2 [mu0 J_z, rho / eps0]`` at time ``t`` for complex amplitudes ``I0`` per
+        member: ``(members, 2, n^3)``. The current is ``Re{I0 e^{j omega t}}``."""
+        d = self.dipole
+        a = np.asarray(amplitude, complex).reshape(-1)
+        phase = np.exp(1j * d.omega * t)
+        cur = (a * phase).real
+        charge = (a * phase / (1j * d.omega)).real      # integral of the current
+        return d.c**2 * np.stack([d.mu0 * cur[:, None] * self.j,
+                                  charge[:, None] * self.rho / d.eps0], axis=1)
+
+    def step(self, state: np.ndarray, t: float, amplitude: np.ndarray) -> np.ndarray:
+        """Advance from ``t`` to ``t + dt``."""
+        prev, now = state[:, 0], state[:, 1]
+        members = now.shape[0]
+        flat = now.reshape(members * 2, -1)
+        lap = (self.grid.laplacian @ flat.T).T.reshape(now.shape)
+        new = 2 * now - prev + self.dt**2 * (self.dipole.c**2 * lap
+                                             + self.source(t, amplitude))
+        if self.boundary == "mur":
+            for face, inner in zip(self.grid.faces, self.grid.inner, strict=True):
+                new[..., face] = now[..., inner] + self.mur * (new[..., inner] - now[..., face])
+        else:
+            for face in self.grid.faces:
+                new[..., face] = 0.0
+        return np.stack([now, new], axis=1)
+
+
+def fields_from(grid: Grid, A: np.ndarray, Phi: np.ndarray, dA_dt: np.ndarray,
+                mu0: float) -> dict[str, np.ndarray]:
+    """Cartesian E and H (``(..., 3, n^3)``) from ``A_z``, ``Phi`` and ``dA_z/dt``
+    (``(..., n^3)``)."""
+    lead = A.shape[:-1]
+    A3 = np.zeros(lead + (3, grid.size))
+    A3[..., 2, :] = A
+    flatA = A3.reshape(-1, 3 * grid.size)
+    H = (grid.curl @ flatA.T).T.reshape(lead + (3, grid.size)) / mu0
+    gradPhi = (grid.grad @ Phi.reshape(-1, grid.size).T).T.reshape(lead + (3, grid.size))
+    E = -gradPhi
+    E[..., 2, :] -= dA_dt
+    return {"E": E, "H": H}
+
+
+def spherical(grid: Grid, F: np.ndarray) -> dict[str, np.ndarray]:
+    """Cartesian ``(..., 3, n^3)`` -> r, theta, phi components."""
+    st, ct = np.sin(grid.theta), np.cos(grid.theta)
+    sp_, cp = np.sin(grid.phi), np.cos(grid.phi)
+    fx, fy, fz = F[..., 0, :], F[..., 1, :], F[..., 2, :]
+    return {"r": st * cp * fx + st * sp_ * fy + ct * fz,
+            "theta": ct * cp * fx + ct * sp_ * fy - st * fz,
+            "phi": -sp_ * fx + cp * fy}
