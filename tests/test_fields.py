@@ -162,3 +162,31 @@ def test_plain_simulation_error_shrinks_with_the_grid_and_mur_beats_a_dirichlet_
     for zone in ("near", "far"):
         assert fine[zone] < 0.6 * coarse[zone], (coarse, fine)
     assert _plain_floor(32, "dirichlet")["far"] > 3 * fine["far"]
+
+
+def test_etkf_equals_the_kalman_filter_on_a_linear_model_with_an_exact_ensemble():
+    from core.fields import etkf
+
+    rng = np.random.default_rng(7)
+    n, p, m = 12, 5, 6                       # rank of P0: m - 1 = 5 directions
+    F = np.eye(n) + 0.05 * rng.standard_normal((n, n))
+    H = rng.standard_normal((p, n))
+    R = np.full(p, 0.3)
+    B = rng.standard_normal((n, m - 1))
+    # an ensemble with exactly the mean x0 and the covariance B B^T
+    Z = rng.standard_normal((m, m - 1))
+    Z -= Z.mean(axis=0)
+    U, _, Vt = np.linalg.svd(Z, full_matrices=False)
+    Z = U @ Vt * np.sqrt(m - 1)              # Z^T Z = (m - 1) I, columns of zero mean
+    x0 = rng.standard_normal(n)
+    E = x0 + Z @ B.T
+    x, P = x0.copy(), B @ B.T
+    for _ in range(5):
+        E, x, P = E @ F.T, F @ x, F @ P @ F.T
+        y = H @ x + rng.standard_normal(p)
+        E = etkf.analysis(E, E @ H.T, y, R)
+        S = H @ P @ H.T + np.diag(R)
+        K = P @ H.T @ np.linalg.inv(S)
+        x, P = x + K @ (y - H @ x), (np.eye(n) - K @ H) @ P
+    np.testing.assert_allclose(E.mean(axis=0), x, atol=1e-9)
+    np.testing.assert_allclose(np.cov(E.T), P, atol=1e-9)
