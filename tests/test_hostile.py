@@ -173,6 +173,15 @@ HOSTILE = [
     ("dipole_literal", {"zones.0.theta_deg": [0, 90]}, "zones[0].theta_deg[0]", ">= 1"),
     ("dipole_literal", {"time.samples_per_period": 4}, "time.samples_per_period",
      "integer from 8"),
+    ("dipole_field", {"grid.n": 31}, "grid.n", "even number"),
+    ("dipole_field", {"grid.courant": 0.6}, "grid.courant", "number <= 0.577"),
+    ("dipole_field", {"zones.1.r": [1.2, 2.5]}, "zones[1].r", "reaches the box's faces"),
+    ("dipole_field", {"sensors.fraction": 0.9}, "sensors.fraction", "only"),
+    ("dipole_field", {"scenarios.1.name": "true source"}, "scenarios[1].name", "repeats"),
+    ("dipole_field", {"scenarios.0.nominal_amplitude": [1.0]},
+     "scenarios[0].nominal_amplitude", "[magnitude, phase in degrees]"),
+    ("dipole_field", {"filter.members": 2}, "filter.members", "integer from 3"),
+    ("dipole_field", {"grid.boundary": "pml"}, "grid.boundary", "'dirichlet', 'mur'"),
 ]
 
 

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
-from core.analyses import burden, dipole, estimation, kronecker, perturbation
+from core.analyses import burden, dipole, dipole_field, estimation, kronecker, perturbation
 
 ANALYSES = {
     "burden": burden,
     "dipole": dipole,
+    "dipole_field": dipole_field,
     "estimation": estimation,
     "kronecker": kronecker,
     "perturbation": perturbation,

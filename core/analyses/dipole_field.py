@@ -1,0 +1,403 @@
+"""A filter on the field itself: the dipole's potentials on a 3-D grid (thesis eqs 5.1-5.32
+and the Remark, eqs 5.48-5.49) with sparse noisy measurements of E and H (eq 5.32), Tables
+5.1-5.12 in the thesis' layout for this experiment.
+
+Per scenario (the source the filter is told) and noise row:
+
+* truth: the analytic field of the dipole (``core.fields.dipole``) with the true current
+  ``I0 = 1``; the thesis' "noise at the driving source" (2.5e-4, 5e-4 of the current) is
+  three orders below the grid's own error and does not enter it (docs/deviations.md);
+* sensors: a fixed random ``fraction`` of the grid points between ``sensor_r`` radii
+  measure all six components of E and H every step, with white noise
+  ``measurement_sigma``;
+* ``plain simulation``: the leapfrog/Mur simulation (``core.fields.fdtd``) driven by the
+  nominal source, no data: the open loop, and with the true source the grid's floor;
+* ``KF`` (the ensemble filter, ETKF of ``core.fields.etkf``): ``members`` simulations whose
+  complex source amplitude is part of the state (drawn around the nominal one, spread
+  ``amplitude_spread``), spun up for ``spinup_periods``, then analysed at every step; the
+  observation error variance is ``measurement_sigma^2 + model_error^2`` (the grid's own
+  error in the measured fields, declared);
+* ``RLS``: the thesis-style baseline: the project's RLS fits a sinusoid of the known
+  frequency to each sensor's time series, and each field point takes its nearest sensor;
+* ``measurement``: each field point takes its nearest sensor's raw reading.
+
+RMSE (eq 3.42) of E_r, E_theta, H_phi over the zone's points and the recorded periods,
+against the analytic field, per run; the experiment is driven by the real part of the
+current, so the table's ``real`` column is filled (the ``imag`` experiment is the same one a
+quarter period later). Normalised units as in :mod:`core.analyses.dipole`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import pandas as pd
+from scipy.spatial import cKDTree
+
+from core import metrics
+from core.analyses.base import Result, TableSpec, map_tasks
+from core.analyses.dipole import COMPONENTS, TABLE_IDS
+from core.errors import ConfigError
+from core.estimators.rls import RecursiveLeastSquares
+from core.fields import etkf
+from core.fields.dipole import Dipole
+from core.fields.fdtd import Grid, Simulation, fields_from
+from core.schema import REQUIRED, Experiment, integer, list_of, number, text
+
+_READING = text({"sigma", "variance"})
+KF, RLS, PLAIN = "KF", "RLS", "plain simulation"
+
+SCHEMA: dict = {
+    "grid": ({
+        "n": (integer(8, 96), 32),
+        "length": (number(positive=True, maximum=1e3), 4.0),
+        "courant": (number(positive=True, maximum=0.577), 0.5),
+        "source_width": (number(positive=True, maximum=10.0), 0.7),
+        "boundary": (text({"mur", "dirichlet"}), "mur"),
+    }, {}),
+    "source": ({
+        "frequency": (number(positive=True, maximum=1e12), 1.0),
+        "c": (number(positive=True, maximum=1e12), 1.0),
+        "mu0": (number(positive=True, maximum=1e6), 1.0),
+    }, {}),
+    "scenarios": (list_of({
+        "name": (text(max_length=40), REQUIRED),
+        "nominal_amplitude": (list_of(number(minimum=0.0, maximum=1e3), max_length=2),
+                              REQUIRED),
+    }, max_length=10), REQUIRED),
+    "zones": (list_of({
+        "name": (text({"near", "far"}), REQUIRED),
+        "r": (list_of(number(positive=True, maximum=1e6), max_length=2), REQUIRED),
+        "theta_deg": (list_of(number(minimum=0.0, maximum=180.0), max_length=2), [30.0, 150.0]),
+    }, max_length=2), REQUIRED),
+    "sensors": ({
+        "fraction": (number(positive=True, maximum=1.0), 0.02),
+        "r": (list_of(number(positive=True, maximum=1e6), max_length=2), [0.2, 1.9]),
+        "measurement_sigma": (number(positive=True, maximum=1e3), 0.01),
+        "seed": (integer(0, 2**63 - 1), 5),
+    }, {}),
+    "filter": ({
+        "members": (integer(3, 2000), 50),
+        "amplitude_spread": (number(positive=True, maximum=1e3), 0.3),
+        "model_error": (number(minimum=0.0, maximum=1e3), 0.02),
+        "inflation": (number(minimum=1.0, maximum=2.0), 1.0),
+    }, {}),
+    "rls": ({
+        "lambda0": (number(minimum=0.5, maximum=1.0), 0.98),
+        "delta": (number(positive=True, maximum=1e12), 100.0),
+    }, {}),
+    "time": ({
+        "spinup_periods": (integer(1, 100), 4),
+        "periods": (integer(1, 100), 2),
+    }, {}),
+    "noise": ({
+        "source_levels": (list_of(number(positive=True, maximum=1e3)), REQUIRED),
+        "readings": (list_of(_READING, unique=True), ["sigma"]),
+    }, REQUIRED),
+    "monte_carlo": ({
+        "runs": (integer(1, 10_000), REQUIRED),
+        "seed": (integer(0, 2**63 - 1), REQUIRED),
+    }, REQUIRED),
+}
+
+_KEYS = ("table_id", "s_no", "scenario", "zone", "noise_reading", "noise_param", "estimator",
+         "field_component", "part")
+TABLES = {
+    "rmse": TableSpec("rmse.csv", _KEYS, ("rmse", "rmse_se", "runs", "field_rms",
+                                          "relative"),
+                      reference=("rmse",), join=(("s_no", ("s_no",)), ("part", ("part",))),
+                      title="RMSE of the fields against the analytic dipole (field filter)",
+                      reference_ids=tuple(TABLE_IDS.values())),
+    "claims": TableSpec("claims.csv", ("claim", "scenario", "zone", "noise_reading",
+                                       "noise_param", "field_component"),
+                        ("rmse_better", "rmse_worse", "ratio", "holds"),
+                        title="the field filter against RLS and against the open loop"),
+}
+
+
+def _pair(values: list, source: str, path: str, positive: bool = True) -> None:
+    if len(values) != 2 or not values[0] < values[1]:
+        raise ConfigError(source, path, f"expected [low, high] with low < high, got {values!r}")
+
+
+def prepare(spec: dict, source: str) -> dict:
+    g = spec["grid"]
+    if g["n"] % 2:
+        raise ConfigError(source, "grid.n", "expected an even number (no grid point on the "
+                          "source's centre, where the analytic field is infinite)")
+    grid = Grid(g["n"], g["length"] / g["n"])
+    half = g["length"] / 2
+    for i, z in enumerate(spec["zones"]):
+        _pair(z["r"], source, f"zones[{i}].r")
+        _pair(z["theta_deg"], source, f"zones[{i}].theta_deg")
+        if z["r"][1] > half - grid.spacing:
+            raise ConfigError(source, f"zones[{i}].r", f"reaches the box's faces at "
+                              f"{half:g}: keep it below {half - grid.spacing:g}")
+    _pair(spec["sensors"]["r"], source, "sensors.r")
+    names = [s["name"] for s in spec["scenarios"]]
+    for i, s in enumerate(spec["scenarios"]):
+        if len(s["nominal_amplitude"]) != 2:
+            raise ConfigError(source, f"scenarios[{i}].nominal_amplitude",
+                              "expected [magnitude, phase in degrees]")
+        if s["name"] in names[:i]:
+            raise ConfigError(source, f"scenarios[{i}].name", f"repeats {s['name']!r}")
+    rng = np.random.default_rng(spec["sensors"]["seed"])
+    lo, hi = spec["sensors"]["r"]
+    candidates = np.flatnonzero((grid.r >= lo) & (grid.r <= hi))
+    count = max(1, int(round(spec["sensors"]["fraction"] * grid.size)))
+    if count > candidates.size:
+        raise ConfigError(source, "sensors.fraction", f"asks for {count} sensors; only "
+                          f"{candidates.size} grid points lie between the sensor radii")
+    sensors = np.sort(rng.choice(candidates, count, replace=False))
+    zones = {}
+    for z in spec["zones"]:
+        th = np.degrees(grid.theta)
+        zones[z["name"]] = np.flatnonzero((grid.r >= z["r"][0]) & (grid.r <= z["r"][1])
+                                          & (th >= z["theta_deg"][0])
+                                          & (th <= z["theta_deg"][1]))
+    return {"grid": grid, "sensors": sensors, "zones": zones,
+            "sensor_ops": sensor_operators(grid, sensors)}
+
+
+FIELD_COST_RATIO = 1000
+"""``--max-work`` bounds cost in the currency of the other analyses, state-samples of the
+stiff integrator. One grid-point update of the vectorised leapfrog costs far less: measured
+on the development machine, 6.4e8 of them (one run of this config: 4 n^3 states x 51
+members x 96 steps) took 21 s, where ``mosfet_saturation``'s 4.3e5 state-samples take about
+20 s, a ratio near 1500. Grid-point updates are divided by this (rounded-down) ratio."""
+
+
+def work_size(spec: dict) -> int:
+    """Grid-point updates (``4 n^3`` per member and step, the plain simulation counted as a
+    member) over every scenario, noise row and run, over :data:`FIELD_COST_RATIO`."""
+    g, t = spec["grid"], spec["time"]
+    per_period = round(g["n"] / (g["courant"] * g["length"]))
+    steps = (t["spinup_periods"] + t["periods"]) * per_period
+    points = len(spec["noise"]["source_levels"]) * len(spec["noise"].get("readings", [1]))
+    updates = (4 * g["n"] ** 3 * (spec["filter"]["members"] + 1) * steps * points
+               * len(spec["scenarios"]) * spec["monte_carlo"]["runs"])
+    return int(updates / FIELD_COST_RATIO)
+
+
+def work_units(exp: Experiment) -> int:
+    return len(_points(exp))
+
+
+def tiny(spec: dict) -> dict:
+    spec["grid"] = {**spec.get("grid", {}), "n": 12}
+    spec["zones"] = [{"name": "far", "r": [0.9, 1.5]}]
+    spec["sensors"] = {**spec.get("sensors", {}), "r": [0.2, 1.5], "fraction": 0.05}
+    spec["scenarios"] = spec["scenarios"][:1]
+    spec["noise"].update(source_levels=spec["noise"]["source_levels"][:1],
+                         readings=spec["noise"].get("readings", ["sigma"])[:1])
+    spec["filter"] = {**spec.get("filter", {}), "members": 5}
+    spec["time"] = {"spinup_periods": 1, "periods": 1}
+    spec["monte_carlo"]["runs"] = 1
+    return spec
+
+
+def _points(exp: Experiment) -> list[tuple]:
+    noise = exp.spec["noise"]
+    return [(s, r, i) for s in range(len(exp.spec["scenarios"]))
+            for r in range(len(noise["readings"])) for i in range(len(noise["source_levels"]))]
+
+
+def _amplitude(pair: list[float]) -> complex:
+    return pair[0] * np.exp(1j * np.radians(pair[1]))
+
+
+def _observe(grid: Grid, states_before: np.ndarray, states_after: np.ndarray, dt: float,
+             mu0: float, ops: tuple | None = None) -> dict[str, np.ndarray]:
+    """Cartesian E and H at time t from ``states_before`` (levels t - dt, t) and
+    ``states_after`` (t, t + dt): ``dA/dt`` by the centred difference. With ``ops`` (the
+    sensor rows of the gradient and curl, :func:`sensor_operators`) only at the sensors."""
+    A, Phi = states_after[:, 0, 0], states_after[:, 0, 1]
+    dA = (states_after[:, 1, 0] - states_before[:, 0, 0]) / (2 * dt)
+    if ops is None:
+        return fields_from(grid, A, Phi, dA, mu0)
+    grad_s, curl_z, pick = ops
+    E = -(grad_s @ Phi.T).T.reshape(A.shape[0], 3, -1)
+    E[:, 2] -= dA[:, pick]
+    H = (curl_z @ A.T).T.reshape(A.shape[0], 3, -1) / mu0
+    return {"E": E, "H": H}
+
+
+def sensor_operators(grid: Grid, sensors: np.ndarray) -> tuple:
+    """The rows of the gradient at the sensors, the columns of the curl that act on ``A_z``
+    (the only component of ``A``) at the sensors' rows, and the sensors themselves."""
+    rows = np.concatenate([sensors + k * grid.size for k in range(3)])
+    grad_s = grid.grad[rows]
+    curl_z = grid.curl[rows][:, 2 * grid.size:3 * grid.size]
+    return grad_s.tocsr(), curl_z.tocsr(), sensors
+
+
+def run_point(exp: Experiment, key: tuple) -> list[dict]:
+    spec, plan = exp.spec, exp.plan
+    grid, sensors = plan["grid"], plan["sensors"]
+    s_idx, r_idx, l_idx = key
+    scenario = spec["scenarios"][s_idx]
+    reading = spec["noise"]["readings"][r_idx]
+    level = float(spec["noise"]["source_levels"][l_idx])
+    src = spec["source"]
+    dipole = Dipole(I0=1.0, dl=grid.spacing, omega=2 * np.pi * src["frequency"], c=src["c"],
+                    mu0=src["mu0"])
+    dt = spec["grid"]["courant"] * grid.spacing / src["c"]
+    per = int(round(1 / (src["frequency"] * dt)))
+    dt = 1 / (src["frequency"] * per)                  # whole steps per period
+    sim = Simulation(grid, dipole, dt, dl=grid.spacing, width=spec["grid"]["source_width"],
+                     boundary=spec["grid"]["boundary"])
+    spin, record = spec["time"]["spinup_periods"] * per, spec["time"]["periods"] * per
+    fcfg = spec["filter"]
+    m = fcfg["members"]
+    sigma_obs = spec["sensors"]["measurement_sigma"]
+    R = np.full(6 * sensors.size, sigma_obs**2 + fcfg["model_error"] ** 2)
+    nominal = _amplitude(scenario["nominal_amplitude"])
+    phasors = dipole.phasors(grid.r, grid.theta)
+    runs = spec["monte_carlo"]["runs"]
+    per_run = {}
+    for run in range(runs):
+        rng = np.random.default_rng(np.random.SeedSequence(spec["monte_carlo"]["seed"],
+                                                           spawn_key=(*key, run)))
+        spread = fcfg["amplitude_spread"]
+        draws = rng.standard_normal(m) + 1j * rng.standard_normal(m)
+        amps = nominal + spread * draws / np.sqrt(2)
+        ens = np.zeros((m, 2, 2, grid.size))
+        plain = np.zeros((1, 2, 2, grid.size))
+        t = 0.0
+        for _ in range(spin):
+            ens = sim.step(ens, t, amps)
+            plain = sim.step(plain, t, np.array([nominal]))
+            t += dt
+        traces = {name: [] for name in (KF, PLAIN, "measured")}
+        times = []
+        for _ in range(record):
+            ens_next = sim.step(ens, t, amps)
+            plain_next = sim.step(plain, t, np.array([nominal]))
+            t_obs = t                                   # the level ens_next[:, 0] is at t
+            turn = np.exp(1j * dipole.omega * t_obs)
+            truth_cart = _analytic_cartesian(grid, phasors, turn, sensors)
+            y = truth_cart.ravel() + sigma_obs * rng.standard_normal(truth_cart.size)
+            obs = _observe(grid, ens, ens_next, dt, dipole.mu0, plan["sensor_ops"])
+            Y = np.concatenate([obs["E"], obs["H"]], axis=1).reshape(m, -1)
+            X = np.concatenate([ens_next.reshape(m, -1), amps.real[:, None],
+                                amps.imag[:, None]], axis=1)
+            Xa = etkf.analysis(X, Y, y, R, fcfg["inflation"])
+            amps = Xa[:, -2] + 1j * Xa[:, -1]
+            analysed = Xa[:, :-2].reshape(ens_next.shape)
+            mean_now = analysed.mean(axis=0, keepdims=True)
+            traces[KF].append(_observe(grid, ens.mean(axis=0, keepdims=True), mean_now, dt,
+                                       dipole.mu0))
+            traces[PLAIN].append(_observe(grid, plain, plain_next, dt, dipole.mu0))
+            traces["measured"].append(y.reshape(2, 3, -1))
+            times.append(t_obs)
+            ens, plain = analysed, plain_next
+            t += dt
+        per_run[run] = _errors(exp, grid, phasors, dipole, sensors, np.array(times), traces)
+    return _rows(exp, key, reading, level, per_run)
+
+
+def _analytic_cartesian(grid: Grid, phasors: dict, turn: complex,
+                        where: np.ndarray) -> np.ndarray:
+    """Analytic E and H at ``where`` as ``(2, 3, points)`` Cartesian components."""
+    th, ph = grid.theta[where], grid.phi[where]
+    Er = (phasors["E_r"][where] * turn).real
+    Et = (phasors["E_theta"][where] * turn).real
+    Hp = (phasors["H_phi"][where] * turn).real
+    st, ct, sp_, cp = np.sin(th), np.cos(th), np.sin(ph), np.cos(ph)
+    E = np.stack([st * cp * Er + ct * cp * Et, st * sp_ * Er + ct * sp_ * Et, ct * Er - st * Et])
+    H = np.stack([-sp_ * Hp, cp * Hp, np.zeros_like(Hp)])
+    return np.stack([E, H])
+
+
+def _errors(exp, grid, phasors, dipole, sensors, times, traces) -> dict:
+    """Per estimator, component and zone: (sum of squared errors, count, sum of squared
+    truth) over the record."""
+    spec = exp.spec
+    out = {}
+    measured = np.stack(traces["measured"])                    # (steps, 2, 3, sensors)
+    tree = cKDTree(grid.xyz[sensors])
+    rls = RecursiveLeastSquares(order=2, forgetting="fixed", lambda0=spec["rls"]["lambda0"],
+                                delta=spec["rls"]["delta"])
+    u = np.cos(dipole.omega * times)[:, None]
+    series = measured.reshape(len(times), -1).T[:, :, None]    # (sensors x 6, steps, 1)
+    smooth = rls.run(None, series, u).y_hat[..., 0].T.reshape(measured.shape)
+    for zone, where in exp.plan["zones"].items():
+        _, nearest = tree.query(grid.xyz[where])
+        turn = np.exp(1j * dipole.omega * times)[:, None]
+        want = {"E_r": (phasors["E_r"][where] * turn).real,
+                "E_theta": (phasors["E_theta"][where] * turn).real,
+                "H_phi": (phasors["H_phi"][where] * turn).real}
+        est = {}
+        for name in (KF, PLAIN):
+            E = np.stack([tr["E"][0] for tr in traces[name]])[..., where]
+            H = np.stack([tr["H"][0] for tr in traces[name]])[..., where]
+            Es, Hs = _sph(grid, E, where), _sph(grid, H, where)
+            est[name] = {"E_r": Es["r"], "E_theta": Es["theta"], "H_phi": Hs["phi"]}
+        for name, data in (("measurement", measured), (RLS, smooth)):
+            E, H = data[:, 0][..., nearest], data[:, 1][..., nearest]
+            Es, Hs = _sph(grid, E, where), _sph(grid, H, where)
+            est[name] = {"E_r": Es["r"], "E_theta": Es["theta"], "H_phi": Hs["phi"]}
+        for name, comps in est.items():
+            for comp in COMPONENTS:
+                err = comps[comp] - want[comp]
+                out[(name, zone, comp)] = (float(np.mean(err**2)),
+                                           float(np.mean(want[comp] ** 2)))
+    return out
+
+
+def _sph(grid: Grid, F: np.ndarray, where: np.ndarray) -> dict[str, np.ndarray]:
+    th, ph = grid.theta[where], grid.phi[where]
+    st, ct, sp_, cp = np.sin(th), np.cos(th), np.sin(ph), np.cos(ph)
+    fx, fy, fz = F[:, 0], F[:, 1], F[:, 2]
+    return {"r": st * cp * fx + st * sp_ * fy + ct * fz,
+            "theta": ct * cp * fx + ct * sp_ * fy - st * fz, "phi": -sp_ * fx + cp * fy}
+
+
+def _rows(exp, key, reading, level, per_run) -> list[dict]:
+    spec = exp.spec
+    scenario = spec["scenarios"][key[0]]["name"]
+    s_no = key[2] + 1
+    rows = []
+    for (name, zone, comp) in per_run[0]:
+        mse = np.array([per_run[r][(name, zone, comp)][0] for r in per_run])
+        ref = float(np.mean([per_run[r][(name, zone, comp)][1] for r in per_run]))
+        values = np.sqrt(mse)
+        mean, se = metrics.mean_and_se(values) if len(values) > 1 else (float(values[0]),
+                                                                        float("nan"))
+        rows.append({"table_id": TABLE_IDS.get((comp, zone, name), ""), "s_no": s_no,
+                     "scenario": scenario, "zone": zone, "noise_reading": reading,
+                     "noise_param": level, "estimator": name, "field_component": comp,
+                     "part": "real", "rmse": mean, "rmse_se": se, "runs": len(values),
+                     "field_rms": np.sqrt(ref), "relative": mean / np.sqrt(ref)})
+    return rows
+
+
+def _run_point_args(args):
+    return run_point(*args)
+
+
+def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = None) -> Result:
+    done = map_tasks(_run_point_args, [(exp, k) for k in _points(exp)], jobs, on_done)
+    df = pd.DataFrame([row for part in done for row in part])[TABLES["rmse"].columns]
+    keys = ["scenario", "zone", "noise_reading", "noise_param", "field_component"]
+    parts = []
+    for better, worse in ((KF, RLS), (KF, PLAIN)):
+        a = df[df["estimator"] == better].set_index(keys)["rmse"]
+        b = df[df["estimator"] == worse].set_index(keys)["rmse"]
+        c = pd.DataFrame({"rmse_better": a, "rmse_worse": b}).reset_index()
+        c["ratio"] = c["rmse_better"] / c["rmse_worse"]
+        c["holds"] = c["rmse_better"] < c["rmse_worse"]
+        c.insert(0, "claim", f"{better} RMSE < {worse} RMSE")
+        parts.append(c)
+    claims = pd.concat(parts, ignore_index=True)[TABLES["claims"].columns]
+    return Result(tables={"rmse": df.reset_index(drop=True), "claims": claims})
+
+
+def summary(result: Result) -> str:
+    df = result.tables["rmse"]
+    view = df.pivot_table(index=["scenario", "noise_param", "zone", "field_component"],
+                          columns="estimator", values="relative", sort=False)
+    return "relative RMSE (RMSE / field RMS)\n" + view.to_string(
+        float_format=lambda v: f"{v:.3g}")
+
