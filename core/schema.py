@@ -231,6 +231,12 @@ def build_estimator(est_cls, settings: dict, model, source: str, path: str):
     return est
 
 
+def check_interval(values: list, source: str, path: str) -> None:
+    """A ``[low, high]`` pair with ``low < high``."""
+    if len(values) != 2 or not values[0] < values[1]:
+        raise ConfigError(source, path, f"expected [low, high] with low < high, got {values!r}")
+
+
 def check_input_vector(values: list, model_cls, source: str, path: str) -> None:
     """One value per model input."""
     if len(values) != len(model_cls.input_names):

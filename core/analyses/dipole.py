@@ -42,7 +42,7 @@ from core.estimators.base import as_matrix
 from core.estimators.kf import KalmanFilter
 from core.estimators.rls import RecursiveLeastSquares
 from core.fields.dipole import Dipole
-from core.schema import REQUIRED, Experiment, integer, list_of, number, text
+from core.schema import REQUIRED, Experiment, check_interval, integer, list_of, number, text
 
 _READING = text({"sigma", "variance"})
 COMPONENTS = ("E_r", "E_theta", "H_phi")
@@ -118,10 +118,7 @@ def prepare(spec: dict, source: str) -> dict:
     zones = []
     for i, z in enumerate(spec["zones"]):
         for key in ("r", "theta_deg"):
-            lo_hi = z[key]
-            if len(lo_hi) != 2 or not lo_hi[0] < lo_hi[1]:
-                raise ConfigError(source, f"zones[{i}].{key}",
-                                  f"expected [low, high] with low < high, got {lo_hi!r}")
+            check_interval(z[key], source, f"zones[{i}].{key}")
         if z["name"] in [other.name for other in zones]:
             raise ConfigError(source, f"zones[{i}].name", f"repeats {z['name']!r}")
         zones.append(Zone(z["name"], np.linspace(*z["r"], z["points_r"]),
@@ -236,14 +233,20 @@ def kf_per_point(truth: dict, z: np.ndarray, dt: float, spec: dict,
     return {"q": x_hat[..., 0], "rate": x_hat[..., 1]}
 
 
+def sinusoid_rls(z: np.ndarray, t: np.ndarray, omega: float, settings: dict) -> np.ndarray:
+    """The thesis-style RLS baseline of Chapter 5 (its formulation is not printed): the
+    project's RLS with fixed forgetting on each series of ``z (series, steps, m)``, its
+    regressor two taps of ``cos(omega t)`` (``t`` the ``steps`` sample times) and a bias: a
+    sinusoid of the known frequency and an offset. Returns the smoothed series."""
+    rls = RecursiveLeastSquares(order=2, forgetting="fixed", lambda0=settings["lambda0"],
+                                delta=settings["delta"])
+    return rls.run(None, z, np.cos(omega * t)[:, None]).y_hat
+
+
 def rls_per_point(z: np.ndarray, t: np.ndarray, omega: float, dt: float,
                   spec: dict) -> dict[str, np.ndarray]:
-    """RLS on each measured potential with the taps of ``cos(omega t)`` as regressor (a
-    sinusoid of the known frequency and an offset); rates by a backward difference."""
-    rls = RecursiveLeastSquares(order=2, forgetting="fixed", lambda0=spec["rls"]["lambda0"],
-                                delta=spec["rls"]["delta"])
-    u = np.cos(omega * t[:-1])[:, None]
-    smooth = rls.run(None, z, u).y_hat
+    """:func:`sinusoid_rls` on each measured potential; rates by a backward difference."""
+    smooth = sinusoid_rls(z, t[:-1], omega, spec["rls"])
     return {"q": smooth, "rate": _backward_rate(smooth, dt)}
 
 

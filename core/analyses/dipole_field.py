@@ -37,14 +37,14 @@ import pandas as pd
 from scipy.spatial import cKDTree
 
 from core import metrics
+from core.analyses import dipole as literal
 from core.analyses.base import Result, TableSpec, map_tasks
-from core.analyses.dipole import COMPONENTS, TABLE_IDS
+from core.analyses.dipole import COMPONENTS, TABLE_IDS, sinusoid_rls
 from core.errors import ConfigError
-from core.estimators.rls import RecursiveLeastSquares
 from core.fields import etkf
 from core.fields.dipole import Dipole
 from core.fields.fdtd import Grid, Simulation, fields_from
-from core.schema import REQUIRED, Experiment, integer, list_of, number, text
+from core.schema import REQUIRED, Experiment, check_interval, integer, list_of, number, text
 
 _READING = text({"sigma", "variance"})
 KF, RLS, PLAIN = "KF", "RLS", "plain simulation"
@@ -84,10 +84,7 @@ SCHEMA: dict = {
         "model_error": (number(minimum=0.0, maximum=1e3), 0.02),
         "inflation": (number(minimum=1.0, maximum=2.0), 1.0),
     }, {}),
-    "rls": ({
-        "lambda0": (number(minimum=0.5, maximum=1.0), 0.98),
-        "delta": (number(positive=True, maximum=1e12), 100.0),
-    }, {}),
+    "rls": literal.SCHEMA["rls"],
     "time": ({
         "spinup_periods": (integer(1, 100), 4),
         "periods": (integer(1, 100), 2),
@@ -117,11 +114,6 @@ TABLES = {
 }
 
 
-def _pair(values: list, source: str, path: str, positive: bool = True) -> None:
-    if len(values) != 2 or not values[0] < values[1]:
-        raise ConfigError(source, path, f"expected [low, high] with low < high, got {values!r}")
-
-
 def prepare(spec: dict, source: str) -> dict:
     g = spec["grid"]
     if g["n"] % 2:
@@ -130,12 +122,12 @@ def prepare(spec: dict, source: str) -> dict:
     grid = Grid(g["n"], g["length"] / g["n"])
     half = g["length"] / 2
     for i, z in enumerate(spec["zones"]):
-        _pair(z["r"], source, f"zones[{i}].r")
-        _pair(z["theta_deg"], source, f"zones[{i}].theta_deg")
+        check_interval(z["r"], source, f"zones[{i}].r")
+        check_interval(z["theta_deg"], source, f"zones[{i}].theta_deg")
         if z["r"][1] > half - grid.spacing:
             raise ConfigError(source, f"zones[{i}].r", f"reaches the box's faces at "
                               f"{half:g}: keep it below {half - grid.spacing:g}")
-    _pair(spec["sensors"]["r"], source, "sensors.r")
+    check_interval(spec["sensors"]["r"], source, "sensors.r")
     names = [s["name"] for s in spec["scenarios"]]
     for i, s in enumerate(spec["scenarios"]):
         if len(s["nominal_amplitude"]) != 2:
@@ -326,11 +318,9 @@ def _errors(exp, grid, phasors, dipole, sensors, times, traces, quarter: int) ->
     out = {}
     measured = np.stack(traces["measured"])                    # (steps, 2, 3, sensors)
     tree = cKDTree(grid.xyz[sensors])
-    rls = RecursiveLeastSquares(order=2, forgetting="fixed", lambda0=spec["rls"]["lambda0"],
-                                delta=spec["rls"]["delta"])
-    u = np.cos(dipole.omega * times)[:, None]
     series = measured.reshape(len(times), -1).T[:, :, None]    # (sensors x 6, steps, 1)
-    smooth = rls.run(None, series, u).y_hat[..., 0].T.reshape(measured.shape)
+    smooth = sinusoid_rls(series, times, dipole.omega, spec["rls"])[..., 0].T.reshape(
+        measured.shape)
     for zone, where in exp.plan["zones"].items():
         _, nearest = tree.query(grid.xyz[where])
         turn = np.exp(1j * dipole.omega * times)[:, None]

@@ -42,6 +42,7 @@ from core.schema import (
     boolean,
     build_estimator,
     build_model,
+    check_interval,
     file_name,
     integer,
     list_of,
@@ -178,10 +179,7 @@ def prepare(spec: dict, source: str) -> tuple[Column, ...]:
         for i, v in enumerate(values):
             if v in values[:i]:
                 raise ConfigError(source, f"{key}[{i}]", f"repeats {v!r}")
-    lo_hi = spec["noise"]["adc_range_v"]
-    if len(lo_hi) != 2 or not lo_hi[0] < lo_hi[1]:
-        raise ConfigError(source, "noise.adc_range_v", f"expected [low, high] with low < high, "
-                          f"got {lo_hi!r}")
+    check_interval(spec["noise"]["adc_range_v"], source, "noise.adc_range_v")
     labels = []
     for i, est in enumerate(spec["estimators"]):
         if est["label"] in labels or est["label"] == MEASUREMENT:
