@@ -139,3 +139,29 @@ def estimates_clipped(trace: dict, title: str) -> Figure:
     ax_out.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     fig.tight_layout()
     return fig
+
+
+def field_slices(data: dict, title: str) -> Figure:
+    """|E| (top) and |H| (bottom) in a plane: analytic truth, filter, RLS baseline and the
+    filter's error, one shared logarithmic colour scale per row (Chapter 5)."""
+    from matplotlib.colors import LogNorm
+
+    labels = ("truth", "KF", "RLS", "KF error")
+    fig, axes = plt.subplots(2, 4, figsize=(14.0, 7.0), sharex=True, sharey=True)
+    for row, field in enumerate(("E", "H")):
+        truth = data[f"{field}|truth"]
+        top = float(np.nanmax(truth))
+        norm = LogNorm(vmin=top * 1e-3, vmax=top)
+        for col, label in enumerate(labels):
+            ax = axes[row, col]
+            values = np.clip(data[f"{field}|{label}"], top * 1e-3, None)
+            image = ax.imshow(values.T, origin="lower", extent=data["extent"], norm=norm,
+                              cmap="viridis")
+            ax.set_title(f"|{field}| {label}", fontsize=9)
+            if row == 1:
+                ax.set_xlabel("x [wavelengths]")
+            if col == 0:
+                ax.set_ylabel("z [wavelengths]")
+        fig.colorbar(image, ax=axes[row, :], shrink=0.8, label=f"|{field}| (normalised)")
+    fig.suptitle(title, fontsize=10)
+    return fig

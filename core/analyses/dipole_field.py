@@ -36,7 +36,7 @@ import numpy as np
 import pandas as pd
 from scipy.spatial import cKDTree
 
-from core import metrics
+from core import metrics, plots
 from core.analyses import dipole as literal
 from core.analyses.base import Result, TableSpec, map_tasks
 from core.analyses.dipole import COMPONENTS, TABLE_IDS, sinusoid_rls
@@ -225,7 +225,9 @@ def sensor_operators(grid: Grid, sensors: np.ndarray) -> tuple:
     return grad_s.tocsr(), curl_z.tocsr(), sensors
 
 
-def run_point(exp: Experiment, key: tuple) -> list[dict]:
+def run_point(exp: Experiment, key: tuple) -> tuple[list[dict], dict]:
+    """Rows of one scenario and noise row over every run; and, for the first noise row of a
+    scenario, the figure's slices from run 1 at the last recorded step."""
     spec, plan = exp.spec, exp.plan
     grid, sensors = plan["grid"], plan["sensors"]
     s_idx, r_idx, l_idx = key
@@ -290,7 +292,38 @@ def run_point(exp: Experiment, key: tuple) -> list[dict]:
             t += dt
         per_run[run] = _errors(exp, grid, phasors, dipole, sensors, np.array(times), traces,
                                quarter)
-    return _rows(exp, key, reading, level, per_run)
+        if run == 0 and r_idx == 0 and l_idx == 0:
+            slices = _slices(exp, grid, phasors, dipole, sensors, np.array(times), traces)
+    figure = {"scenario": scenario["name"], **slices} if r_idx == 0 and l_idx == 0 else {}
+    return _rows(exp, key, reading, level, per_run), figure
+
+
+def _slices(exp, grid, phasors, dipole, sensors, times, traces) -> dict:
+    """|E| and |H| in the plane through the source nearest y = 0 at the last recorded step:
+    the analytic truth, the filter's mean, the RLS baseline (nearest sensor) and the
+    filter's error; points within two cells of the source are left blank."""
+    n = grid.n
+    plane = np.flatnonzero(np.isclose(grid.xyz[:, 1], grid.axis[n // 2]))
+    turn = np.exp(1j * dipole.omega * times[-1])
+    truth = _analytic_cartesian(grid, phasors, turn, plane)
+    kf = np.stack([traces[KF][-1]["E"][0][:, plane], traces[KF][-1]["H"][0][:, plane]])
+    measured = np.stack(traces["measured"])
+    series = measured.reshape(len(times), -1).T[:, :, None]
+    smooth = sinusoid_rls(series, times, dipole.omega, exp.spec["rls"])[..., 0].T.reshape(
+        measured.shape)[-1]
+    _, nearest = cKDTree(grid.xyz[sensors]).query(grid.xyz[plane])
+    rls = smooth[..., nearest]
+    blank = grid.r[plane] < 2 * grid.spacing
+    out = {}
+    for i, field_name in enumerate(("E", "H")):
+        for label, data in (("truth", truth[i]), (KF, kf[i]), (RLS, rls[i]),
+                            ("KF error", kf[i] - truth[i])):
+            mag = np.linalg.norm(data, axis=0)
+            mag[blank] = np.nan
+            out[f"{field_name}|{label}"] = mag.reshape(n, n)
+    out["extent"] = [grid.axis[0], grid.axis[-1], grid.axis[0], grid.axis[-1]]
+    out["time"] = float(times[-1])
+    return out
 
 
 def _analytic_cartesian(grid: Grid, phasors: dict, turn: complex,
@@ -383,7 +416,7 @@ def _run_point_args(args):
 
 def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = None) -> Result:
     done = map_tasks(_run_point_args, [(exp, k) for k in _points(exp)], jobs, on_done)
-    df = pd.DataFrame([row for part in done for row in part])[TABLES["rmse"].columns]
+    df = pd.DataFrame([row for part, _ in done for row in part])[TABLES["rmse"].columns]
     keys = ["scenario", "zone", "noise_reading", "noise_param", "field_component", "part"]
     parts = []
     for better, worse in ((KF, RLS), (KF, PLAIN)):
@@ -395,7 +428,16 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
         c.insert(0, "claim", f"{better} RMSE < {worse} RMSE")
         parts.append(c)
     claims = pd.concat(parts, ignore_index=True)[TABLES["claims"].columns]
-    return Result(tables={"rmse": df.reset_index(drop=True), "claims": claims})
+    figures = {}
+    for _, fig in done:
+        if fig:
+            name = "field_slices_" + "".join(ch if ch.isalnum() else "_"
+                                             for ch in fig["scenario"]).strip("_")
+            figures[name] = plots.field_slices(
+                fig, f"{fig['scenario']}: |E| and |H| in the x-z plane through the source, "
+                f"t = {fig['time']:.3g} periods (run 1)")
+    return Result(tables={"rmse": df.reset_index(drop=True), "claims": claims},
+                  figures=figures)
 
 
 def summary(result: Result) -> str:
