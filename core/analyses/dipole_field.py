@@ -41,13 +41,16 @@ from core.analyses import dipole as literal
 from core.analyses.base import Result, TableSpec, map_tasks
 from core.analyses.dipole import COMPONENTS, TABLE_IDS, sinusoid_rls
 from core.errors import ConfigError
-from core.fields import etkf
+from core.fields import etkf, wave
 from core.fields.dipole import Dipole
 from core.fields.fdtd import Grid, Simulation, fields_from
 from core.schema import REQUIRED, Experiment, check_interval, integer, list_of, number, text
 
 _READING = text({"sigma", "variance"})
 KF, RLS, PLAIN = "KF", "RLS", "plain simulation"
+EULER = "plain simulation (Euler, eq 5.20)"
+"""The printed discretisation ``xi+ = (I + T F) xi``: forward Euler on (A, dA/dt), every
+mode grows (:func:`core.fields.wave.step`); run once per case to show it."""
 
 SCHEMA: dict = {
     "grid": ({
@@ -266,7 +269,11 @@ def run_point(exp: Experiment, key: tuple) -> tuple[list[dict], dict]:
             ens = sim.step(ens, t, amps)
             plain = sim.step(plain, t, np.array([nominal]))
             t += dt
-        traces = {name: [] for name in (KF, PLAIN, "measured")}
+        euler = _EulerRun(sim, nominal) if run == 0 else None
+        if euler is not None:
+            for k in range(spin):
+                euler.step(k * dt)
+        traces = {name: [] for name in (KF, PLAIN, EULER, "measured")}
         times = []
         for _ in range(record):
             ens_next = sim.step(ens, t, amps)
@@ -286,6 +293,9 @@ def run_point(exp: Experiment, key: tuple) -> tuple[list[dict], dict]:
             traces[KF].append(_observe(grid, ens.mean(axis=0, keepdims=True), mean_now, dt,
                                        dipole.mu0))
             traces[PLAIN].append(_observe(grid, plain, plain_next, dt, dipole.mu0))
+            if euler is not None:
+                traces[EULER].append(euler.fields())
+                euler.step(t)
             traces["measured"].append(y.reshape(2, 3, -1))
             times.append(t_obs)
             ens, plain = analysed, plain_next
@@ -326,6 +336,33 @@ def _slices(exp, grid, phasors, dipole, sensors, times, traces) -> dict:
     return out
 
 
+class _EulerRun:
+    """The plain simulation with the thesis' forward Euler (eq 5.20) on ``(u, u')`` for
+    ``u = [A_z, Phi]``, nominal source, Mur faces not applied (Euler has no two-level
+    boundary of that kind); it grows without bound and is reported as it comes out."""
+
+    def __init__(self, sim: Simulation, amplitude: complex) -> None:
+        self.sim, self.amplitude = sim, np.array([amplitude])
+        self.u = np.zeros((1, 2, sim.grid.size))
+        self.v = np.zeros_like(self.u)
+
+    def step(self, t: float) -> None:
+        L = self.sim.grid.laplacian
+        s = np.zeros_like(self.u)
+        s[..., self.sim._support] = self.sim.source(t, self.amplitude)
+        with np.errstate(all="ignore"):
+            self.u, self.v = wave.step(self.u, self.v,
+                                       lambda x: (L @ x.reshape(-1, x.shape[-1]).T).T.reshape(
+                                           x.shape),
+                                       self.sim.dipole.c, self.sim.dt, s_now=s,
+                                       method="euler")
+
+    def fields(self) -> dict:
+        with np.errstate(all="ignore"):
+            return fields_from(self.sim.grid, self.u[:, 0], self.u[:, 1], self.v[:, 0],
+                               self.sim.dipole.mu0)
+
+
 def _analytic_cartesian(grid: Grid, phasors: dict, turn: complex,
                         where: np.ndarray) -> np.ndarray:
     """Analytic E and H at ``where`` as ``(2, 3, points)`` Cartesian components."""
@@ -361,7 +398,9 @@ def _errors(exp, grid, phasors, dipole, sensors, times, traces, quarter: int) ->
                 "E_theta": (phasors["E_theta"][where] * turn).real,
                 "H_phi": (phasors["H_phi"][where] * turn).real}
         est = {}
-        for name in (KF, PLAIN):
+        for name in (KF, PLAIN, EULER):
+            if not traces[name]:
+                continue
             E = np.stack([tr["E"][0] for tr in traces[name]])[..., where]
             H = np.stack([tr["H"][0] for tr in traces[name]])[..., where]
             Es, Hs = _sph(grid, E, where), _sph(grid, H, where)
@@ -374,10 +413,13 @@ def _errors(exp, grid, phasors, dipole, sensors, times, traces, quarter: int) ->
         for name, comps in est.items():
             for comp in COMPONENTS:
                 x, w = comps[comp], want[comp]
-                pairs = {"real": (x[q:], w[q:]), "imag": (x[:-q], w[:-q]),
-                         "abs": (np.hypot(x[q:], x[:-q]), np.hypot(w[q:], w[:-q]))}
+                with np.errstate(all="ignore"):
+                    pairs = {"real": (x[q:], w[q:]), "imag": (x[:-q], w[:-q]),
+                             "abs": (np.hypot(x[q:], x[:-q]), np.hypot(w[q:], w[:-q]))}
                 for part, (got, truth) in pairs.items():
-                    out[(name, zone, comp, part)] = (float(np.mean((got - truth) ** 2)),
+                    with np.errstate(all="ignore"):
+                        mse = float(np.mean((got - truth) ** 2))
+                    out[(name, zone, comp, part)] = (mse if np.isfinite(mse) else np.inf,
                                                      float(np.mean(truth**2)))
     return out
 
@@ -397,8 +439,9 @@ def _rows(exp, key, reading, level, per_run) -> list[dict]:
     rows = []
     for cell in per_run[0]:
         name, zone, comp, part = cell
-        mse = np.array([per_run[r][cell][0] for r in per_run])
-        ref = float(np.mean([per_run[r][cell][1] for r in per_run]))
+        present = [r for r in per_run if cell in per_run[r]]     # the Euler run: run 1 only
+        mse = np.array([per_run[r][cell][0] for r in present])
+        ref = float(np.mean([per_run[r][cell][1] for r in present]))
         values = np.sqrt(mse)
         mean, se = metrics.mean_and_se(values) if len(values) > 1 else (float(values[0]),
                                                                         float("nan"))
