@@ -49,6 +49,10 @@ from core.schema import REQUIRED, Experiment, check_interval, integer, list_of, 
 _READING = text({"sigma", "variance"})
 KF, RLS, PLAIN = "KF", "RLS", "plain simulation"
 EULER = "plain simulation (Euler, eq 5.20)"
+DIVERGED_RATIO = 1e3
+"""An estimate whose RMSE exceeds this multiple of the field's RMS has diverged: its cell
+reports ``inf`` (the printed Euler run reaches 1e22; the digits of a blown-up number carry
+the rounding that seeded its growth and differ between machines)."""
 """The printed discretisation ``xi+ = (I + T F) xi``: forward Euler on (A, dA/dt), every
 mode grows (:func:`core.fields.wave.step`); run once per case to show it."""
 
@@ -445,6 +449,8 @@ def _rows(exp, key, reading, level, per_run) -> list[dict]:
         values = np.sqrt(mse)
         mean, se = metrics.mean_and_se(values) if len(values) > 1 else (float(values[0]),
                                                                         float("nan"))
+        if not mean <= DIVERGED_RATIO * np.sqrt(ref):
+            mean, se = float("inf"), float("nan")
         rows.append({"table_id": TABLE_IDS.get((comp, zone, name), ""), "s_no": s_no,
                      "scenario": scenario, "zone": zone, "noise_reading": reading,
                      "noise_param": level, "estimator": name, "field_component": comp,
