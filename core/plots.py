@@ -165,3 +165,19 @@ def field_slices(data: dict, title: str) -> Figure:
         fig.colorbar(image, ax=axes[row, :], shrink=0.8, label=f"|{field}| (normalised)")
     fig.suptitle(title, fontsize=10)
     return fig
+
+
+def relative_error_curves(w_over_pi, curves: dict) -> Figure:
+    """RE in dB against ``w / pi`` for several orders (the FIR differentiator paper's
+    Fig 3); RE -> -inf at ``pi``, so the axis stops at -160 dB."""
+    fig, ax = plt.subplots(figsize=(8.0, 5.0))
+    for n, re in curves.items():
+        ax.plot(w_over_pi, np.maximum(re, -160.0), lw=1.0, label=f"n = {n} (N2 = {2 * n})")
+    ax.set_ylim(-160, 10)
+    ax.set_xlabel("w / pi")
+    ax.set_ylabel("relative error [dB]")
+    ax.set_title("maximally linear FIR differentiators: relative error (Fig 3)")
+    ax.grid(True, lw=0.3)
+    ax.legend(loc="lower left", fontsize=8)
+    fig.tight_layout()
+    return fig

@@ -182,6 +182,10 @@ HOSTILE = [
      "scenarios[0].nominal_amplitude", "[magnitude, phase in degrees]"),
     ("dipole_field", {"filter.members": 2}, "filter.members", "integer from 3"),
     ("dipole_field", {"grid.boundary": "pml"}, "grid.boundary", "'dirichlet', 'mur'"),
+    ("fir_differentiator", {"bands": [1.5]}, "bands[0]", "number <= 0.999"),
+    ("fir_differentiator", {"thresholds_db": [10]}, "thresholds_db[0]", "number <= -1"),
+    ("fir_differentiator", {"max_taps": 5000}, "max_taps", "integer from 4 to 1024"),
+    ("fir_differentiator", {"tables.orders": "3.1"}, "tables.orders", "for a orders table"),
 ]
 
 

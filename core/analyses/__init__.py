@@ -2,10 +2,19 @@
 
 from __future__ import annotations
 
-from core.analyses import burden, dipole, dipole_field, estimation, kronecker, perturbation
+from core.analyses import (
+    burden,
+    differentiator,
+    dipole,
+    dipole_field,
+    estimation,
+    kronecker,
+    perturbation,
+)
 
 ANALYSES = {
     "burden": burden,
+    "differentiator": differentiator,
     "dipole": dipole,
     "dipole_field": dipole_field,
     "estimation": estimation,

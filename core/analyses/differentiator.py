@@ -1,0 +1,107 @@
+"""Maximally linear FIR differentiators against minimax relative-error designs (the paper
+in ``shared/seeds/002_a5009dd315ab9542.txt``: Table II and Fig 3).
+
+For every cell of Table II (band ``[omega_p pi, pi]`` x relative-error bound): the order
+``N2`` of the maximally linear design that meets it (:mod:`core.differentiators`, exact
+rational coefficients) and the number of taps ``N1`` of the full-band minimax
+relative-error design (``scipy.signal.remez``) that meets it, searched up to ``max_taps``;
+with the relative error each achieves. The paper's N1 designs cover the whole band
+``[0, pi]`` (its remark 1), as ours do here: the comparison is the paper's, not a
+band-limited minimax design of the same structure (docs/deviations.md).
+
+Fig 3: RE in dB against ``w / pi`` for ``n = 1, 2, 3, 5, 7, 10`` (RE -> -inf at pi: the
+axis is clipped).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import pandas as pd
+
+from core import differentiators as fd
+from core import plots
+from core.analyses.base import Result, TableSpec
+from core.schema import Experiment, file_name, integer, list_of, number, text
+
+SCHEMA: dict = {
+    "bands": (list_of(number(minimum=0.01, maximum=0.999), max_length=50),
+              [0.95, 0.90, 0.80, 0.70, 0.60, 0.50]),
+    "thresholds_db": (list_of(number(minimum=-300.0, maximum=-1.0), max_length=20),
+                      [-40.0, -60.0, -80.0, -100.0]),
+    "max_n": (integer(1, 60), 40),
+    "max_taps": (integer(4, 1024), 128),
+    "tables": ({"orders": (text(), "fir_II")}, {}),
+    "figures": ({
+        "orders_n": (list_of(integer(1, 60), max_length=12), [1, 2, 3, 5, 7, 10]),
+        "name": (file_name, "fig_3"),
+    }, {}),
+}
+
+TABLES = {
+    "orders": TableSpec("orders.csv", ("table_id", "omega_p", "threshold_db"),
+                        ("n1", "n1_re_db", "n2", "n2_re_db"),
+                        reference=("n1", "n2"),
+                        join=(("omega_p", ("omega_p",)), ("threshold_db", ("threshold_db",))),
+                        title="orders meeting each relative-error bound (Table II)",
+                        reference_ids=("fir_II",)),
+}
+
+
+def prepare(spec: dict, source: str) -> None:
+    return None
+
+
+def work_units(exp: Experiment) -> int:
+    return 1
+
+
+def work_size(spec: dict) -> int:
+    return len(spec["bands"]) * len(spec["thresholds_db"]) * (spec["max_n"] + spec["max_taps"])
+
+
+def tiny(spec: dict) -> dict:
+    spec["bands"] = spec.get("bands", [0.95])[:1]
+    spec["thresholds_db"] = spec.get("thresholds_db", [-40.0])[:1]
+    return spec
+
+
+def _re_minimax(taps: int, omega_p: float) -> float:
+    w = fd.band(omega_p, 4_000)
+    return fd.relative_error_db(fd.minimax_response(fd.minimax_full_band(taps), w), w)
+
+
+def _re_maximally_linear(order: int, omega_p: float) -> float:
+    w = fd.band(omega_p)
+    return fd.relative_error_db(fd.response(order // 2, w), w)
+
+
+def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = None) -> Result:
+    spec = exp.spec
+    rows = []
+    for omega_p in spec["bands"]:
+        for threshold in spec["thresholds_db"]:
+            n2 = fd.order_maximally_linear(omega_p, threshold, spec["max_n"])
+            n1 = fd.order_minimax(omega_p, threshold, spec["max_taps"])
+            rows.append({"table_id": spec["tables"]["orders"], "omega_p": omega_p,
+                         "threshold_db": threshold,
+                         "n1": float(n1) if n1 else float("inf"),
+                         "n1_re_db": _re_minimax(n1 or spec["max_taps"], omega_p),
+                         "n2": float(n2) if n2 else float("inf"),
+                         "n2_re_db": _re_maximally_linear(n2, omega_p) if n2 else float("nan")})
+    w = np.linspace(0.005, 1.0, 2000, endpoint=False) * np.pi
+    curves = {n: 20 * np.log10(np.abs(fd.response(n, w) - w) / w) for n in
+              spec["figures"]["orders_n"]}
+    figure = plots.relative_error_curves(w / np.pi, curves)
+    if on_done:
+        on_done()
+    return Result(tables={"orders": pd.DataFrame(rows)[TABLES["orders"].columns]},
+                  figures={spec["figures"]["name"]: figure})
+
+
+def summary(result: Result) -> str:
+    df = result.tables["orders"]
+    view = df.pivot_table(index="omega_p", columns="threshold_db", values=["n1", "n2"],
+                          sort=False)
+    return view.to_string(float_format=lambda v: f"{v:g}")

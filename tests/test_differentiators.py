@@ -1,0 +1,40 @@
+"""The FIR differentiator paper: Table II's cells, the coefficients, the minimax facts."""
+
+from fractions import Fraction
+
+import numpy as np
+import pytest
+
+from core import differentiators as fd
+from core import tables
+
+
+def test_n2_coefficients():
+    c, d = fd.maximally_linear(2)
+    assert c == [Fraction(-4, 3), Fraction(-1, 6)]
+    assert d == [Fraction(9, 8), Fraction(1, 8)]
+
+
+@pytest.mark.parametrize("n", [1, 2, 5, 10])
+def test_relative_error_vanishes_at_pi(n):
+    assert abs(fd.response(n, np.array([np.pi]))[0] - np.pi) < 1e-12
+
+
+def test_every_numeric_n2_cell_of_table_ii():
+    ref = tables.reference_table("fir_II")
+    for _, row in ref.iterrows():
+        got = fd.order_maximally_linear(row["omega_p"], row["threshold_db"])
+        if np.isfinite(row["n2"]):
+            assert got == row["n2"], row.to_dict()
+        else:                                    # printed "> 22"
+            assert got > 22
+
+
+def test_minimax_full_band_facts():
+    w = fd.band(0.0 + 1e-3, 4000)
+    re = {taps: fd.relative_error_db(fd.minimax_response(fd.minimax_full_band(taps), w), w)
+          for taps in (20, 22, 128)}
+    assert re[20] == pytest.approx(-39.4, abs=0.1)
+    assert re[22] == pytest.approx(-40.4, abs=0.1)
+    assert re[128] == pytest.approx(-56.7, abs=0.2)     # -56.8 on this frequency grid
+    assert fd.order_minimax(0.5, -60.0) is None          # "> 128"
