@@ -181,3 +181,23 @@ def relative_error_curves(w_over_pi, curves: dict) -> Figure:
     ax.legend(loc="lower left", fontsize=8)
     fig.tight_layout()
     return fig
+
+
+def differentiator_response(f_hz, curves: dict) -> Figure:
+    """Magnitude and phase of optimum differentiators against the ideal ``s``."""
+    fig, (ax_m, ax_p) = plt.subplots(2, 1, figsize=(8.0, 6.0), sharex=True)
+    s = 2 * np.pi * np.asarray(f_hz)
+    ax_m.loglog(f_hz, s, "k--", lw=1.0, label="ideal |s|")
+    ax_p.semilogx(f_hz, np.full_like(s, 90.0), "k--", lw=1.0, label="ideal")
+    for label, H in curves.items():
+        ax_m.loglog(f_hz, np.abs(H), lw=1.2, label=label)
+        ax_p.semilogx(f_hz, np.degrees(np.angle(H)), lw=1.2, label=label)
+    ax_m.set_ylabel("|H| [1/s]")
+    ax_m.set_title("optimum (Kalman) differentiator against the ideal differentiator")
+    ax_m.legend(fontsize=8, loc="upper left")
+    ax_p.set_ylabel("phase [deg]")
+    ax_p.set_xlabel("frequency [Hz]")
+    ax_m.grid(True, which="both", lw=0.3)
+    ax_p.grid(True, which="both", lw=0.3)
+    fig.tight_layout()
+    return fig

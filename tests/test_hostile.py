@@ -186,6 +186,9 @@ HOSTILE = [
     ("fir_differentiator", {"thresholds_db": [10]}, "thresholds_db[0]", "number <= -1"),
     ("fir_differentiator", {"max_taps": 5000}, "max_taps", "integer from 4 to 1024"),
     ("fir_differentiator", {"tables.orders": "3.1"}, "tables.orders", "for a orders table"),
+    ("kalman_differentiator", {"cases.0.r": 0}, "cases[0].r", "positive number"),
+    ("kalman_differentiator", {"cases.0.dt": 100}, "cases[0].dt", "number <= 10"),
+    ("kalman_differentiator", {"monte_carlo.runs": 1}, "monte_carlo.runs", "integer from 2"),
 ]
 
 

@@ -8,6 +8,7 @@ from core.analyses import (
     dipole,
     dipole_field,
     estimation,
+    kalman_derivative,
     kronecker,
     perturbation,
 )
@@ -18,6 +19,7 @@ ANALYSES = {
     "dipole": dipole,
     "dipole_field": dipole_field,
     "estimation": estimation,
+    "kalman_derivative": kalman_derivative,
     "kronecker": kronecker,
     "perturbation": perturbation,
 }

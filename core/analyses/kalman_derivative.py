@@ -1,0 +1,121 @@
+"""The optimum differentiator from Kalman theory on the double integrator (the paper in
+``shared/seeds/001_01b49ce744343ce9.txt``, which prints no numbers): the derivative error
+variance in closed form, from the continuous Riccati equation, from the discrete one, and
+measured by Monte Carlo on the discrete filter (:mod:`core.kalman_differentiator`); and the
+differentiator's frequency response against the ideal ``s``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import pandas as pd
+from scipy import linalg
+
+from core import kalman_differentiator as kd
+from core import metrics, plots
+from core.analyses.base import Result, TableSpec, map_tasks
+from core.schema import REQUIRED, Experiment, file_name, integer, list_of, number
+
+SCHEMA: dict = {
+    "cases": (list_of({
+        "q": (number(positive=True, maximum=1e12), REQUIRED),
+        "r": (number(positive=True, maximum=1e12), REQUIRED),
+        "dt": (number(positive=True, maximum=10.0), REQUIRED),
+    }, max_length=20), REQUIRED),
+    "record_s": (number(positive=True, maximum=1e4), 5.0),
+    "settle_s": (number(minimum=0.0, maximum=1e4), 1.0),
+    "monte_carlo": ({
+        "runs": (integer(2, 100_000), REQUIRED),
+        "seed": (integer(0, 2**63 - 1), REQUIRED),
+    }, REQUIRED),
+    "figures": ({"name": (file_name, "frequency_response"),
+                 "max_hz": (number(positive=True, maximum=1e6), 20.0)}, {}),
+}
+
+TABLES = {
+    "derivative": TableSpec("derivative.csv", ("q", "r", "dt"),
+                            ("w0", "p22_closed_form", "p22_riccati", "p22_discrete",
+                             "p22_monte_carlo", "p22_monte_carlo_se", "runs"),
+                            title="derivative error variance P22: closed form, Riccati, "
+                                  "discrete, Monte Carlo"),
+}
+
+F = np.array([[0.0, 1.0], [0.0, 0.0]])
+H = np.array([[1.0], [0.0]])
+
+
+def prepare(spec: dict, source: str) -> None:
+    return None
+
+
+def work_units(exp: Experiment) -> int:
+    return len(exp.spec["cases"])
+
+
+def work_size(spec: dict) -> int:
+    return int(sum(2 * spec["record_s"] / c["dt"] for c in spec["cases"])
+               * spec["monte_carlo"]["runs"] / 100)
+
+
+def tiny(spec: dict) -> dict:
+    spec["cases"] = spec["cases"][:1]
+    spec["monte_carlo"]["runs"] = 5
+    spec["record_s"] = 0.5
+    spec["settle_s"] = 0.1
+    return spec
+
+
+def run_case(exp: Experiment, index: int) -> dict:
+    spec = exp.spec
+    case = spec["cases"][index]
+    q, r, dt = case["q"], case["r"], case["dt"]
+    G = np.array([[0.0], [np.sqrt(q)]])
+    closed = kd.double_integrator(q, r)
+    P, _ = kd.steady_state(F, G, H, r)
+    Phi, Qd = kd.discretize(F, G, dt)
+    Pd = linalg.solve_discrete_are(Phi.T, H, Qd, np.array([[r / dt]]))
+    S = H.T @ Pd @ H + r / dt
+    P_post = Pd - Pd @ H @ np.linalg.inv(S) @ H.T @ Pd
+    runs = spec["monte_carlo"]["runs"]
+    steps = int(round(spec["record_s"] / dt))
+    rng = np.random.default_rng(np.random.SeedSequence(spec["monte_carlo"]["seed"],
+                                                       spawn_key=(index,)))
+    L = np.linalg.cholesky(Qd)
+    noise = rng.standard_normal((runs, steps, 2)) @ L.T
+    x = np.zeros((runs, 2))
+    xs = np.empty((runs, steps, 2))
+    for k in range(steps):
+        x = x @ Phi.T + noise[:, k]
+        xs[:, k] = x
+    z = xs[..., :1] + np.sqrt(r / dt) * rng.standard_normal((runs, steps, 1))
+    out = kd.differentiate(z, F, G, H, r, dt)
+    start = int(round(spec["settle_s"] / dt))
+    per_run = np.mean((out["derivative"][:, start:, 0] - xs[:, start:, 1]) ** 2, axis=1)
+    mean, se = metrics.mean_and_se(per_run)
+    return {"q": q, "r": r, "dt": dt, "w0": closed["w0"], "p22_closed_form": closed["P22"],
+            "p22_riccati": float(P[1, 1]), "p22_discrete": float(P_post[1, 1]),
+            "p22_monte_carlo": mean, "p22_monte_carlo_se": se, "runs": runs}
+
+
+def _run_case_args(args):
+    return run_case(*args)
+
+
+def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = None) -> Result:
+    rows = map_tasks(_run_case_args, [(exp, i) for i in range(len(exp.spec["cases"]))],
+                     jobs, on_done)
+    f = np.linspace(0.05, exp.spec["figures"]["max_hz"], 400)
+    curves = {}
+    for case in exp.spec["cases"]:
+        G = np.array([[0.0], [np.sqrt(case["q"])]])
+        _, K = kd.steady_state(F, G, H, case["r"])
+        curves[f"q = {case['q']:g}, r = {case['r']:g}"] = kd.frequency_response(F, H, K, f)
+    figure = plots.differentiator_response(f, curves)
+    return Result(tables={"derivative": pd.DataFrame(rows)[TABLES["derivative"].columns]},
+                  figures={exp.spec["figures"]["name"]: figure})
+
+
+def summary(result: Result) -> str:
+    return result.tables["derivative"].to_string(index=False, float_format=lambda v: f"{v:.4g}")
