@@ -201,3 +201,20 @@ def differentiator_response(f_hz, curves: dict) -> Figure:
     ax_p.grid(True, which="both", lw=0.3)
     fig.tight_layout()
     return fig
+
+
+def absolute_errors(t, data: dict, title: str) -> Figure:
+    """Absolute estimation error against time, one panel per reading (the passive-network
+    paper's Figs 5 and 7), log scale."""
+    fig, axes = plt.subplots(len(data), 1, figsize=(8.0, 2.6 * len(data)), sharex=True,
+                             squeeze=False)
+    for ax, (reading, curves) in zip(axes[:, 0], data.items(), strict=True):
+        for name, err in curves.items():
+            ax.semilogy(t, np.clip(err, 1e-8, None), lw=1.0, label=name)
+        ax.set_title(f"{reading}, {title} (run 1)", fontsize=9)
+        ax.set_ylabel("|error|")
+        ax.legend(fontsize=8, loc="upper right")
+        ax.grid(True, which="both", lw=0.3)
+    axes[-1, 0].set_xlabel("t [s]")
+    fig.tight_layout()
+    return fig

@@ -189,6 +189,11 @@ HOSTILE = [
     ("kalman_differentiator", {"cases.0.r": 0}, "cases[0].r", "positive number"),
     ("kalman_differentiator", {"cases.0.dt": 100}, "cases[0].dt", "number <= 10"),
     ("kalman_differentiator", {"monte_carlo.runs": 1}, "monte_carlo.runs", "integer from 2"),
+    ("passive_network", {"readings.0.coupling": "both"}, "readings[0].coupling",
+     "'flipped', 'printed'"),
+    ("passive_network", {"readings.1.name": "as printed"}, "readings[1].name", "repeats"),
+    ("passive_network", {"readings.0.feed": "y"}, "readings[0].feed", "'x', 'z'"),
+    ("passive_network", {"sample_time": 0}, "sample_time", "positive number"),
 ]
 
 

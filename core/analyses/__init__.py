@@ -10,6 +10,7 @@ from core.analyses import (
     estimation,
     kalman_derivative,
     kronecker,
+    passive_network,
     perturbation,
 )
 
@@ -21,5 +22,6 @@ ANALYSES = {
     "estimation": estimation,
     "kalman_derivative": kalman_derivative,
     "kronecker": kronecker,
+    "passive_network": passive_network,
     "perturbation": perturbation,
 }
