@@ -98,3 +98,40 @@ def order_minimax(omega_p: float, threshold_db: float, max_taps: int = 128) -> i
         if relative_error_db(minimax_response(minimax_full_band(taps), w), w) <= threshold_db:
             return taps
     return None
+
+
+def minimax_band(n: int, omega_p: float, points: int = 1500) -> tuple[np.ndarray, float]:
+    """The minimax relative-error design of the same mixed structure (``n`` sine terms of
+    each kind) over ``[omega_p pi, pi]`` only, by linear programming
+    (``scipy.optimize.linprog``, HiGHS): minimise ``delta`` subject to
+    ``|D(w) - w| / w <= delta`` on ``points`` frequencies. Returns the coefficients
+    ``[c, d]`` and the relative error in dB on a grid ten times finer."""
+    from scipy.optimize import linprog
+
+    w = band(omega_p, points)
+    k = np.arange(1, n + 1)
+    basis = np.hstack([np.sin(np.multiply.outer(w, k)), np.sin(np.multiply.outer(w, k - 0.5))])
+    rel = basis / w[:, None]
+    ones = np.ones((w.size, 1))
+    A = np.vstack([np.hstack([rel, -ones]), np.hstack([-rel, -ones])])
+    b = np.concatenate([np.ones(w.size), -np.ones(w.size)])
+    cost = np.zeros(2 * n + 1)
+    cost[-1] = 1.0
+    sol = linprog(cost, A_ub=A, b_ub=b, bounds=[(None, None)] * (2 * n) + [(0, None)],
+                  method="highs")
+    if not sol.success:
+        raise RuntimeError(f"linprog: {sol.message}")
+    coef = sol.x[:-1]
+    fine = band(omega_p, 10 * points)
+    kf = np.arange(1, n + 1)
+    D = (np.sin(np.multiply.outer(fine, kf)) @ coef[:n]
+         + np.sin(np.multiply.outer(fine, kf - 0.5)) @ coef[n:])
+    return coef, relative_error_db(D, fine)
+
+
+def order_minimax_band(omega_p: float, threshold_db: float, max_n: int = 20) -> int | None:
+    """Smallest ``2n`` of the band-limited minimax design meeting ``threshold_db``."""
+    for n in range(1, max_n + 1):
+        if minimax_band(n, omega_p)[1] <= threshold_db:
+            return 2 * n
+    return None

@@ -38,3 +38,10 @@ def test_minimax_full_band_facts():
     assert re[22] == pytest.approx(-40.4, abs=0.1)
     assert re[128] == pytest.approx(-56.7, abs=0.2)     # -56.8 on this frequency grid
     assert fd.order_minimax(0.5, -60.0) is None          # "> 128"
+
+
+def test_band_limited_minimax_of_the_same_structure_beats_the_maximally_linear_design():
+    _, re_db = fd.minimax_band(2, 0.5)
+    assert re_db == pytest.approx(-72.2, abs=0.5)
+    w = fd.band(0.5)
+    assert fd.relative_error_db(fd.response(2, w), w) == pytest.approx(-21.8, abs=0.2)
