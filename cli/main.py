@@ -306,7 +306,8 @@ def _stored_tables(results: Path, metric: str):
               help="Folder of stored results [default: the project's results/].")
 @click.option("--format", "fmt", type=click.Choice(["text", "csv", "markdown", "latex"]),
               default="text", show_default=True)
-@click.option("--thesis", is_flag=True, help="Show the thesis value and ours/thesis beside ours.")
+@click.option("--thesis", "--paper", "--reference", "thesis", is_flag=True,
+              help="Show the printed value (thesis or paper) and ours/printed beside ours.")
 @click.option("--partial", is_flag=True,
               help="With --thesis: allow thesis rows that the results do not cover.")
 def table(metric, results, fmt, thesis, partial) -> None:
@@ -318,14 +319,16 @@ def table(metric, results, fmt, thesis, partial) -> None:
         if df.drop(columns=list(spec.keys), errors="ignore").isna().all().all():
             continue
         shown += 1
-        if thesis:
+        if thesis and spec.join and "table_id" in df:
             try:
                 df = tables.with_reference(df, spec, allow_unmatched=partial)
             except ReferenceJoinError as exc:
                 fail(f"{path}: {exc}")
         if fmt == "text":
             ids = ", ".join(sorted({str(t) for t in df.get("table_id", []) if t}))
-            click.echo(f"== {folder.name}" + (f" (thesis Table {ids})" if ids else ""))
+            note = f" (thesis Table {ids})" if ids else (
+                " (no printed table to compare with)" if thesis else "")
+            click.echo(f"== {folder.name}" + note)
         click.echo(tables.render(df, fmt))
     if not shown:
         fail(f"no {metric} values under {results}/ (run 'estim reproduce')")

@@ -388,3 +388,9 @@ def test_every_package_of_the_tree_is_shipped():
         for init in (root / top).rglob("__init__.py"):
             name = ".".join(init.parent.relative_to(root).parts)
             assert name in listed, f"{name} is not in pyproject.toml's packages"
+
+
+def test_table_with_thesis_on_a_table_without_printed_values_prints_it_plainly():
+    result = CliRunner().invoke(main, ["table", "derivative", "--paper"])
+    assert result.exit_code == 0, result.output
+    assert "no printed table to compare with" in result.output
