@@ -103,6 +103,8 @@ def test_stored_results_join_every_thesis_row(path):
     from cli.main import read_table
     from core import tables
     exp = parse_data(yaml.safe_load(path.read_text()), str(path), path.stem)
+    if not any(spec.join for spec in ANALYSES[exp.analysis].TABLES.values()):
+        pytest.skip(f"{exp.analysis}: the paper prints no numbers to join")
     folder = ROOT / "results" / exp.name
     filled = 0
     for spec in ANALYSES[exp.analysis].TABLES.values():

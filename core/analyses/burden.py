@@ -148,7 +148,7 @@ def work_size(spec: dict) -> int:
 
 def tiny(spec: dict) -> dict:
     spec["stages"] = spec.get("stages", [1, 2])[:2]
-    spec["timing"] = {**spec.get("timing", {}), "steps": 10, "repeats": 1, "block_samples": 64}
+    spec["timing"] = {**(spec.get("timing") or {}), "steps": 10, "repeats": 1, "block_samples": 64}
     return spec
 
 

@@ -159,14 +159,14 @@ def work_size(spec: dict) -> int:
     points = sum(z.get("points_r", 5) * z.get("points_theta", 5) for z in spec["zones"])
     return int(spec["monte_carlo"]["runs"] * points * 12 * t["samples_per_period"]
                * t["periods"] * len(spec["noise"]["source_levels"])
-               * len(spec["noise"].get("readings", ["sigma", "variance"])))
+               * len(spec["noise"].get("readings") or ["sigma", "variance"]))
 
 
 def tiny(spec: dict) -> dict:
     spec["noise"].update(source_levels=spec["noise"]["source_levels"][:1],
-                         readings=spec["noise"].get("readings", ["sigma"])[:1])
+                         readings=(spec["noise"].get("readings") or ["sigma"])[:1])
     spec["zones"] = spec["zones"][:1]
-    spec["time"] = {**spec.get("time", {}), "periods": 1}
+    spec["time"] = {**(spec.get("time") or {}), "periods": 1}
     spec["monte_carlo"]["runs"] = 3
     return spec
 

@@ -174,7 +174,7 @@ def work_size(spec: dict) -> int:
     g, t = spec["grid"], spec["time"]
     per_period = round(g["n"] / (g["courant"] * g["length"]))
     steps = (t["spinup_periods"] + t["periods"]) * per_period
-    points = len(spec["noise"]["source_levels"]) * len(spec["noise"].get("readings", [1]))
+    points = len(spec["noise"]["source_levels"]) * len(spec["noise"].get("readings") or [1])
     updates = (4 * g["n"] ** 3 * (spec["filter"]["members"] + 1) * steps * points
                * len(spec["scenarios"]) * spec["monte_carlo"]["runs"])
     return int(updates / FIELD_COST_RATIO)
@@ -185,13 +185,13 @@ def work_units(exp: Experiment) -> int:
 
 
 def tiny(spec: dict) -> dict:
-    spec["grid"] = {**spec.get("grid", {}), "n": 12}
+    spec["grid"] = {**(spec.get("grid") or {}), "n": 12}
     spec["zones"] = [{"name": "far", "r": [0.9, 1.5]}]
-    spec["sensors"] = {**spec.get("sensors", {}), "r": [0.2, 1.5], "fraction": 0.05}
+    spec["sensors"] = {**(spec.get("sensors") or {}), "r": [0.2, 1.5], "fraction": 0.05}
     spec["scenarios"] = spec["scenarios"][:1]
     spec["noise"].update(source_levels=spec["noise"]["source_levels"][:1],
-                         readings=spec["noise"].get("readings", ["sigma"])[:1])
-    spec["filter"] = {**spec.get("filter", {}), "members": 5}
+                         readings=(spec["noise"].get("readings") or ["sigma"])[:1])
+    spec["filter"] = {**(spec.get("filter") or {}), "members": 5}
     spec["time"] = {"spinup_periods": 1, "periods": 1}
     spec["monte_carlo"]["runs"] = 1
     return spec

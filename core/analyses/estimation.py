@@ -269,10 +269,10 @@ def tiny(spec: dict) -> dict:
     else:
         spec["input"]["duration_s"] = 2.0 / spec["input"]["frequencies_hz"][0]
     spec["noise"].update(input_levels=spec["noise"]["input_levels"][:1],
-                         readings=spec["noise"].get("readings", ["sigma"])[:1],
-                         measurement=spec["noise"].get("measurement", ["noisy"])[:1])
+                         readings=(spec["noise"].get("readings") or ["sigma"])[:1],
+                         measurement=(spec["noise"].get("measurement") or ["noisy"])[:1])
     spec["monte_carlo"]["runs"] = 3
-    spec["figures"] = {"names": spec.get("figures", {}).get("names", {})}
+    spec["figures"] = {"names": (spec.get("figures") or {}).get("names", {})}
     return spec
 
 

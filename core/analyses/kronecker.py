@@ -262,7 +262,7 @@ def work_size(spec: dict) -> int:
 def tiny(spec: dict) -> dict:
     spec["input"].update(frequencies_hz=spec["input"]["frequencies_hz"][:1], periods=2)
     spec["noise"].update(input_levels=spec["noise"]["input_levels"][:1],
-                         readings=spec["noise"].get("readings", ["variance"])[:1])
+                         readings=(spec["noise"].get("readings") or ["variance"])[:1])
     spec["geometry"]["columns"] = spec["geometry"]["columns"][:1]
     spec["monte_carlo"]["runs"] = 3
     spec["figures"] = {}

@@ -139,7 +139,7 @@ def tiny(spec: dict) -> dict:
     """Seconds of work: the first row only, at 32 samples a period (or 64 after a step)."""
     spec["rows"] = spec["rows"][:1]
     spec["excitation"].update(samples_per_period=32, samples=64)
-    spec["figures"] = {"name": spec.get("figures", {}).get("name", "perturbation")}
+    spec["figures"] = {"name": (spec.get("figures") or {}).get("name", "perturbation")}
     return spec
 
 
