@@ -101,8 +101,9 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
                     err = np.abs(values - clean)
                 mean_err = np.where(np.isfinite(err).all(axis=1), err.mean(axis=1), np.inf)
                 max_err = np.where(np.isfinite(err).all(axis=1), err.max(axis=1), np.inf)
-                m, m_se = metrics.mean_and_se(mean_err)
-                x, x_se = metrics.mean_and_se(max_err)
+                with np.errstate(invalid="ignore"):     # a diverged run is inf: SE nan
+                    m, m_se = metrics.mean_and_se(mean_err)
+                    x, x_se = metrics.mean_and_se(max_err)
                 rows.append({"reading": reading["name"], "A": sig["A"], "sigma": sig["sigma"],
                              "estimator": name, "mean_abs_error": m, "mean_abs_error_se": m_se,
                              "max_abs_error": x, "max_abs_error_se": x_se, "runs": runs})
