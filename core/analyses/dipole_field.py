@@ -43,7 +43,7 @@ from core.analyses.dipole import COMPONENTS, TABLE_IDS, sinusoid_rls
 from core.errors import ConfigError
 from core.fields import etkf, wave
 from core.fields.dipole import Dipole
-from core.fields.fdtd import Grid, Simulation, fields_from
+from core.fields.fdtd import Grid, Simulation, fields_from, spherical
 from core.schema import REQUIRED, Experiment, check_interval, integer, list_of, number, text
 
 _READING = text({"sigma", "variance"})
@@ -304,15 +304,24 @@ def run_point(exp: Experiment, key: tuple) -> tuple[list[dict], dict]:
             times.append(t_obs)
             ens, plain = analysed, plain_next
             t += dt
-        per_run[run] = _errors(exp, grid, phasors, dipole, sensors, np.array(times), traces,
-                               quarter)
+        times = np.array(times)
+        measured = np.stack(traces["measured"])                # (steps, 2, 3, sensors)
+        smooth = _smoothed(measured, times, dipole.omega, spec["rls"])
+        per_run[run] = _errors(exp, grid, phasors, dipole, sensors, times, traces, measured,
+                               smooth, quarter)
         if run == 0 and r_idx == 0 and l_idx == 0:
-            slices = _slices(exp, grid, phasors, dipole, sensors, np.array(times), traces)
+            slices = _slices(grid, phasors, dipole, sensors, times, traces, smooth[-1])
     figure = {"scenario": scenario["name"], **slices} if r_idx == 0 and l_idx == 0 else {}
     return _rows(exp, key, reading, level, per_run), figure
 
 
-def _slices(exp, grid, phasors, dipole, sensors, times, traces) -> dict:
+def _smoothed(measured: np.ndarray, times: np.ndarray, omega: float, rls: dict) -> np.ndarray:
+    """The RLS baseline on every sensor's time series, shaped like ``measured``."""
+    series = measured.reshape(len(times), -1).T[:, :, None]    # (sensors x 6, steps, 1)
+    return sinusoid_rls(series, times, omega, rls)[..., 0].T.reshape(measured.shape)
+
+
+def _slices(grid, phasors, dipole, sensors, times, traces, smooth_last) -> dict:
     """|E| and |H| in the plane through the source nearest y = 0 at the last recorded step:
     the analytic truth, the filter's mean, the RLS baseline (nearest sensor) and the
     filter's error; points within two cells of the source are left blank."""
@@ -321,12 +330,8 @@ def _slices(exp, grid, phasors, dipole, sensors, times, traces) -> dict:
     turn = np.exp(1j * dipole.omega * times[-1])
     truth = _analytic_cartesian(grid, phasors, turn, plane)
     kf = np.stack([traces[KF][-1]["E"][0][:, plane], traces[KF][-1]["H"][0][:, plane]])
-    measured = np.stack(traces["measured"])
-    series = measured.reshape(len(times), -1).T[:, :, None]
-    smooth = sinusoid_rls(series, times, dipole.omega, exp.spec["rls"])[..., 0].T.reshape(
-        measured.shape)[-1]
     _, nearest = cKDTree(grid.xyz[sensors]).query(grid.xyz[plane])
-    rls = smooth[..., nearest]
+    rls = smooth_last[..., nearest]
     blank = grid.r[plane] < 2 * grid.spacing
     out = {}
     for i, field_name in enumerate(("E", "H")):
@@ -380,7 +385,8 @@ def _analytic_cartesian(grid: Grid, phasors: dict, turn: complex,
     return np.stack([E, H])
 
 
-def _errors(exp, grid, phasors, dipole, sensors, times, traces, quarter: int) -> dict:
+def _errors(exp, grid, phasors, dipole, sensors, times, traces, measured, smooth,
+            quarter: int) -> dict:
     """Per estimator, component, zone and part: (mean squared error, mean squared truth).
 
     The record starts a quarter period (``quarter`` steps) before the table's window.
@@ -388,13 +394,8 @@ def _errors(exp, grid, phasors, dipole, sensors, times, traces, quarter: int) ->
     experiment driven by ``Im{I0 e^{j omega t}}`` is this one a quarter period later, so
     its estimate at ``t`` is this run's estimate at ``t - T/4``, against
     ``Im{F e^{j omega t}}``. ``abs``: the magnitude formed from the two, against ``|F|``."""
-    spec = exp.spec
     out = {}
-    measured = np.stack(traces["measured"])                    # (steps, 2, 3, sensors)
     tree = cKDTree(grid.xyz[sensors])
-    series = measured.reshape(len(times), -1).T[:, :, None]    # (sensors x 6, steps, 1)
-    smooth = sinusoid_rls(series, times, dipole.omega, spec["rls"])[..., 0].T.reshape(
-        measured.shape)
     for zone, where in exp.plan["zones"].items():
         _, nearest = tree.query(grid.xyz[where])
         turn = np.exp(1j * dipole.omega * times)[:, None]
@@ -407,11 +408,11 @@ def _errors(exp, grid, phasors, dipole, sensors, times, traces, quarter: int) ->
                 continue
             E = np.stack([tr["E"][0] for tr in traces[name]])[..., where]
             H = np.stack([tr["H"][0] for tr in traces[name]])[..., where]
-            Es, Hs = _sph(grid, E, where), _sph(grid, H, where)
+            Es, Hs = spherical(grid, E, where), spherical(grid, H, where)
             est[name] = {"E_r": Es["r"], "E_theta": Es["theta"], "H_phi": Hs["phi"]}
         for name, data in (("measurement", measured), (RLS, smooth)):
             E, H = data[:, 0][..., nearest], data[:, 1][..., nearest]
-            Es, Hs = _sph(grid, E, where), _sph(grid, H, where)
+            Es, Hs = spherical(grid, E, where), spherical(grid, H, where)
             est[name] = {"E_r": Es["r"], "E_theta": Es["theta"], "H_phi": Hs["phi"]}
         q = quarter
         for name, comps in est.items():
@@ -426,14 +427,6 @@ def _errors(exp, grid, phasors, dipole, sensors, times, traces, quarter: int) ->
                     out[(name, zone, comp, part)] = (mse if np.isfinite(mse) else np.inf,
                                                      float(np.mean(truth**2)))
     return out
-
-
-def _sph(grid: Grid, F: np.ndarray, where: np.ndarray) -> dict[str, np.ndarray]:
-    th, ph = grid.theta[where], grid.phi[where]
-    st, ct, sp_, cp = np.sin(th), np.cos(th), np.sin(ph), np.cos(ph)
-    fx, fy, fz = F[:, 0], F[:, 1], F[:, 2]
-    return {"r": st * cp * fx + st * sp_ * fy + ct * fz,
-            "theta": ct * cp * fx + ct * sp_ * fy - st * fz, "phi": -sp_ * fx + cp * fy}
 
 
 def _rows(exp, key, reading, level, per_run) -> list[dict]:

@@ -157,10 +157,12 @@ def fields_from(grid: Grid, A: np.ndarray, Phi: np.ndarray, dA_dt: np.ndarray,
     return {"E": E, "H": H}
 
 
-def spherical(grid: Grid, F: np.ndarray) -> dict[str, np.ndarray]:
-    """Cartesian ``(..., 3, n^3)`` -> r, theta, phi components."""
-    st, ct = np.sin(grid.theta), np.cos(grid.theta)
-    sp_, cp = np.sin(grid.phi), np.cos(grid.phi)
+def spherical(grid: Grid, F: np.ndarray, where: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """Cartesian ``(..., 3, points)`` -> r, theta, phi components, at the grid points
+    ``where`` (default: all of them)."""
+    sel = slice(None) if where is None else where
+    th, ph = grid.theta[sel], grid.phi[sel]
+    st, ct, sp_, cp = np.sin(th), np.cos(th), np.sin(ph), np.cos(ph)
     fx, fy, fz = F[..., 0, :], F[..., 1, :], F[..., 2, :]
     return {"r": st * cp * fx + st * sp_ * fy + ct * fz,
             "theta": ct * cp * fx + ct * sp_ * fy - st * fz,

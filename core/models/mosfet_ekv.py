@@ -47,7 +47,10 @@ DRAIN_CURRENT_LAWS = (
 
 
 @dataclass(frozen=True)
-class MosfetParams:
+class DeviceParams:
+    """The EKV transistor and its capacitor network (eqs 3.1-3.4, 4.1-4.4): the values
+    every MOSFET model here shares; each model adds its circuit around it."""
+
     U_T: float = param(0.0256, "V", "thermal voltage")
     V_T0: float = param(0.5, "V", "equilibrium threshold voltage")
     eta: float = param(1.0, "-", "subthreshold slope factor")
@@ -60,6 +63,10 @@ class MosfetParams:
     C_B: float = param(4.0e-10, "F", "gate-bulk capacitance")
     C_BS: float = param(0.99e-11, "F", "bulk-source capacitance")
     C_BD: float = param(1.0e-11, "F", "bulk-drain capacitance")
+
+
+@dataclass(frozen=True)
+class MosfetParams(DeviceParams):
     V_IN: float = param(0.435, "V", "DC gate bias")
     V_DD: float = param(1.0, "V", "drain supply")
     R_D: float = param(1.0e5, "Ohm", "drain load (inf: none)")

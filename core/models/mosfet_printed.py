@@ -20,22 +20,16 @@ import numpy as np
 
 from core.kronecker import printed_matrices, printed_s
 from core.models.base import Model, check_params, param
+from core.models.mosfet_ekv import DeviceParams
 
 
 @dataclass(frozen=True)
-class PrintedParams:
-    U_T: float = param(0.0256, "V", "thermal voltage")
-    V_T0: float = param(0.5, "V", "equilibrium threshold voltage")
-    eta: float = param(1.0, "-", "subthreshold slope factor")
-    I_0: float = param(1.0e-9, "A", "unary specific current")
+class PrintedParams(DeviceParams):
+    """The shared device values (:class:`core.models.mosfet_ekv.DeviceParams`) with
+    Chapter 4's printed ``W/L`` and ``C_GX``, and the O.U. input's decay rate."""
+
     W_L: float = param(1.0, "-", "aspect ratio W/L")
-    R_in: float = param(3.0e3, "Ohm", "gate bias resistor")
     C_GX: float = param(1.0e-11, "F", "input coupling capacitor (as printed, l. 2325)")
-    C_S: float = param(1.5e-10, "F", "gate-source capacitance")
-    C_D: float = param(1.5e-10, "F", "gate-drain capacitance")
-    C_B: float = param(4.0e-10, "F", "gate-bulk capacitance")
-    C_BS: float = param(0.99e-11, "F", "bulk-source capacitance")
-    C_BD: float = param(1.0e-11, "F", "bulk-drain capacitance")
     gamma: float = param(1.0, "1/s", "O.U. decay rate of the input (eq 4.8)")
     V_IN: float = param(0.5, "V", "DC gate bias u2 (not printed)")
 
