@@ -185,10 +185,11 @@ def parse_data(data: dict, source: str, default_name: str,
 
 
 def _check_table_ids(spec: dict, module, source: str) -> None:
-    """Each ``tables.<metric>`` names a shipped reference table this metric may join."""
+    """Each ``tables.<metric>`` names a shipped reference table this metric may join, or is
+    :data:`core.tables.OWN_TABLE`."""
     for metric, table_id in (spec.get("tables") or {}).items():
         table = module.TABLES.get(metric)
-        if table_id is None or table is None:
+        if table_id is None or table is None or table_id == tables.OWN_TABLE:
             continue
         if table.reference_ids and table_id not in table.reference_ids:
             raise ConfigError(source, f"tables.{metric}", f"expected one of "

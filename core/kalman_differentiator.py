@@ -89,3 +89,28 @@ def differentiate(z: np.ndarray, F, G, H, R, dt: float, x0=None, P0=None) -> dic
     return {"derivative": est.x_hat @ D.T,
             "variance": np.einsum("ij,rtjk,lk->rtil", D, est.P, D)[..., 0, 0],
             "Phi": Phi, "Qd": Qd, "Rd": Rd}
+
+
+def with_bandwidth(samples: np.ndarray, dt: float, bandwidth_hz: float) -> np.ndarray:
+    """Derivative estimates of sampled signals ``(runs, steps, p)`` at every sample, by the
+    double-integrator differentiator whose corner is ``w0 = 2 pi bandwidth_hz``.
+
+    Only ``q/r = w0^4`` sets the gain, so ``r = 1``. Each channel is filtered relative to its
+    first sample (the derivative does not see a constant), from the filter's steady state:
+    ``P0`` is the stationary posterior covariance, so the gain is constant from the first
+    step.
+    """
+    samples = np.asarray(samples, float)
+    w0 = 2 * np.pi * bandwidth_hz
+    F = np.array([[0.0, 1.0], [0.0, 0.0]])
+    G, H = np.array([[0.0], [w0**2]]), np.array([[1.0], [0.0]])
+    Phi, Qd = discretize(F, G, dt)
+    Rd = np.array([[1.0 / dt]])
+    prior = linalg.solve_discrete_are(Phi.T, H, Qd, Rd)
+    gain = prior @ H @ np.linalg.inv(H.T @ prior @ H + Rd)
+    posterior = prior - gain @ H.T @ prior
+    out = np.empty_like(samples)
+    for c in range(samples.shape[-1]):
+        z = samples[..., c:c + 1] - samples[..., :1, c:c + 1]
+        out[..., c] = differentiate(z, F, G, H, 1.0, dt, P0=posterior)["derivative"][..., 0]
+    return out

@@ -13,6 +13,10 @@ import pandas as pd
 from core.analyses.base import TableSpec
 from core.errors import ReferenceJoinError
 
+OWN_TABLE = "ours"
+"""``tables.<metric>: ours`` in a config writes the table without naming a thesis table (a
+study that extends one); its ``table_id`` column is left empty."""
+
 
 def _reference_name(table_id: str) -> str:
     return "table_" + table_id.replace(".", "_") + ".csv"

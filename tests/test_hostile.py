@@ -214,6 +214,17 @@ HOSTILE = [
     ("dipole_field", {"sensors.measurement_sigma": 0}, "sensors.measurement_sigma",
      "positive number"),
     ("dipole_field", {"time.spinup_periods": 0}, "time.spinup_periods", "integer from 1"),
+    ("mosfet_input_derivative", {"estimators.1.input_derivative": "spline"},
+     "estimators[1].input_derivative", "'analytic', 'difference', 'kalman'"),
+    ("mosfet_input_derivative", {"estimators.1.derivative_bandwidth": 0},
+     "estimators[1].derivative_bandwidth", "number"),
+    ("mosfet_input_derivative", {"noise.input_sensor_sigma": -0.1},
+     "noise.input_sensor_sigma", "number >= 0"),
+    ("mosfet_input_derivative", {"noise.filters_see": "nominal"}, "noise.input_sensor_sigma",
+     "filters_see: noisy"),
+    ("diffamp_ekf", {"estimators.0.input_derivative": "kalman"},
+     "estimators[0].input_derivative", "not the derivative of its source"),
+    ("mosfet_input_derivative", {"tables.rmse": "3.7"}, "tables.rmse", "'3.1', '3.2', '3.5'"),
 ]
 
 

@@ -57,3 +57,21 @@ def test_monte_carlo_derivative_error_matches_the_discrete_riccati():
 def test_a_model_whose_derivative_holds_white_noise_is_refused():
     with pytest.raises(ValueError, match="H'G != 0"):
         kd.differentiate(np.zeros((1, 5, 1)), F, np.array([[1.0], [0.0]]), H, 1e-4, 1e-3)
+
+
+def test_with_bandwidth_tracks_a_ramp_exactly_and_lags_a_sine_as_the_closed_form():
+    """The double integrator's differentiator has zero steady-state error on a ramp (type 2),
+    and on a sine its steady-state output is the sine's derivative through
+    ``s w0^2 / (s^2 + sqrt(2) w0 s + w0^2)``, to within one sample of phase (the discrete
+    filter's update with the current sample)."""
+    dt, f, f0 = 1e-5, 100.0, 400.0
+    t = np.arange(4001) * dt
+    ramp = np.stack([3.0 * t + 0.2, -7.0 * t], axis=-1)[None]
+    d = kd.with_bandwidth(ramp, dt, f0)
+    np.testing.assert_allclose(d[0, -500:], [[3.0, -7.0]] * 500, rtol=1e-6)
+    w, w0 = 2 * np.pi * f, 2 * np.pi * f0
+    d = kd.with_bandwidth(np.sin(w * t)[None, :, None], dt, f0)[0, :, 0]
+    gain = 1j * w * w0**2 / ((1j * w) ** 2 + np.sqrt(2) * w0 * 1j * w + w0**2)
+    expected = np.abs(gain) * np.sin(w * t + np.angle(gain))
+    tail = slice(-1000, None)
+    assert np.max(np.abs(d[tail] - expected[tail])) < w * (w * dt)   # a sample's phase

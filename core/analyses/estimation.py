@@ -10,7 +10,9 @@ For each sweep point (noise reading x noise level x input frequency, in thesis r
    operating point;
 3. measurements are the actual output plus white measurement noise;
 4. every estimator sees the measurements and the nominal input (or the noisy one, when
-   ``noise.filters_see`` is ``noisy``) and starts from the actual DC operating point;
+   ``noise.filters_see`` is ``noisy``, measured with ``noise.input_sensor_sigma`` of its
+   own noise), fed to it as ``estimators[i].input_derivative`` says, and starts from the
+   actual DC operating point;
 5. every filter's health is judged (:mod:`core.health`): NEES against the actual states,
    NIS, whiteness of the innovations, and divergence by the stated criterion;
 6. RMSE (eq 3.42) is reported over the runs that did not diverge and over all runs
@@ -31,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from core import health, metrics, plots, registry, signals, tables, tuning
+from core import health, kalman_differentiator, metrics, plots, registry, signals, tables, tuning
 from core.analyses.base import Result, TableSpec, map_tasks
 from core.errors import ConfigError, UsageError
 from core.estimators.base import as_matrix
@@ -57,6 +59,11 @@ from core.schema import (
 from core.simulate import SOLVERS
 
 FIGURE_KINDS = ("noiseless", "noisy", "rmse", "residual")
+DERIVATIVE_METHODS = {"difference", "analytic", "kalman"}
+"""How a filter gets ``dv_in/dt`` for a model whose input is the source's slope (eq 3.26):
+the difference of the samples it sees on each interval (the default), the nominal sine's
+derivative at the interval's midpoint, or the Kalman differentiator of the samples it sees
+(``derivative_bandwidth`` times the input frequency; :mod:`core.kalman_differentiator`)."""
 _READING = text({"sigma", "variance"})
 
 SCHEMA: dict = {
@@ -79,6 +86,7 @@ SCHEMA: dict = {
         "measurement": (list_of(text({"noisy", "noise_free"}), unique=True, max_length=2),
                         ["noisy"]),
         "filters_see": (text({"nominal", "noisy"}), "nominal"),
+        "input_sensor_sigma": (number(minimum=0.0, maximum=MAX_VOLTS), 0.0),
         "pairs": (boolean, False),
     }, REQUIRED),
     "simulation": simulation_block(rtol=1e-6, atol=1e-7),
@@ -87,6 +95,8 @@ SCHEMA: dict = {
         "type": (text(registry.ESTIMATORS), REQUIRED),
         "model_params": (mapping, {}),
         "settings": (mapping, {}),
+        "input_derivative": (text(DERIVATIVE_METHODS), "difference"),
+        "derivative_bandwidth": (number(minimum=0.1, maximum=1000.0), 3.0),
     }, max_length=20), REQUIRED),
     "monte_carlo": ({
         "runs": (integer(1, 1_000_000), REQUIRED),
@@ -164,6 +174,8 @@ class Plan:
     truth: object
     filters: tuple
     x0: object
+    inputs: tuple = ()
+    """Per estimator: its ``(input_derivative, derivative_bandwidth)``."""
 
 
 def prepare(spec: dict, source: str) -> Plan:
@@ -191,6 +203,9 @@ def prepare(spec: dict, source: str) -> Plan:
             for i, v in enumerate(values):
                 if v in values[:i]:
                     raise ConfigError(source, f"{key}[{i}]", f"repeats {v!r}")
+    if noise["input_sensor_sigma"] > 0 and noise["filters_see"] != "noisy":
+        raise ConfigError(source, "noise.input_sensor_sigma", "applies only when the filters "
+                          "see the noisy source (noise.filters_see: noisy)")
     truth = build_model(model_cls, variant, spec["model"]["params"], source, "model.params")
     x0 = operating_point(truth, inp["bias_v"], source, "model.params")
     filters, labels = [], []
@@ -207,6 +222,10 @@ def prepare(spec: dict, source: str) -> Plan:
         estimator = build_estimator(registry.ESTIMATORS[est["type"]], est["settings"], model,
                                     source, f"{path}.settings")
         filters.append((est["label"], estimator, model))
+        if est["input_derivative"] != "difference" and not model_cls.input_is_source_slope:
+            raise ConfigError(source, f"{path}.input_derivative",
+                              f"model {spec['model']['name']}'s input is not the derivative of "
+                              "its source; only 'difference' (the model's own mapping) applies")
     regime = spec["regime"]
     if regime is not None and regime not in truth.regimes:
         raise ConfigError(source, "regime", f"expected one of {list(truth.regimes)} for "
@@ -240,7 +259,9 @@ def prepare(spec: dict, source: str) -> Plan:
         raise ConfigError(source, "input.sample_time_s",
                           f"{dt:g} s samples the highest input frequency "
                           f"{max(inp['frequencies_hz']):g} Hz fewer than once in ten periods")
-    return Plan(truth=truth, filters=tuple(filters), x0=x0)
+    inputs = tuple((e["input_derivative"], e["derivative_bandwidth"])
+                   for e in spec["estimators"])
+    return Plan(truth=truth, filters=tuple(filters), x0=x0, inputs=inputs)
 
 
 def work_size(spec: dict) -> int:
@@ -340,14 +361,33 @@ def simulate_point(exp: Experiment, frequency_hz: float, sigma: float, runs: int
     if measurement == "noise_free":
         z = actual.copy()
     seen = clean[None] if noise["filters_see"] == "nominal" else source
-    return {"t": t[1:], "dt": dt, "x0": x0, "source": source, "clean": clean,
-            "states": states, "actual": actual, "z": z, "u": truth.source_to_input(seen, dt)}
+    if noise["input_sensor_sigma"] > 0:        # the filters measure the source imperfectly
+        seen = seen + signals.gaussian(rng, noise["input_sensor_sigma"], source.shape) * mix
+        seen[:, 0] = source[:, 0]               # v_in(t_0) is known, as for the circuit
+    return {"t": t[1:], "dt": dt, "x0": x0, "source": source, "clean": clean, "seen": seen,
+            "frequency_hz": frequency_hz, "states": states, "actual": actual, "z": z,
+            "u": truth.source_to_input(seen, dt)}
+
+
+def filter_input(exp: Experiment, data: dict, method: str, bandwidth: float) -> np.ndarray:
+    """The input a filter is given on each sample interval (:data:`DERIVATIVE_METHODS`)."""
+    if method == "difference":
+        return data["u"]
+    inp, f, dt = exp.spec["input"], data["frequency_hz"], data["dt"]
+    mix = np.asarray(inp["mix"], float)
+    if method == "analytic":
+        w = 2 * np.pi * f
+        middle = data["t"] - dt / 2
+        return (inp["amplitude_v"] * w * np.cos(w * middle))[None, :, None] * mix
+    slopes = kalman_differentiator.with_bandwidth(data["seen"], dt, bandwidth * f)
+    return 0.5 * (slopes[:, 1:] + slopes[:, :-1])
 
 
 def estimate_point(exp: Experiment, data: dict) -> list:
     """Run every configured estimator on one simulated batch."""
-    return [est.run(model, data["z"], data["u"], data["dt"], x0=data["x0"])
-            for _, est, model in exp.plan.filters]
+    inputs = exp.plan.inputs or (("difference", 0.0),) * len(exp.plan.filters)
+    return [est.run(model, data["z"], filter_input(exp, data, *how), data["dt"], x0=data["x0"])
+            for (_, est, model), how in zip(exp.plan.filters, inputs, strict=True)]
 
 
 def judge(exp: Experiment, data: dict, est, model) -> dict:
@@ -473,8 +513,9 @@ def figure_cases(exp: Experiment) -> list[tuple[str, float, float, str]]:
 
 
 def thesis_row_numbers(rows: pd.DataFrame, table_id: str | None) -> pd.Series:
-    """The thesis row (``s_no``) of each of our rows: same noise number and frequency."""
-    if table_id is None:
+    """The thesis row (``s_no``) of each of our rows: same noise number and frequency (none
+    where ``table_id`` is a label of our own, not a thesis table)."""
+    if table_id is None or not tables.has_reference_table(table_id):
         return pd.Series([pd.NA] * len(rows), dtype="Int64")
     ref = tables.reference_table(table_id).drop_duplicates("s_no")
     s_no = []
@@ -487,7 +528,7 @@ def thesis_row_numbers(rows: pd.DataFrame, table_id: str | None) -> pd.Series:
 def result_table(rows: list[dict], metric: str, table_id: str | None) -> pd.DataFrame:
     """The ``metric`` table from the sweep's rows, with thesis table id and row number."""
     df = pd.DataFrame(rows)
-    df.insert(0, "table_id", table_id if table_id else "")
+    df.insert(0, "table_id", table_id if table_id and table_id != tables.OWN_TABLE else "")
     df.insert(1, "s_no", thesis_row_numbers(df, table_id))
     return df[TABLES[metric].columns].reset_index(drop=True)
 

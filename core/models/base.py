@@ -154,6 +154,10 @@ class Model:
     derivatives involving ``u`` are exactly zero, and :func:`core.kronecker.from_model` sets
     them so instead of keeping the rounding of a numerical Hessian."""
 
+    input_is_source_slope: bool = False
+    """The model input is the source's time derivative (``dv_in/dt``, eq 3.26), so a filter
+    can be fed other estimates of it (``estimators[i].input_derivative``)."""
+
     regimes: tuple[str, ...] = ()
     """Operating regimes :meth:`in_regime` can test (the regimes the thesis' tables name)."""
 

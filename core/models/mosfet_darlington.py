@@ -44,6 +44,7 @@ class MosfetDarlington(Model):
 
     name = "mosfet_darlington"
     input_names = ("dv_in/dt",)
+    input_is_source_slope = True
     output_names = ("v_D",)
     input_affine = True
     Params = ChainParams

@@ -102,6 +102,7 @@ class MosfetEKV(Model):
     name = "mosfet_ekv"
     state_names = ("v_G", "v_B", "v_S", "v_D")
     input_names = ("dv_in/dt",)
+    input_is_source_slope = True
     output_names = ("v_D",)
     input_affine = True
     Params = MosfetParams
