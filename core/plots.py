@@ -203,6 +203,20 @@ def differentiator_response(f_hz, curves: dict) -> Figure:
     return fig
 
 
+def noisy_signal(t, clean: np.ndarray, noisy: np.ndarray, title: str) -> Figure:
+    """A noisy record and the signal in it (the passive-network paper's Figs 4 and 6)."""
+    fig, ax = plt.subplots(figsize=(8.0, 3.2))
+    ax.plot(t, noisy, lw=0.8, color="0.55", label="x + N (measured)")
+    ax.plot(t, clean, lw=1.4, color="C0", label="x")
+    ax.set_title(title, fontsize=9)
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("signal")
+    ax.legend(fontsize=8, loc="upper right")
+    ax.grid(True, lw=0.3)
+    fig.tight_layout()
+    return fig
+
+
 def absolute_errors(t, data: dict, title: str) -> Figure:
     """Absolute estimation error against time, one panel per reading (the passive-network
     paper's Figs 5 and 7), log scale."""

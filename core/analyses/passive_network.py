@@ -36,7 +36,12 @@ SCHEMA: dict = {
         "runs": (integer(2, 100_000), REQUIRED),
         "seed": (integer(0, 2**63 - 1), REQUIRED),
     }, REQUIRED),
-    "figures": ({"name": (file_name, "fig_7"), "A": (number(), 100.0)}, {}),
+    "figures": (list_of({
+        "A": (number(), REQUIRED),
+        "signal": (file_name, None),
+        "errors": (file_name, None),
+    }, nonempty=False, max_length=20), [{"A": 1.0, "signal": "fig_4", "errors": "fig_5"},
+                                        {"A": 100.0, "signal": "fig_6", "errors": "fig_7"}]),
 }
 
 ESTIMATORS = ("eq 19", "eq 22", "Kalman filter")
@@ -58,6 +63,18 @@ def prepare(spec: dict, source: str) -> None:
     for i, name in enumerate(names):
         if name in names[:i]:
             raise ConfigError(source, f"readings[{i}].name", f"repeats {name!r}")
+    amplitudes = [sig["A"] for sig in spec["signals"]]
+    files: list[str] = []
+    for i, fig in enumerate(spec["figures"]):
+        if fig["A"] not in amplitudes:
+            raise ConfigError(source, f"figures[{i}].A", f"expected the A of a signal "
+                              f"{amplitudes}, got {fig['A']!r}")
+        for kind in ("signal", "errors"):
+            if fig[kind] is None:
+                continue
+            if fig[kind] in files:
+                raise ConfigError(source, f"figures[{i}].{kind}", f"repeats {fig[kind]!r}")
+            files.append(fig[kind])
 
 
 def work_units(exp: Experiment) -> int:
@@ -107,8 +124,10 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
                 rows.append({"reading": reading["name"], "A": sig["A"], "sigma": sig["sigma"],
                              "estimator": name, "mean_abs_error": m, "mean_abs_error_se": m_se,
                              "max_abs_error": x, "max_abs_error_se": x_se, "runs": runs})
-            if sig["A"] == spec["figures"]["A"]:
-                figure_data[reading["name"]] = {n: np.abs(v[0] - clean) for n, v in est.items()}
+            errors = {n: np.abs(v[0] - clean) for n, v in est.items()}
+            figure_data.setdefault(sig["A"], {"clean": clean, "noisy": noisy[0],
+                                              "sigma": sig["sigma"], "errors": {}})
+            figure_data[sig["A"]]["errors"][reading["name"]] = errors
     df = pd.DataFrame(rows)[TABLES["errors"].columns]
     a = df[df["estimator"] == "eq 19"].set_index(["reading", "A", "sigma"])["mean_abs_error"]
     b = df[df["estimator"] == "eq 22"].set_index(["reading", "A", "sigma"])["mean_abs_error"]
@@ -117,9 +136,14 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     claims["holds"] = claims["eq22_mean_abs_error"] < claims["eq19_mean_abs_error"]
     claims.insert(0, "claim", "eq 22 mean |error| < eq 19 mean |error|")
     figures = {}
-    if figure_data:
-        figures[spec["figures"]["name"]] = plots.absolute_errors(t, figure_data,
-                                                                 f"A = {spec['figures']['A']:g}")
+    for fig in spec["figures"]:
+        data = figure_data[fig["A"]]
+        if fig["signal"] is not None:
+            figures[fig["signal"]] = plots.noisy_signal(
+                t, data["clean"], data["noisy"],
+                f"x = A e^-t + N, A = {fig['A']:g}, sigma = {data['sigma']:g} (run 1)")
+        if fig["errors"] is not None:
+            figures[fig["errors"]] = plots.absolute_errors(t, data["errors"], f"A = {fig['A']:g}")
     if on_done:
         on_done()
     return Result(tables={"errors": df, "claims": claims[TABLES["claims"].columns]},
