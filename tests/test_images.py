@@ -1,0 +1,70 @@
+"""The 2-D sister papers: the NSHP image model, its identification and the 2-D Kalman filter."""
+
+import numpy as np
+import pytest
+
+from core.images import kalman2d, nshp
+
+A_TRUE = np.array([0.6, 0.3, 0.5, -0.45])        # M = 1: (0,1), (1,-1), (1,0), (1,1)
+
+
+@pytest.mark.parametrize("M", [1, 2, 3])
+def test_eq_1_and_the_state_space_form_give_the_same_field(M):
+    rng = np.random.default_rng(M)
+    a = 0.05 * rng.standard_normal(2 * M * M + 2 * M)
+    e = rng.standard_normal((15, 4 * M + 7))
+    field = nshp.simulate(a, M, e)
+    np.testing.assert_allclose(nshp.simulate_state_space(a, M, e), field, atol=1e-12)
+    assert np.abs(field).max() > 0.5
+
+
+def test_the_printed_block_8b_is_wrong_for_every_block_but_the_second():
+    """Eq 8b puts a_{2,-M} in every block i = 2..M; the model needs a_{i,-M}: block i of
+    A01's first row holds exactly the coefficient of u(m - i, n + M)."""
+    M = 3
+    a = np.arange(1, 2 * M * M + 2 * M + 1, dtype=float)
+    _, A01, _ = nshp.state_matrices(a, M)
+    coeff = dict(zip(nshp.window(M), a, strict=True))
+    for i in range(2, M + 1):
+        column = (M + 1) + (i - 2) * (2 * M + 1) + M
+        assert A01[0, column] == coeff[(i, -M)]
+    assert coeff[(3, -M)] != coeff[(2, -M)]          # so the printed a_{2,-M} is wrong at i = 3
+
+
+def test_noise_corrected_yule_walker_recovers_a_synthetic_field():
+    rng = np.random.default_rng(11)
+    u = nshp.simulate(A_TRUE, 1, rng.standard_normal((300, 300)))
+    u -= u.mean()
+    sigma_v2 = u.var() / 10**0.5                     # 5 dB
+    noisy = u + np.sqrt(sigma_v2) * rng.standard_normal(u.shape)
+    a, sigma_e2 = nshp.yule_walker(noisy, 1, sigma_v2)
+    assert np.max(np.abs(a - A_TRUE)) < 0.05, a
+    assert sigma_e2 == pytest.approx(1.0, rel=0.15)
+
+
+def test_the_filter_with_the_true_model_restores_a_synthetic_field_to_its_error_variance():
+    """With the model that made the field, the filter halves the noise's mean square error
+    away from the image's edges."""
+    rng = np.random.default_rng(5)
+    u = nshp.simulate(A_TRUE, 1, rng.standard_normal((200, 200)))
+    sigma_v2 = 4.0
+    noisy = u + np.sqrt(sigma_v2) * rng.standard_normal(u.shape)
+    A10, A01, _ = nshp.state_matrices(A_TRUE, 1)
+    out = kalman2d.restore(noisy, A10, A01, 1.0, sigma_v2, 1)
+    inner = (slice(20, None), slice(20, -20))
+    mse = np.mean((out["image"] - u)[inner] ** 2)
+    assert mse < 0.5 * sigma_v2
+    assert np.all(np.isfinite(out["P_norm"])) and np.all(out["K_norm"] > 0)
+
+
+def test_non_adaptive_filter_improves_camera_at_5_db():
+    from skimage import data
+
+    img = data.camera().astype(float)[:128, :128]
+    u = img - img.mean()
+    sigma_v2 = u.var() / 10**0.5
+    noisy = u + np.sqrt(sigma_v2) * np.random.default_rng(0).standard_normal(u.shape)
+    a, sigma_e2 = nshp.yule_walker(noisy, 1, sigma_v2)
+    A10, A01, _ = nshp.state_matrices(a, 1)
+    out = kalman2d.restore(noisy, A10, A01, sigma_e2, sigma_v2, 1)["image"]
+    assert np.mean((out - u) ** 2) < 0.5 * np.mean((noisy - u) ** 2)
