@@ -232,3 +232,34 @@ def absolute_errors(t, data: dict, title: str) -> Figure:
     axes[-1, 0].set_xlabel("t [s]")
     fig.tight_layout()
     return fig
+
+
+def image_panels(images: dict, title: str) -> Figure:
+    """Grey-scale panels on the 0-255 scale, two rows (the original, the noisy and the
+    restored images)."""
+    n = len(images)
+    cols = (n + 1) // 2
+    fig, axes = plt.subplots(2, cols, figsize=(3.2 * cols, 7.2), squeeze=False)
+    for ax, (name, img) in zip(axes.ravel(), images.items(), strict=False):
+        ax.imshow(np.clip(img, 0, 255), cmap="gray", vmin=0, vmax=255,
+                  interpolation="nearest")
+        ax.set_title(name, fontsize=9)
+    for ax in axes.ravel():
+        ax.set_axis_off()
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def pixel_series(pixels, series: dict, ylabel: str, title: str) -> Figure:
+    """Quantities along a row of pixels, one line each (the 2-D Kalman paper's Figs 5-7)."""
+    fig, ax = plt.subplots(figsize=(8.0, 3.6))
+    for name, values in series.items():
+        ax.plot(pixels, values, lw=1.2, marker=".", ms=3, label=name)
+    ax.set_xlabel("pixel")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=9)
+    ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5))
+    ax.grid(True, lw=0.3)
+    fig.tight_layout()
+    return fig

@@ -120,3 +120,20 @@ def yule_walker(noisy: np.ndarray, M: int, noise_variance: float) -> tuple[np.nd
     a = np.linalg.solve(R, rhs)
     sigma_e2 = r[(0, 0)] - float(a @ rhs)
     return a, max(sigma_e2, 1e-12 * r[(0, 0)])
+
+
+def parameter_positions(M: int) -> tuple[np.ndarray, np.ndarray]:
+    """Where each parameter sits in eq 5: ``(matrix, column)`` with matrix 0 for ``A10`` and
+    1 for ``A01`` (first row in both); :func:`state_matrices` fills the same places."""
+    A10, A01, _ = state_matrices(np.arange(1.0, 2 * M * M + 2 * M + 1), M)
+    matrix, column = [], []
+    for j in range(2 * M * M + 2 * M):
+        hit10, hit01 = np.flatnonzero(A10[0] == j + 1), np.flatnonzero(A01[0] == j + 1)
+        matrix.append(0 if hit10.size else 1)
+        column.append(int(hit10[0] if hit10.size else hit01[0]))
+    return np.array(matrix, dtype=np.int64), np.array(column, dtype=np.int64)
+
+
+def names(M: int) -> list[str]:
+    """Parameter names ``a_{p,q}`` in :func:`window` order (``a01``, ``a1,-1``, ...)."""
+    return [f"a{p}{q}" if q >= 0 else f"a{p},{q}" for p, q in window(M)]
