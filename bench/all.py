@@ -10,13 +10,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_expansion  # noqa: E402
 import bench_field  # noqa: E402
 import bench_filters  # noqa: E402
+import bench_image  # noqa: E402
 import bench_simulate  # noqa: E402
 
 if __name__ == "__main__":
     for name, module in (("Chapter 3 actual signal", bench_simulate),
                          ("Chapter 2 expansion", bench_expansion),
                          ("filters", bench_filters),
-                         ("Chapter 5 field", bench_field)):
+                         ("Chapter 5 field", bench_field),
+                         ("image filters", bench_image)):
         print(f"== {name}")
         sys.argv = sys.argv[:1]
         module.main()

@@ -93,3 +93,70 @@ def test_adaptive_identification_moves_to_the_truth_and_matches_the_known_model_
     start = np.abs(0.5 * A_TRUE - A_TRUE).max()
     assert np.abs(out["trace"][4000:] - A_TRUE).max() < min(0.15, start / 2)
     assert abs(snr(out["image"]) - known) < 0.3
+
+
+def test_vector_yule_walker_recovers_a_vector_ar_1():
+    from core.images import strip
+
+    rng = np.random.default_rng(4)
+    W = 4
+    phi = 0.5 * np.eye(W) + 0.1 * rng.standard_normal((W, W))
+    L = np.linalg.cholesky(0.5 * np.eye(W) + 0.3 * np.ones((W, W)))
+    Z = np.zeros((W, 40_000))
+    for k in range(1, Z.shape[1]):
+        Z[:, k] = phi.T @ Z[:, k - 1] + L @ rng.standard_normal(W)
+    est, Q, _ = strip.yule_walker(Z, 1)
+    assert np.abs(est[0] - phi).max() < 0.02
+    assert np.abs(Q - L @ L.T).max() < 0.02
+
+
+def test_eqs_36_equal_a_standard_kalman_filter_on_the_synchronised_model():
+    """The composite model of eq 22 with a blur state, filtered by eqs 36a-f, gives the same
+    image estimates as an ordinary Kalman filter on [x1(k); x2(k)], the synchronised model
+    the paper says would not give "true filtered" estimates."""
+    from core.images import strip
+
+    rng = np.random.default_rng(8)
+    W, P, n2 = 3, 2, 2
+    phi = 0.3 * rng.standard_normal((P, W, W))
+    A1, B1, C1 = strip.companion(phi)
+    Q = np.eye(W) + 0.2 * np.ones((W, W))
+    A2 = 0.4 * rng.standard_normal((n2, n2))
+    B2, C2, D2 = (rng.standard_normal(s) for s in ((n2, W), (W, n2), (W, W)))
+    sigma_v2, steps = 0.5, 40
+    n1 = A1.shape[0]
+    Y = rng.standard_normal((steps, W))
+    P0 = np.eye(n1 + n2)
+    ours = strip.filter_36(Y, A1, B1, C1, Q, A2, B2, C2, D2, sigma_v2, P0)
+    # synchronised: w(k) = [x1(k); x2(k)], w(k) = F w(k-1) + G U(k), Y(k) = Cbar w(k) + V(k)
+    F = np.block([[A1, np.zeros((n1, n2))], [B2 @ C1, A2]])
+    GQG = np.zeros((n1 + n2, n1 + n2))
+    GQG[:n1, :n1] = B1 @ Q @ B1.T
+    Cbar = np.hstack([D2 @ C1, C2])
+    # the same prior: eqs 36 start from [x1(-1); x2(0)] ~ (0, P0); here w(-1) = [x1(-1);
+    # x2(-1)] with x2(0) = A2 x2(-1) + B2 C1 x1(-1), so w(-1)'s prior is chosen to give P0
+    M = np.block([[np.eye(n1), np.zeros((n1, n2))], [B2 @ C1, A2]])
+    P = np.linalg.solve(M, np.linalg.solve(M, P0).T).T
+    w = np.zeros(n1 + n2)
+    expected = []
+    for k in range(steps):
+        w, P = F @ w, F @ P @ F.T + GQG
+        S = Cbar @ P @ Cbar.T + sigma_v2 * np.eye(W)
+        K = P @ Cbar.T @ np.linalg.inv(S)
+        w, P = w + K @ (Y[k] - Cbar @ w), P - K @ S @ K.T
+        expected.append(C1 @ w[:n1])
+    np.testing.assert_allclose(ours, np.array(expected), atol=1e-10)
+
+
+def test_strip_filter_with_noise_taken_off_improves_camera_at_5_db():
+    from skimage import data
+
+    from core.images import strip
+
+    img = data.camera().astype(float)[:128, :256]
+    u = img - img.mean()
+    sigma_v2 = u.var() / 10**0.5
+    noisy = u + np.sqrt(sigma_v2) * np.random.default_rng(0).standard_normal(u.shape)
+    out = strip.restore(noisy, 8, 1, sigma_v2)
+    assert out["unstable_strips"] == 0
+    assert np.mean((out["image"] - u) ** 2) < 0.5 * np.mean((noisy - u) ** 2)

@@ -5,7 +5,10 @@ For each image and Monte Carlo run: white Gaussian noise at the input SNR; the N
 parameters identified globally from the noisy image (noise-corrected Yule-Walker,
 :func:`core.images.nshp.yule_walker`); the non-adaptive filter of eqs 13a-e with them
 (:func:`core.images.kalman2d.restore`); the adaptive filter of Table I started from them
-(:func:`core.images.kalman2d.restore_adaptive`); ``scipy.signal.wiener`` and scikit-image's
+(:func:`core.images.kalman2d.restore_adaptive`); the strip Kalman filter of the second
+paper (``shared/seeds/002_…``, :func:`core.images.strip.restore`), its model identified from
+the noisy strips and, as the paper assumes, from the clean ones; ``scipy.signal.wiener`` and
+scikit-image's
 BayesShrink wavelet denoising told the same noise variance; and the noisy image itself.
 
 SNR is variance based: ``10 log10(var(u) / mean((u - u_hat)^2))`` with ``u`` the clean
@@ -22,7 +25,7 @@ import pandas as pd
 
 from core import metrics, plots
 from core.analyses.base import Result, TableSpec, map_tasks
-from core.images import kalman2d, nshp
+from core.images import kalman2d, nshp, strip
 from core.schema import (
     REQUIRED,
     Experiment,
@@ -37,8 +40,9 @@ IMAGES = ("camera", "moon", "brick", "grass", "gravel", "coins", "text", "page",
 """scikit-image's images that ship inside its wheel (no download at run time)."""
 
 NOISY, NON_ADAPTIVE, ADAPTIVE = "noisy (input)", "NSHP Kalman", "NSHP Kalman, adaptive"
+STRIP, STRIP_ORACLE = "strip Kalman", "strip Kalman, model from clean image"
 WIENER, WAVELET = "Wiener", "wavelet (BayesShrink)"
-ESTIMATORS = (NOISY, NON_ADAPTIVE, ADAPTIVE, WIENER, WAVELET)
+ESTIMATORS = (NOISY, NON_ADAPTIVE, ADAPTIVE, STRIP, STRIP_ORACLE, WIENER, WAVELET)
 
 SCHEMA: dict = {
     "images": (list_of(text(set(IMAGES)), unique=True, max_length=len(IMAGES)), REQUIRED),
@@ -51,6 +55,12 @@ SCHEMA: dict = {
         "lambda0": (number(minimum=0.0, maximum=1.0), 0.95),
         "v0": (number(positive=True, maximum=1.0), 1.0),
         "mu_u": (number(minimum=-1e3, maximum=1e3), 0.0),
+    }, {}),
+    "strip": ({
+        "width": (integer(1, 64), 8),
+        "order": (integer(1, 4), 1),
+        "covariance": (text({"unbiased", "biased"}), "unbiased"),
+        "eigenvalue_floor": (number(positive=True, maximum=10.0), 0.1),
     }, {}),
     "baselines": ({
         "wiener_size": (integer(3, 31), 7),
@@ -76,7 +86,7 @@ SCHEMA: dict = {
 TABLES = {
     "snr": TableSpec("snr.csv", ("image", "input_snr_db", "estimator"),
                      ("snr_db", "snr_db_se", "isnr_db", "psnr_db", "psnr_db_se", "ssim",
-                      "ssim_se", "runs", "diverged", "paper_snr_db"),
+                      "ssim_se", "runs", "diverged", "unstable_strips", "paper_snr_db"),
                      title="SNR, improvement in SNR, PSNR and SSIM of the restored images"),
     "parameters": TableSpec("parameters.csv", ("image", "parameter"),
                             ("global_mean", "global_se", "adaptive_row_mean",
@@ -153,13 +163,22 @@ def run_unit(exp: Experiment, image: str, run: int) -> dict:
     plain = kalman2d.restore(y, A10, A01, sigma_e2, sigma_v2, M)
     adaptive = kalman2d.restore_adaptive(y, a, sigma_e2, sigma_v2, M, spec["adaptive"],
                                          trace_row=figure_row)
+    sc = spec["strip"]
+    unbiased = sc["covariance"] == "unbiased"
+    strips = strip.restore(y, sc["width"], sc["order"], sigma_v2, unbiased,
+                           sc["eigenvalue_floor"])
+    oracle = strip.restore(y, sc["width"], sc["order"], sigma_v2, unbiased,
+                           model_from=clean - clean.mean())
     wiener = signal.wiener(noisy, (spec["baselines"]["wiener_size"],) * 2, noise=sigma_v2)
     wavelet = denoise_wavelet(noisy, sigma=np.sqrt(sigma_v2), method="BayesShrink",
                               mode="soft", rescale_sigma=True)
     restored = {NOISY: noisy, NON_ADAPTIVE: plain["image"] + noisy.mean(),
-                ADAPTIVE: adaptive["image"] + noisy.mean(), WIENER: wiener, WAVELET: wavelet}
+                ADAPTIVE: adaptive["image"] + noisy.mean(),
+                STRIP: strips["image"] + noisy.mean(),
+                STRIP_ORACLE: oracle["image"] + noisy.mean(), WIENER: wiener, WAVELET: wavelet}
     out = {"quality": {k: _quality(clean, v) for k, v in restored.items()}, "a": a,
-           "trace": adaptive["trace"]}
+           "trace": adaptive["trace"],
+           "unstable": {STRIP: strips["unstable_strips"], STRIP_ORACLE: oracle["unstable_strips"]}}
     if run == 0 and image == spec["figures"]["image"]:
         n = spec["figures"]["pixels"]
         out["figure"] = {
@@ -201,6 +220,8 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
                          "psnr_db": psnr, "psnr_db_se": psnr_se, "ssim": ssim,
                          "ssim_se": ssim_se, "runs": int(ok.sum()),
                          "diverged": int((~ok).sum()),
+                         "unstable_strips": float(np.mean([u["unstable"].get(est, np.nan)
+                                                           for u in units])),
                          "paper_snr_db": (spec["paper"]["adaptive_snr_db"] if est == ADAPTIVE
                                           else spec["paper"]["input_snr_db"] if est == NOISY
                                           else np.nan)})
