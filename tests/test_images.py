@@ -160,3 +160,32 @@ def test_strip_filter_with_noise_taken_off_improves_camera_at_5_db():
     out = strip.restore(noisy, 8, 1, sigma_v2)
     assert out["unstable_strips"] == 0
     assert np.mean((out["image"] - u) ** 2) < 0.5 * np.mean((noisy - u) ** 2)
+
+
+def test_online_identification_is_the_batch_solution_of_the_columns_so_far():
+    """Eq 15's recursion of the covariances is exact: the model used at the last column is
+    the batch vector Yule-Walker solution of all the columns before it."""
+    from core.images import strip
+
+    rng = np.random.default_rng(2)
+    Z = rng.standard_normal((3, 4, 60)).cumsum(axis=-1) * 0.1 + rng.standard_normal((3, 4, 60))
+    phi, Q, rho0 = strip.online_models(Z, 2, 0.3, True, 1e-3)
+    ref = strip.yule_walker(Z[..., :59], 2, 0.3, True, 1e-3)
+    for ours, batch in zip((phi[:, -1], Q[:, -1], rho0[:, -1]), ref, strict=True):
+        np.testing.assert_allclose(ours, batch, rtol=1e-9, atol=1e-12)
+
+
+def test_eq_17_is_only_first_order():
+    """Eq 17 is the first-order Neumann term, not the (exact) inversion lemma: its error
+    falls as the square of the update, quartering when the update halves."""
+    from core.images import strip
+
+    rng = np.random.default_rng(6)
+    A = rng.standard_normal((6, 6))
+    T = A @ A.T + 6 * np.eye(6)
+    dT = rng.standard_normal((6, 6))
+    dT = 0.05 * (dT + dT.T)
+    errors = [np.abs(strip.neumann_inverse(T, T + h * dT, np.linalg.inv(T))
+                     - np.linalg.inv(T + h * dT)).max() for h in (1.0, 0.5)]
+    assert errors[0] > 1e-8
+    assert 3.5 < errors[0] / errors[1] < 4.5

@@ -7,7 +7,8 @@ parameters identified globally from the noisy image (noise-corrected Yule-Walker
 (:func:`core.images.kalman2d.restore`); the adaptive filter of Table I started from them
 (:func:`core.images.kalman2d.restore_adaptive`); the strip Kalman filter of the second
 paper (``shared/seeds/002_…``, :func:`core.images.strip.restore`), its model identified from
-the noisy strips and, as the paper assumes, from the clean ones; ``scipy.signal.wiener`` and
+the noisy strips (all columns, or on line from the columns so far) and, as the paper
+assumes, from the clean ones; ``scipy.signal.wiener`` and
 scikit-image's
 BayesShrink wavelet denoising told the same noise variance; and the noisy image itself.
 
@@ -41,8 +42,10 @@ IMAGES = ("camera", "moon", "brick", "grass", "gravel", "coins", "text", "page",
 
 NOISY, NON_ADAPTIVE, ADAPTIVE = "noisy (input)", "NSHP Kalman", "NSHP Kalman, adaptive"
 STRIP, STRIP_ORACLE = "strip Kalman", "strip Kalman, model from clean image"
+STRIP_ONLINE = "strip Kalman, online model (eq 15)"
 WIENER, WAVELET = "Wiener", "wavelet (BayesShrink)"
-ESTIMATORS = (NOISY, NON_ADAPTIVE, ADAPTIVE, STRIP, STRIP_ORACLE, WIENER, WAVELET)
+ESTIMATORS = (NOISY, NON_ADAPTIVE, ADAPTIVE, STRIP, STRIP_ONLINE, STRIP_ORACLE, WIENER,
+              WAVELET)
 
 SCHEMA: dict = {
     "images": (list_of(text(set(IMAGES)), unique=True, max_length=len(IMAGES)), REQUIRED),
@@ -167,6 +170,8 @@ def run_unit(exp: Experiment, image: str, run: int) -> dict:
     unbiased = sc["covariance"] == "unbiased"
     strips = strip.restore(y, sc["width"], sc["order"], sigma_v2, unbiased,
                            sc["eigenvalue_floor"])
+    online = strip.restore(y, sc["width"], sc["order"], sigma_v2, unbiased,
+                           sc["eigenvalue_floor"], online=True)
     oracle = strip.restore(y, sc["width"], sc["order"], sigma_v2, unbiased,
                            model_from=clean - clean.mean())
     wiener = signal.wiener(noisy, (spec["baselines"]["wiener_size"],) * 2, noise=sigma_v2)
@@ -175,10 +180,13 @@ def run_unit(exp: Experiment, image: str, run: int) -> dict:
     restored = {NOISY: noisy, NON_ADAPTIVE: plain["image"] + noisy.mean(),
                 ADAPTIVE: adaptive["image"] + noisy.mean(),
                 STRIP: strips["image"] + noisy.mean(),
+                STRIP_ONLINE: online["image"] + noisy.mean(),
                 STRIP_ORACLE: oracle["image"] + noisy.mean(), WIENER: wiener, WAVELET: wavelet}
     out = {"quality": {k: _quality(clean, v) for k, v in restored.items()}, "a": a,
            "trace": adaptive["trace"],
-           "unstable": {STRIP: strips["unstable_strips"], STRIP_ORACLE: oracle["unstable_strips"]}}
+           "unstable": {STRIP: strips["unstable_strips"],
+                        STRIP_ONLINE: online["unstable_strips"],
+                        STRIP_ORACLE: oracle["unstable_strips"]}}
     if run == 0 and image == spec["figures"]["image"]:
         n = spec["figures"]["pixels"]
         out["figure"] = {

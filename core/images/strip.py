@@ -38,15 +38,22 @@ def yule_walker(Z: np.ndarray, P: int, noise_variance: float = 0.0, unbiased: bo
     least that first, which makes ``T`` positive definite and ``Q_U`` (a Schur complement of
     it) too. A clean strip can need it as well: a flat region makes ``T`` singular.
     """
-    rho = covariances(Z, P, unbiased)
-    W = Z.shape[-2]
+    return _solve(covariances(Z, P, unbiased), P, Z.shape[-2], noise_variance, min_eigenvalue)
 
-    def block(i: int, j: int) -> np.ndarray:        # T's block (i, j) = rho_{i-j}
+
+def block_toeplitz(rho: list[np.ndarray], P: int) -> np.ndarray:
+    """``T`` of eq 11: block ``(i, j)`` is ``rho_{i-j}`` with ``rho_{-r} = rho_r'``."""
+
+    def block(i: int, j: int) -> np.ndarray:
         return rho[i - j] if i >= j else np.swapaxes(rho[j - i], -1, -2)
 
-    T = np.concatenate([np.concatenate([block(i, j) for j in range(P + 1)], axis=-1)
-                        for i in range(P + 1)], axis=-2)
-    T = T - noise_variance * np.eye((P + 1) * W)
+    return np.concatenate([np.concatenate([block(i, j) for j in range(P + 1)], axis=-1)
+                           for i in range(P + 1)], axis=-2)
+
+
+def _solve(rho: list[np.ndarray], P: int, W: int, noise_variance: float,
+           min_eigenvalue: float | None):
+    T = block_toeplitz(rho, P) - noise_variance * np.eye((P + 1) * W)
     if min_eigenvalue is not None:
         w, V = np.linalg.eigh(T)
         w = np.maximum(w, min_eigenvalue)
@@ -55,6 +62,39 @@ def yule_walker(Z: np.ndarray, P: int, noise_variance: float = 0.0, unbiased: bo
     Q = np.linalg.inv(Tinv[..., :W, :W])                                   # eq 12b
     phi = np.stack([-Tinv[..., (i + 1) * W:(i + 2) * W, :W] @ Q for i in range(P)], axis=-3)
     return phi, 0.5 * (Q + np.swapaxes(Q, -1, -2)), T[..., :W, :W]
+
+
+def online_models(Z: np.ndarray, P: int, noise_variance: float, unbiased: bool = True,
+                  min_eigenvalue: float | None = None):
+    """A model for every column ``k`` of ``Z (strips, W, N)`` from the columns before it: the
+    covariances by eq 15's recursion (each ``rho_r(n)`` an average over ``n - r`` products,
+    exactly), the parameters by solving eqs 11-12 anew (not by eqs 17-18's approximation,
+    see :func:`neumann_inverse`). The first ``P + 2`` columns, too few for a model, use the
+    one from columns ``0..P+1``. Returns ``phi (strips, N, P, W, W)``, ``Q`` and ``rho_0``."""
+    strips, W, N = Z.shape
+    first = min(P + 2, N)
+    sums = [np.zeros((strips, W, W)) for _ in range(P + 1)]
+    used, model = 0, None
+    phis, Qs, rho0s = [], [], []
+    for k in range(N):
+        n = max(k, first)                            # the model of columns 0 .. n-1
+        if n > used:
+            while used < n:                          # eq 15: the products ending at `used`
+                for r in range(min(P, used) + 1):
+                    sums[r] += np.einsum("si,sj->sij", Z[:, :, used - r], Z[:, :, used])
+                used += 1
+            rho = [sums[r] / ((n - r) if unbiased else n) for r in range(P + 1)]
+            model = _solve(rho, P, W, noise_variance, min_eigenvalue)
+        phis.append(model[0])
+        Qs.append(model[1])
+        rho0s.append(model[2])
+    return np.stack(phis, axis=1), np.stack(Qs, axis=1), np.stack(rho0s, axis=1)
+
+
+def neumann_inverse(T: np.ndarray, T_next: np.ndarray, T_inv: np.ndarray) -> np.ndarray:
+    """Eq 17: ``(T + dT)^-1 ~ T^-1 (I - dT T^-1)``, the first-order Neumann term (the
+    paper calls it the matrix inversion lemma, which would be exact)."""
+    return T_inv @ (np.eye(T.shape[-1]) - (T_next - T) @ T_inv)
 
 
 def companion(phi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -103,12 +143,13 @@ def filter_36(Y: np.ndarray, A1, B1, C1, Q_U, A2, B2, C2, D2, sigma_v2: float,
 
 def restore(noisy: np.ndarray, width: int, order: int, sigma_v2: float,
             unbiased: bool = True, floor: float = 0.1,
-            model_from: np.ndarray | None = None) -> dict:
+            model_from: np.ndarray | None = None, online: bool = False) -> dict:
     """Strip Kalman filtering of a zero-mean ``noisy`` image, additive noise only: strips of
     ``width`` rows, each with its own vector AR(``order``) model (eqs 11-13) from the noisy
     strip (noise taken off) or, with ``model_from``, from that image's strip (the paper
     identifies from the original image); in both the eigenvalues of ``T`` are raised to
-    ``floor * sigma_v2`` (:func:`yule_walker`). Filtered column
+    ``floor * sigma_v2`` (:func:`yule_walker`). With ``online`` each column is filtered with
+    the model of the columns before it (:func:`online_models`). Filtered column
     by column; all strips at once. Rows left over at the bottom form a narrower last strip.
     ``unstable_strips`` counts models with a spectral radius >= 1."""
     rows = noisy.shape[0]
@@ -118,7 +159,9 @@ def restore(noisy: np.ndarray, width: int, order: int, sigma_v2: float,
     unstable = 0
     for starts, w in parts:
         Y = np.stack([noisy[s:s + w] for s in starts])
-        if model_from is None:
+        if online:
+            model = online_models(Y, order, sigma_v2, unbiased, floor * sigma_v2)
+        elif model_from is None:
             model = yule_walker(Y, order, sigma_v2, unbiased, floor * sigma_v2)
         else:
             model = yule_walker(np.stack([model_from[s:s + w] for s in starts]), order, 0.0,
@@ -136,25 +179,28 @@ def _filter_strips(Z: np.ndarray, phi: np.ndarray, Q: np.ndarray, rho0: np.ndarr
     0`` (the mean) with ``rho_0`` on the diagonal blocks of its covariance."""
     strips, W, N = Z.shape
     P = phi.shape[-3]
+    varying = phi.ndim == 5                         # (strips, N, P, W, W): a model per column
     A1, _, _ = companion(phi)
     radius = np.max(np.abs(np.linalg.eigvals(A1)), axis=-1)
     n = P * W
     x = np.zeros((strips, n))
     Pa = np.zeros((strips, n, n))
     for i in range(P):
-        Pa[:, i * W:(i + 1) * W, i * W:(i + 1) * W] = rho0
-    GQG = np.zeros((strips, n, n))
-    GQG[:, :W, :W] = Q
+        Pa[:, i * W:(i + 1) * W, i * W:(i + 1) * W] = rho0[:, 0] if varying else rho0
+    GQG = np.zeros((*Q.shape[:-2], n, n))
+    GQG[..., :W, :W] = Q
     out = np.empty((strips, W, N))
     eye = np.eye(W)
     A1T = np.swapaxes(A1, -1, -2)
     for k in range(N):
-        x = np.einsum("sij,sj->si", A1, x)
-        Pb = A1 @ Pa @ A1T + GQG
+        Ak, AkT, Gk = ((A1[:, k], A1T[:, k], GQG[:, k]) if varying else (A1, A1T, GQG))
+        x = np.einsum("sij,sj->si", Ak, x)
+        Pb = Ak @ Pa @ AkT + Gk
         S = Pb[:, :W, :W] + sigma_v2 * eye
         K = np.swapaxes(np.linalg.solve(S, np.swapaxes(Pb[:, :, :W], -1, -2)), -1, -2)
         x = x + np.einsum("sij,sj->si", K, Z[:, :, k] - x[:, :W])
         Pa = Pb - K @ S @ np.swapaxes(K, -1, -2)
         Pa = 0.5 * (Pa + np.swapaxes(Pa, -1, -2))
         out[:, :, k] = x[:, :W]
-    return out, int(np.sum(radius >= 1.0))
+    unstable = radius.max(axis=-1) if varying else radius
+    return out, int(np.sum(unstable >= 1.0))
