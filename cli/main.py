@@ -25,7 +25,15 @@ import core
 from cli import project
 from core import io, runner, tables
 from core.analyses import ANALYSES
-from core.config import MAX_WORK, apply_overrides, load_yaml, parse_data, spec_hash
+from core.config import (
+    MAX_WORK,
+    OVERRIDE_KEY,
+    apply_overrides,
+    load_yaml,
+    parse_data,
+    parse_override,
+    spec_hash,
+)
 from core.errors import ConfigError, ReferenceJoinError, UsageError
 from core.schema import Experiment
 
@@ -62,12 +70,32 @@ def load(path: Path, overrides: dict | None = None, max_work: int = MAX_WORK,
         raise ConfigError(str(path), "", "not a UTF-8 text file") from None
     data = load_yaml(text, str(path))
     if overrides:
-        data = apply_overrides(data, overrides)
+        data = apply_overrides(data, overrides, str(path))
     exp = parse_data(data, str(path), path.stem, max_work)
     if quick:
         small = ANALYSES[exp.analysis].tiny(copy.deepcopy(exp.spec))
         exp = parse_data(small, f"{path} (--quick)", path.stem, max_work)
     return exp
+
+
+def split_overrides(args) -> tuple[list[Path], dict]:
+    """Config paths and ``key.path=value`` overrides, in any order on the command line; an
+    argument that names an existing file is a path even if it holds '='."""
+    paths, overrides = [], {}
+    for arg in args:
+        text_ = str(arg)
+        key = text_.partition("=")[0]
+        if "=" in text_ and not Path(text_).exists() and OVERRIDE_KEY.fullmatch(key.strip()):
+            try:
+                k, v = parse_override(text_)
+            except UsageError as exc:
+                fail(str(exc))
+            overrides[k] = v
+        elif "=" in text_ and not Path(text_).exists():
+            fail(f"{text_!r}: expected a config file or key.path=value (list items by index)")
+        else:
+            paths.append(Path(text_))
+    return paths, overrides
 
 
 def load_all(paths, overrides: dict | None = None, max_work: int = MAX_WORK,
@@ -83,7 +111,8 @@ def load_all(paths, overrides: dict | None = None, max_work: int = MAX_WORK,
     return exps
 
 
-def run_one(exp: Experiment, out: Path, jobs: int, quiet: bool) -> runner.Result:
+def run_one(exp: Experiment, out: Path, jobs: int, quiet: bool,
+            overrides: dict | None = None) -> runner.Result:
     """Run ``exp`` and write ``out/<name>/`` as a unit: all old or all new (core.io)."""
     start = time.perf_counter()
     total = runner.work_units(exp)
@@ -101,7 +130,8 @@ def run_one(exp: Experiment, out: Path, jobs: int, quiet: bool) -> runner.Result
             io.write_figure(fig, folder.path / "figures" / f"{name}.png")
             plt.close(fig)
         io.write_manifest(folder.path, exp.spec, spec_hash(exp.spec),
-                          time.perf_counter() - start, command=" ".join(["estim", *sys.argv[1:]]))
+                          time.perf_counter() - start, command=" ".join(["estim", *sys.argv[1:]]),
+                          overrides=overrides or {})
         folder.commit()
     return result
 
@@ -242,7 +272,7 @@ def _out_folder(out: Path | None, exps: list[Experiment], overridden: bool,
 
 
 @main.command()
-@click.argument("configs", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.argument("configs", nargs=-1, required=True)
 @click.option("--out", type=click.Path(file_okay=False, path_type=Path),
               help="Folder for results [default: the project's results/ for a config of "
                    "configs/ run as it is, else its scratch/].")
@@ -257,16 +287,25 @@ def _out_folder(out: Path | None, exps: list[Experiment], overridden: bool,
 @_max_work
 @click.option("--quiet", is_flag=True, help="No progress and no summary.")
 def run(configs, out, runs, seed, update_baseline, quick, jobs, max_work, quiet) -> None:
-    """Run the experiment(s) of CONFIGS and write OUT/<config name>/."""
-    overrides = {k: v for k, v in (("monte_carlo.runs", runs), ("monte_carlo.seed", seed))
-                 if v is not None}
+    """Run the experiment(s) of CONFIGS and write OUT/<config name>/.
+
+    CONFIGS may mix config files and overrides KEY.PATH=VALUE (the value is YAML; list
+    items by index), applied to every config before it is validated, e.g.
+    ``estim run configs/mosfet_saturation.yaml simulation.rtol=1e-6 monte_carlo.runs=5``.
+    An overridden run writes into scratch/ and its manifest records the overrides.
+    """
+    configs, given = split_overrides(configs)
+    if not configs:
+        fail("no config file given")
+    overrides = {**given, **{k: v for k, v in (("monte_carlo.runs", runs),
+                                                ("monte_carlo.seed", seed)) if v is not None}}
     if quick and update_baseline:
         fail("--quick never writes the baseline: drop --update-baseline")
     exps = load_all(configs, overrides, max_work, quick)
     folder = _out_folder(out, exps, bool(overrides) or quick, update_baseline, quiet)
     io.ensure_writable(folder)
     for exp in exps:
-        report(exp, folder, run_one(exp, folder, jobs, quiet), quiet)
+        report(exp, folder, run_one(exp, folder, jobs, quiet, overrides), quiet)
 
 
 @main.command()
@@ -335,7 +374,7 @@ def table(metric, results, fmt, thesis, partial) -> None:
 
 
 @main.command()
-@click.argument("configs", nargs=-1, type=click.Path(path_type=Path))
+@click.argument("configs", nargs=-1)
 @click.option("--results", type=click.Path(file_okay=False, path_type=Path),
               help="Folder of stored results [default: the project's results/].")
 @_jobs
@@ -343,21 +382,33 @@ def table(metric, results, fmt, thesis, partial) -> None:
 def check(configs, results, jobs, max_work) -> None:
     """Re-run CONFIGS (default: configs/*.yaml) as they are and compare every cell with the
     stored tables under each config's tolerances; the stored manifest must record the same
-    config (runs, seed and every other value)."""
+    config (runs, seed and every other value).
+
+    Overrides KEY.PATH=VALUE among CONFIGS re-run the configs changed so (a solver, a
+    tolerance) and compare their tables with the stored ones under the same tolerances; the
+    stored config is then not required to match.
+    """
     where = project.locate()
-    exps = load_all(configs or where.configs(), max_work=max_work)
+    configs, overrides = split_overrides(configs)
+    exps = load_all(configs or where.configs(), overrides, max_work=max_work)
+    if overrides:
+        click.echo("check: with overrides " + ", ".join(f"{k}={v!r}" for k, v in
+                                                       overrides.items())
+                   + ": comparing tables only, not the stored config")
     results = results or where.results
     differing = 0
     with tempfile.TemporaryDirectory() as tmp:
         for exp in exps:
-            differing += _check_one(exp, results / exp.name, Path(tmp), jobs)
+            differing += _check_one(exp, results / exp.name, Path(tmp), jobs,
+                                    same_config=not overrides)
     if differing:
         click.echo(f"check: {differing} difference(s)")
         sys.exit(1)
     click.echo("check: all tables match")
 
 
-def _check_one(exp: Experiment, stored_dir: Path, tmp: Path, jobs: int) -> int:
+def _check_one(exp: Experiment, stored_dir: Path, tmp: Path, jobs: int,
+               same_config: bool = True) -> int:
     """Differences between the stored results of ``exp`` and a fresh run of it."""
     if not stored_dir.is_dir():
         click.echo(f"{exp.name}: no stored results in {stored_dir}")
@@ -366,7 +417,7 @@ def _check_one(exp: Experiment, stored_dir: Path, tmp: Path, jobs: int) -> int:
     if manifest is None:
         click.echo(f"{exp.name}: {stored_dir / 'manifest.json'} is missing or not JSON")
         return 1
-    if manifest.get("config_sha256") != spec_hash(exp.spec):
+    if same_config and manifest.get("config_sha256") != spec_hash(exp.spec):
         changes = config_differences(manifest.get("config"), exp.spec)
         shown = "; ".join(changes[:5]) + (f"; and {len(changes) - 5} more" if
                                           len(changes) > 5 else "")
@@ -463,11 +514,14 @@ def tune(config, label, new_label, runs, fit_r, out, max_work) -> None:
 
 
 @main.command()
-@click.argument("configs", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.argument("configs", nargs=-1, required=True)
 @_max_work
 def validate(configs, max_work) -> None:
-    """Check CONFIGS without running them."""
-    for exp in load_all(configs, max_work=max_work):
+    """Check CONFIGS without running them (overrides KEY.PATH=VALUE as for run)."""
+    configs, overrides = split_overrides(configs)
+    if not configs:
+        fail("no config file given")
+    for exp in load_all(configs, overrides, max_work=max_work):
         click.echo(f"{exp.source}: ok ({exp.name})")
 
 

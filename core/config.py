@@ -17,7 +17,7 @@ import yaml
 
 from core import registry, tables
 from core.analyses import ANALYSES
-from core.errors import ConfigError
+from core.errors import ConfigError, UsageError
 from core.schema import Experiment, integer, list_of, mapping, model_block, number, text, validate
 
 TOLERANCE: dict = {
@@ -219,16 +219,58 @@ def _check_tolerances(spec: dict, module, source: str) -> None:
                               "is the number of runs")
 
 
-def apply_overrides(data: dict, overrides: dict[str, Any]) -> dict:
-    """``data`` with each dotted key path of ``overrides`` set (list items by index)."""
+OVERRIDE_KEY = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(?:\[\d+\]|\.[A-Za-z0-9_]+)*")
+"""A dotted key path, list items by index (``estimators.1.settings.Q`` or
+``estimators[1].settings.Q``)."""
+
+
+def parse_override(text_: str) -> tuple[str, Any]:
+    """``key.path=value`` -> ``(key.path, value)`` with the value read as YAML (``1e-6``,
+    ``[1, 2]``, ``{a: 1}``, ``true``, ``null``). Raises ``UsageError`` for a bad one."""
+    key, sep, value = text_.partition("=")
+    key = key.strip()
+    if not sep or not OVERRIDE_KEY.fullmatch(key):
+        raise UsageError(f"{text_!r}: expected key.path=value (list items by index)")
+    try:
+        parsed = yaml.safe_load(value) if value.strip() else ""
+    except yaml.YAMLError as exc:
+        first = str(exc).strip().splitlines()[0]
+        raise UsageError(f"{text_!r}: the value is not YAML ({first})") from None
+    if isinstance(parsed, str) and re.fullmatch(r"[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+", parsed):
+        parsed = float(parsed)                       # YAML 1.1 reads 1e-6 as text
+    return re.sub(r"\[(\d+)\]", r".\1", key), parsed
+
+
+def _shown(keys: list[str]) -> str:
+    """A key path as validation messages write it: ``estimators[1].settings``."""
+    out = ""
+    for key in keys:
+        out += f"[{key}]" if key.isdigit() else (f".{key}" if out else key)
+    return out
+
+
+def apply_overrides(data: dict, overrides: dict[str, Any], source: str = "") -> dict:
+    """``data`` with each dotted key path of ``overrides`` set (list items by index). A path
+    through a missing list item or a plain value raises ``ConfigError`` naming it; a new
+    mapping key is set, so validation names it if it is not a key."""
     data = copy.deepcopy(data)
     for path, value in overrides.items():
-        *parents, last = path.split(".")
-        node = data
-        for key in parents:
-            node = node[int(key)] if isinstance(node, list) else node.setdefault(key, {})
-        if isinstance(node, list):
-            node[int(last)] = value
-        else:
-            node[last] = value
+        keys = path.split(".")
+        shown = _shown(keys)
+        node: Any = data
+        for depth, key in enumerate(keys):
+            where = _shown(keys[:depth]) or "the top level"
+            if isinstance(node, list):
+                if not key.isdigit() or int(key) >= len(node):
+                    raise ConfigError(source, shown, f"{where} is a list of {len(node)}: "
+                                      f"expected an index from 0 to {len(node) - 1}, got {key!r}")
+                key = int(key)
+            elif not isinstance(node, dict):
+                raise ConfigError(source, shown, f"{where} is a value ({node!r}), not a mapping")
+            if depth == len(keys) - 1:
+                node[key] = value
+            elif isinstance(node, list):
+                node = node[key]
+            else:
+                node = node.setdefault(key, {})
     return data

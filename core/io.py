@@ -202,8 +202,27 @@ def ensure_writable(folder: Path) -> None:
         raise UsageError(f"cannot write to {folder} ({exc.strerror or exc})") from None
 
 
+def git_commit() -> str | None:
+    """The commit of the project checkout this package runs from (with "+dirty" when its
+    tracked files differ), or ``None`` outside a git checkout (an installed copy)."""
+    import subprocess
+
+    here = Path(__file__).resolve().parent.parent
+    if not (here / ".git").exists():
+        return None
+    try:
+        head = subprocess.run(["git", "-C", str(here), "rev-parse", "HEAD"], capture_output=True,
+                              text=True, timeout=10, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(here), "status", "--porcelain",
+                                "--untracked-files=no"], capture_output=True, text=True,
+                               timeout=10, check=True).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return head + ("+dirty" if dirty else "")
+
+
 def write_manifest(folder: Path, spec: dict, config_sha256: str, wall_time_s: float,
-                   command: str = "") -> None:
+                   command: str = "", overrides: dict | None = None) -> None:
     """``manifest.json``: resolved config and its hash, seed and runs, versions, wall time,
     and the sha256 of every file written beside it."""
     files = sorted(p for p in folder.rglob("*") if p.is_file() and p.name != "manifest.json")
@@ -214,6 +233,8 @@ def write_manifest(folder: Path, spec: dict, config_sha256: str, wall_time_s: fl
         "seed": mc.get("seed"),
         "runs": mc.get("runs"),
         "command": command,
+        "overrides": overrides or {},
+        "git_commit": git_commit(),
         "versions": versions(),
         "wall_time_s": round(wall_time_s, 3),
         "files": {str(p.relative_to(folder)): sha256(p) for p in files},

@@ -217,6 +217,11 @@ def noisy_signal(t, clean: np.ndarray, noisy: np.ndarray, title: str) -> Figure:
     return fig
 
 
+DIVERGED_PLOT = 1e100
+"""A curve is drawn as diverged (and stops) where it is not finite or exceeds this: a log
+axis cannot span values near the float limit."""
+
+
 def absolute_errors(t, data: dict, title: str) -> Figure:
     """Absolute estimation error against time, one panel per reading (the passive-network
     paper's Figs 5 and 7), log scale."""
@@ -224,7 +229,11 @@ def absolute_errors(t, data: dict, title: str) -> Figure:
                              squeeze=False)
     for ax, (reading, curves) in zip(axes[:, 0], data.items(), strict=True):
         for name, err in curves.items():
-            ax.semilogy(t, np.clip(err, 1e-8, None), lw=1.0, label=name)
+            with np.errstate(invalid="ignore"):
+                finite = np.isfinite(err) & (np.abs(err) < DIVERGED_PLOT)
+            label = name if finite.all() else f"{name} (diverged at t = {t[~finite][0]:g})"
+            ax.semilogy(t, np.where(finite, np.clip(err, 1e-8, None), np.nan), lw=1.0,
+                        label=label)
         ax.set_title(f"{reading}, {title} (run 1)", fontsize=9)
         ax.set_ylabel("|error|")
         ax.legend(fontsize=8, loc="upper right")

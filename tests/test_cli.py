@@ -394,3 +394,39 @@ def test_table_with_thesis_on_a_table_without_printed_values_prints_it_plainly()
     result = CliRunner().invoke(main, ["table", "derivative", "--paper"])
     assert result.exit_code == 0, result.output
     assert "no printed table to compare with" in result.output
+
+
+def test_key_path_overrides_on_run_validate_and_check(tmp_path, monkeypatch):
+    """``key.path=value`` among the configs: YAML-typed, applied before validation (errors
+    keep the key path), recorded in the manifest, combined with --quick, and accepted by
+    check, which then compares tables without requiring the stored config."""
+    import json
+
+    root = fake_project(tmp_path, monkeypatch)
+    config = str(root / "configs" / "tiny.yaml")
+    runner = CliRunner()
+    ok = runner.invoke(main, ["run", config, "simulation.rtol=1e-6", "monte_carlo.runs=2",
+                              "--quiet"])
+    assert ok.exit_code == 0, ok.output
+    manifest = json.loads((root / "scratch/tiny/manifest.json").read_text())
+    assert manifest["overrides"] == {"simulation.rtol": 1e-6, "monte_carlo.runs": 2}
+    assert manifest["config"]["simulation"]["rtol"] == 1e-6
+    assert manifest["config"]["monte_carlo"]["runs"] == 2
+    listed = runner.invoke(main, ["run", config, "input.frequencies_hz=[1000]", "--quick",
+                                  "--quiet"])
+    assert listed.exit_code == 0, listed.output
+    for args, expected in (
+        (["simulation.rtol=-1"], ": simulation.rtol: "),
+        (["simulation.rtl=1e-6"], ": simulation.rtl: unknown key"),
+        (["estimators[7].settings.R=1"], ": estimators[7].settings.R: estimators is a list"),
+        (["input.amplitude_v.x=1"], ": input.amplitude_v.x: input.amplitude_v is a value"),
+        (["noise.input_levels=[0.1,"], "the value is not YAML"),
+        (["=3"], "expected a config file or key.path=value"),
+    ):
+        bad = runner.invoke(main, ["validate", config, *args])
+        assert bad.exit_code == 2 and expected in bad.output, (args, bad.output)
+        assert "Traceback" not in bad.output
+    runner.invoke(main, ["run", config, "--quiet"])
+    same = runner.invoke(main, ["check", config, "simulation.rtol=1.0e-5"])
+    assert same.exit_code == 0, same.output
+    assert "with overrides simulation.rtol=1e-05" in same.output
