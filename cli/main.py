@@ -350,9 +350,15 @@ def _stored_tables(results: Path, metric: str):
 @click.option("--partial", is_flag=True,
               help="With --thesis: allow thesis rows that the results do not cover.")
 def table(metric, results, fmt, thesis, partial) -> None:
-    """Print the METRIC tables of every experiment found under RESULTS."""
+    """Print the METRIC tables of every experiment found under RESULTS.
+
+    csv gives one CSV over all experiments (an ``experiment`` column first); markdown and
+    latex (booktabs, escaped) one table per experiment under its name; text wraps at 100
+    columns.
+    """
     results = results or project.locate().results
     shown = 0
+    frames = []
     for folder, spec, path in _stored_tables(results, metric):
         df = tables.view(read_table(path, spec), spec)
         if df.drop(columns=list(spec.keys), errors="ignore").isna().all().all():
@@ -363,12 +369,22 @@ def table(metric, results, fmt, thesis, partial) -> None:
                 df = tables.with_reference(df, spec, allow_unmatched=partial)
             except ReferenceJoinError as exc:
                 fail(f"{path}: {exc}")
+        if fmt == "csv":
+            frames.append(df.assign(experiment=folder.name)[["experiment", *df.columns]])
+            continue
+        ids = ", ".join(sorted({str(t) for t in df.get("table_id", []) if t}))
+        note = f" (thesis Table {ids})" if ids else (
+            " (no printed table to compare with)" if thesis else "")
+        title = f"{folder.name}: {spec.title}" if spec.title else folder.name
         if fmt == "text":
-            ids = ", ".join(sorted({str(t) for t in df.get("table_id", []) if t}))
-            note = f" (thesis Table {ids})" if ids else (
-                " (no printed table to compare with)" if thesis else "")
-            click.echo(f"== {folder.name}" + note)
+            click.echo(f"== {title}" + note)
+        elif fmt == "markdown":
+            click.echo(f"### {title}{note}\n")
+        else:
+            click.echo(f"% {tables.latex_escape(title + note)}")
         click.echo(tables.render(df, fmt))
+    if frames:
+        click.echo(tables.render(pd.concat(frames, ignore_index=True), "csv"), nl=False)
     if not shown:
         fail(f"no {metric} values under {results}/ (run 'estim reproduce')")
 

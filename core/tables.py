@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from importlib import resources
 
+import numpy as np
 import pandas as pd
 
 from core.analyses.base import TableSpec
@@ -101,12 +102,51 @@ def _join_one(part: pd.DataFrame, table_id: str, spec: TableSpec, named: dict[st
     return joined.set_index(part.index)
 
 
+TEXT_WIDTH = 100
+"""``estim table``'s text output wraps its columns into blocks of at most this many
+characters."""
+
+_LATEX_SPECIAL = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#",
+                  "_": r"\_", "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}",
+                  "^": r"\textasciicircum{}"}
+
+
+def latex_escape(text_: str) -> str:
+    """``text_`` with LaTeX's special characters escaped."""
+    return "".join(_LATEX_SPECIAL.get(c, c) for c in str(text_))
+
+
+def number(value) -> str:
+    """A cell: integers (a frequency, a count) in full, other numbers to 4 significant
+    digits, missing values as ``--``."""
+    if value is None or value is pd.NA or (isinstance(value, float) and np.isnan(value)):
+        return "--"
+    if isinstance(value, (bool, np.bool_)):
+        return str(bool(value))
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    if isinstance(value, (float, np.floating)):
+        v = float(value)
+        if np.isfinite(v) and v == round(v) and abs(v) < 1e9:
+            return str(int(round(v)))
+        return f"{v:.4g}"
+    return str(value)
+
+
 def render(df: pd.DataFrame, fmt: str) -> str:
-    """Text, CSV, Markdown or LaTeX rendering of a table."""
+    """Text (wrapped at :data:`TEXT_WIDTH`), CSV, Markdown or LaTeX (booktabs, escaped)
+    rendering of a table."""
     if fmt == "csv":
         return df.to_csv(index=False)
+    cells = df.astype(object).map(number) if len(df) else df.astype(object)
     if fmt == "markdown":
-        return df.to_markdown(index=False, floatfmt=".4g")
+        align = ["right" if df[c].dtype.kind in "iuf" else "left" for c in df.columns]
+        return cells.to_markdown(index=False, disable_numparse=True, colalign=align)
     if fmt == "latex":
-        return df.to_latex(index=False, float_format="%.4g", na_rep="--")
-    return df.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="--")
+        head = " & ".join(latex_escape(c) for c in df.columns)
+        body = [" & ".join(latex_escape(v) for v in row) + r" \\" for row in cells.to_numpy()]
+        align = "".join("r" if df[c].dtype.kind in "iuf" else "l" for c in df.columns)
+        return "\n".join(["% needs \\usepackage{booktabs}", f"\\begin{{tabular}}{{{align}}}",
+                          r"\toprule", head + r" \\", r"\midrule", *body, r"\bottomrule",
+                          r"\end{tabular}"]) + "\n"
+    return cells.to_string(index=False, line_width=TEXT_WIDTH)

@@ -430,3 +430,21 @@ def test_key_path_overrides_on_run_validate_and_check(tmp_path, monkeypatch):
     same = runner.invoke(main, ["check", config, "simulation.rtol=1.0e-5"])
     assert same.exit_code == 0, same.output
     assert "with overrides simulation.rtol=1e-05" in same.output
+
+
+def test_table_csv_is_one_valid_csv_with_an_experiment_column(tmp_path):
+    runner = CliRunner()
+    for name in ("one", "two"):
+        path = write(tmp_path, {**tiny_config(), "name": name}, f"{name}.yaml")
+        assert runner.invoke(main, ["run", str(path), "--out", str(tmp_path / "res"), "--quiet",
+                                    "--runs", "2"]).exit_code == 0
+    shown = runner.invoke(main, ["table", "rmse", "--results", str(tmp_path / "res"),
+                                 "--format", "csv"])
+    assert shown.exit_code == 0, shown.output
+    df = pd.read_csv(StringIO(shown.output))
+    assert list(df.columns[:2]) == ["experiment", "table_id"]
+    assert set(df["experiment"]) == {"one", "two"}
+    assert shown.output.count("experiment,") == 1
+    latex = runner.invoke(main, ["table", "rmse", "--results", str(tmp_path / "res"),
+                                 "--format", "latex"])
+    assert latex.output.count(r"\begin{tabular}") == 2 and "% one: RMSE" in latex.output

@@ -76,3 +76,24 @@ def test_a_key_that_repeats_in_the_reference_is_an_error():
 def test_thesis_tables_ship_with_the_package():
     t = tables.reference_table("3.1")
     assert len(t) == 12 and set(t["estimator"]) == {"EKF", "RLS"}
+
+
+def test_render_latex_markdown_and_text_are_fit_for_a_paper():
+    import pandas as pd
+
+    from core import tables
+
+    df = pd.DataFrame({"frequency_hz": [100.0, 10000.0], "noise_param": [0.25, 1e-7],
+                       "estimator": ["EKF (fitted Q)", "x_1 & 50%"],
+                       "s_no": pd.array([1, None], dtype="Int64")})
+    latex = tables.render(df, "latex")
+    assert r"frequency\_hz" in latex and r"x\_1 \& 50\%" in latex
+    assert r"\toprule" in latex and r"\bottomrule" in latex and "booktabs" in latex
+    assert "10000" in latex and "e+04" not in latex and "1e-07" in latex
+    assert latex.count(r" \\") == 3                      # header and two rows
+    text = tables.render(df, "text")
+    assert "10000" in text and "--" in text
+    wide = pd.DataFrame({f"column_{i}_with_a_long_name": [1.5] for i in range(12)})
+    assert max(len(line) for line in tables.render(wide, "text").splitlines()) <= 100
+    md = tables.render(df, "markdown")
+    assert md.splitlines()[1].startswith("|---") or "--:" in md.splitlines()[1]
