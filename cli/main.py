@@ -39,7 +39,8 @@ from core.schema import Experiment
 
 
 def fail(message: str) -> None:
-    click.echo(f"error: {message}", err=True)
+    for line in str(message).splitlines() or [""]:
+        click.echo(f"error: {line}", err=True)
     sys.exit(2)
 
 

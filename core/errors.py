@@ -20,6 +20,19 @@ class ConfigError(EstimError, ValueError):
         super().__init__(where + message)
 
 
+class ConfigErrors(ConfigError):
+    """Several problems in one config: the message holds one line per problem."""
+
+    def __init__(self, errors: list[ConfigError]) -> None:
+        self.errors = errors
+        first = errors[0]
+        super().__init__(first.source, first.path, first.message)
+        self.args = ("\n".join(str(e) for e in errors),)
+
+    def __str__(self) -> str:
+        return self.args[0]
+
+
 class UsageError(EstimError):
     """A command cannot do what was asked (a folder it may not write, a missing baseline)."""
 

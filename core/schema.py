@@ -9,6 +9,7 @@ the key path. Each analysis module declares its own schema with these pieces.
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import math
 import re
 from dataclasses import dataclass
@@ -16,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from core.errors import ConfigError, ParameterError
+from core.errors import ConfigError, ConfigErrors, ParameterError
 
 REQUIRED = object()
 
@@ -65,9 +66,15 @@ def text(choices=None, max_length: int = 200):
         if len(v) > max_length:
             return f"a string of at most {max_length} characters"
         if choices is not None and v not in choices:
-            return f"one of {sorted(choices)}"
+            return f"one of {sorted(choices)}{did_you_mean(v, choices)}"
         return None
     return check
+
+
+def did_you_mean(word: str, choices) -> str:
+    """``"; did you mean 'x'?"`` for the nearest of ``choices`` to a misspelled ``word``."""
+    close = difflib.get_close_matches(str(word), [str(c) for c in choices], n=1, cutoff=0.6)
+    return f" (did you mean {close[0]!r}?)" if close else ""
 
 
 def boolean(v):
@@ -111,7 +118,28 @@ def list_of(item, nonempty: bool = True, max_length: int = 100, unique: bool = F
 
 
 def validate(value: Any, spec: Any, source: str, path: str) -> Any:
-    """``value`` checked against ``spec``, with every default of a nested schema filled in."""
+    """``value`` checked against ``spec``, with every default of a nested schema filled in.
+
+    Every problem is found before raising: one ``ConfigError`` for one, a
+    :class:`~core.errors.ConfigErrors` listing all of them (one per line) for several."""
+    errors: list[ConfigError] = []
+    out = _validate(value, spec, source, path, errors)
+    if len(errors) == 1:
+        raise errors[0]
+    if errors:
+        raise ConfigErrors(errors)
+    return out
+
+
+def _validate(value: Any, spec: Any, source: str, path: str, errors: list) -> Any:
+    try:
+        return _check(value, spec, source, path, errors)
+    except ConfigError as exc:
+        errors.append(exc)
+        return None
+
+
+def _check(value: Any, spec: Any, source: str, path: str, errors: list) -> Any:
     if isinstance(spec, dict):
         if not isinstance(value, dict):
             raise ConfigError(source, path, f"expected a mapping, got {type(value).__name__}")
@@ -119,20 +147,21 @@ def validate(value: Any, spec: Any, source: str, path: str) -> Any:
         if odd:
             raise ConfigError(source, path or "(top level)",
                               f"key {odd[0]!r} is not a string; expected one of {sorted(spec)}")
-        unknown = sorted(k for k in value if k not in spec)
-        if unknown:
-            key = f"{path}.{unknown[0]}" if path else str(unknown[0])
-            raise ConfigError(source, key, f"unknown key; expected one of {sorted(spec)}")
+        for name in sorted(k for k in value if k not in spec):
+            key = f"{path}.{name}" if path else str(name)
+            errors.append(ConfigError(source, key, f"unknown key{did_you_mean(name, spec)}; "
+                                      f"expected one of {sorted(spec)}"))
         out = {}
         for key, (sub, default) in spec.items():
             sub_path = f"{path}.{key}" if path else key
             if key not in value or value[key] is None:
                 if default is REQUIRED:
-                    raise ConfigError(source, sub_path, "missing required key")
-                out[key] = validate(default, sub, source, sub_path) if isinstance(
+                    errors.append(ConfigError(source, sub_path, "missing required key"))
+                    continue
+                out[key] = _validate(default, sub, source, sub_path, errors) if isinstance(
                     sub, dict) and default is not None else default
                 continue
-            out[key] = validate(value[key], sub, source, sub_path)
+            out[key] = _validate(value[key], sub, source, sub_path, errors)
         return out
     if isinstance(spec, tuple) and spec[0] == "list":
         _, item, nonempty, max_length, unique = spec
@@ -143,8 +172,9 @@ def validate(value: Any, spec: Any, source: str, path: str) -> Any:
         if len(value) > max_length:
             raise ConfigError(source, path, f"expected at most {max_length} entries, got "
                               f"{len(value)}")
-        out = [validate(v, item, source, f"{path}[{i}]") for i, v in enumerate(value)]
-        if unique:
+        before = len(errors)
+        out = [_validate(v, item, source, f"{path}[{i}]", errors) for i, v in enumerate(value)]
+        if unique and len(errors) == before:
             for i, v in enumerate(out):
                 if v in out[:i]:
                     raise ConfigError(source, f"{path}[{i}]", f"repeats {v!r}")
@@ -227,7 +257,11 @@ def build_estimator(est_cls, settings: dict, model, source: str, path: str):
         est = est_cls(**settings)
         est.validate(model)
     except (ValueError, TypeError, OverflowError) as exc:
-        raise ConfigError(source, path, str(exc)) from None
+        message = str(exc)
+        key, sep, rest = message.partition(": ")
+        if sep and key in est_cls.SETTINGS:             # "Q: not symmetric" -> settings.Q
+            raise ConfigError(source, f"{path}.{key}", rest) from None
+        raise ConfigError(source, path, message) from None
     return est
 
 

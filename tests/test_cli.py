@@ -61,7 +61,7 @@ def write(tmp_path: Path, spec: dict, name: str = "tiny.yaml") -> Path:
     ({"model.params": {"drain_current": "spice"}}, "model.params", "drain_current"),
     ({"monte_carlo": DELETE}, "monte_carlo", "missing required key"),
     ({"noise.readings": ["std"]}, "noise.readings[0]", "sigma"),
-    ({"estimators.0.settings.Q": [1, 2]}, "estimators[0].settings", "Q: expected"),
+    ({"estimators.0.settings.Q": [1, 2]}, "estimators[0].settings.Q", "expected a scalar"),
     ({"estimators.0.settings.substeps": 0}, "estimators[0].settings.substeps", "integer from 1"),
     ({"estimators.1.settings": {"lambda_min": 1.5}}, "estimators[1].settings.lambda_min",
      "number <= 1"),
@@ -97,8 +97,8 @@ def write(tmp_path: Path, spec: dict, name: str = "tiny.yaml") -> Path:
     ({"estimators.0.label": "measurement"}, "estimators[0].label", "baseline row"),
     ({"estimators.1.settings.lambda0": 0.99}, "estimators[1].settings",
      "lambda0 is the constant factor of forgetting: fixed"),
-    ({"estimators.1.settings.forgetting": "fixed"}, "estimators[1].settings",
-     "forgetting: fixed needs lambda0"),
+    ({"estimators.1.settings.forgetting": "fixed"}, "estimators[1].settings.forgetting",
+     "fixed needs lambda0"),
     ({"estimators.1.settings.forgetting": "sometimes"}, "estimators[1].settings.forgetting",
      "variable"),
     ({"estimators.1.settings.p_max": -1.0}, "estimators[1].settings.p_max", "positive number"),
@@ -448,3 +448,18 @@ def test_table_csv_is_one_valid_csv_with_an_experiment_column(tmp_path):
     latex = runner.invoke(main, ["table", "rmse", "--results", str(tmp_path / "res"),
                                  "--format", "latex"])
     assert latex.output.count(r"\begin{tabular}") == 2 and "% one: RMSE" in latex.output
+
+
+def test_every_config_mistake_at_once_with_suggestions(tmp_path):
+    spec = tiny_config()
+    spec["simulation"]["rtl"] = 1e-6
+    spec["noise"]["readings"] = ["sigmaa"]
+    spec["monte_carlo"]["runs"] = 0
+    path = write(tmp_path, spec)
+    result = CliRunner().invoke(main, ["validate", str(path)])
+    assert result.exit_code == 2
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 3 and all(line.startswith(f"error: {path}: ") for line in lines)
+    assert any("simulation.rtl: unknown key (did you mean 'rtol'?)" in line for line in lines)
+    assert any("noise.readings[0]" in line and "did you mean 'sigma'?" in line for line in lines)
+    assert any("monte_carlo.runs: expected an integer" in line for line in lines)
