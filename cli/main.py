@@ -113,15 +113,16 @@ def load_all(paths, overrides: dict | None = None, max_work: int = MAX_WORK,
 
 
 def run_one(exp: Experiment, out: Path, jobs: int, quiet: bool,
-            overrides: dict | None = None) -> runner.Result:
+            overrides: dict | None = None, on_done=None) -> runner.Result:
     """Run ``exp`` and write ``out/<name>/`` as a unit: all old or all new (core.io)."""
     start = time.perf_counter()
     total = runner.work_units(exp)
     with io.ResultFolder(out, exp.name) as folder:
-        if quiet or not sys.stderr.isatty():
-            if not quiet:
-                click.echo(f"{exp.name}: {total} work units ...", err=True)
-            result = runner.execute(exp, jobs)
+        if quiet:
+            result = runner.execute(exp, jobs, on_done=on_done)
+        elif not sys.stderr.isatty():
+            click.echo(f"{exp.name}: {total} work units ...", err=True)
+            result = runner.execute(exp, jobs, on_done=progress_lines(exp.name, total))
         else:
             with click.progressbar(length=total, label=exp.name, file=sys.stderr) as bar:
                 result = runner.execute(exp, jobs, on_done=lambda: bar.update(1))
@@ -135,6 +136,20 @@ def run_one(exp: Experiment, out: Path, jobs: int, quiet: bool,
                           overrides=overrides or {})
         folder.commit()
     return result
+
+
+def progress_lines(name: str, total: int, prefix: str = ""):
+    """Without a terminal (CI, cluster logs): one line per finished work unit with the
+    elapsed time and an estimate of the time left."""
+    start, done = time.perf_counter(), [0]
+
+    def on_done() -> None:
+        done[0] += 1
+        elapsed = time.perf_counter() - start
+        left = elapsed / done[0] * (total - done[0]) if done[0] < total else 0.0
+        click.echo(f"{prefix}{name}: {min(done[0], total)}/{total} done, {elapsed:.0f} s "
+                   f"elapsed, about {left:.0f} s left", err=True)
+    return on_done
 
 
 def read_table(path: Path, spec=None) -> pd.DataFrame:
@@ -441,7 +456,11 @@ def _check_one(exp: Experiment, stored_dir: Path, tmp: Path, jobs: int,
         click.echo(f"{exp.name}: the stored results were made with another config than "
                    f"{exp.source}: {shown or 'config hash differs'}")
         return 1
-    result = run_one(exp, tmp, jobs, quiet=True)
+    total = runner.work_units(exp)
+    click.echo(f"{exp.name}: running {total} work units ...", err=True)
+    start = time.perf_counter()
+    result = run_one(exp, tmp, jobs, quiet=True, on_done=progress_lines(exp.name, total))
+    click.echo(f"{exp.name}: ran in {time.perf_counter() - start:.0f} s", err=True)
     tol = exp.spec["check"]["tolerances"]
     skipped = sorted(c for c, t in tol.items() if t.get("skip"))
     for column in skipped:

@@ -35,7 +35,7 @@ COMMON: dict = {
     "name": (text(max_length=100), None),
     "title": (text(), ""),
     "analysis": (text(ANALYSES), "estimation"),
-    "reproduces": (list_of(text(max_length=20), max_length=50), []),
+    "reproduces": (list_of(text(max_length=20), nonempty=False, max_length=50), []),
     "model": (model_block(registry.MODELS)[0], None),
     "monte_carlo": ({
         "runs": (integer(1, 1_000_000), 1),

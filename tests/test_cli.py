@@ -463,3 +463,13 @@ def test_every_config_mistake_at_once_with_suggestions(tmp_path):
     assert any("simulation.rtl: unknown key (did you mean 'rtol'?)" in line for line in lines)
     assert any("noise.readings[0]" in line and "did you mean 'sigma'?" in line for line in lines)
     assert any("monte_carlo.runs: expected an integer" in line for line in lines)
+
+
+@pytest.mark.parametrize("path", sorted((ROOT / "configs").glob("*.yaml")), ids=lambda p: p.stem)
+def test_every_shipped_config_has_a_valid_quick_profile(path):
+    """``estim run CONFIG --quick`` validates the shrunk config again: it must pass (a config
+    without ``reproduces`` used to fail here)."""
+    from cli.main import load
+
+    exp = load(path, quick=True)
+    assert exp.name == path.stem
