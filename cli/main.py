@@ -13,7 +13,6 @@ import stat
 import sys
 import tempfile
 import time
-import warnings
 from pathlib import Path
 
 import click
@@ -23,6 +22,7 @@ import yaml
 
 import core
 from cli import project
+from cli.group import Group, fail
 from core import io, runner, tables
 from core.analyses import ANALYSES
 from core.config import (
@@ -36,13 +36,6 @@ from core.config import (
 )
 from core.errors import ConfigError, ReferenceJoinError, UsageError
 from core.schema import Experiment
-
-
-def fail(message: str) -> None:
-    for line in str(message).splitlines() or [""]:
-        click.echo(f"error: {line}", err=True)
-    sys.exit(2)
-
 
 MAX_CONFIG_BYTES = 1 << 20
 
@@ -222,31 +215,6 @@ def config_differences(stored: dict, current: dict, path: str = "") -> list[str]
     if stored != current:
         return [f"{path or '(config)'}: stored {stored!r}, config {current!r}"]
     return []
-
-
-class Group(click.Group):
-    """Turns a failure inside a command into one line: exit 2 for a usage error, 3 for a run
-    that failed after starting (1 means drift)."""
-
-    def invoke(self, ctx):
-        warnings.simplefilter("ignore", RuntimeWarning)     # errors are reported, one line
-        try:
-            return super().invoke(ctx)
-        except (KeyboardInterrupt, click.Abort):
-            click.echo("error: interrupted", err=True)
-            sys.exit(130)
-        except (click.exceptions.Exit, click.ClickException, SystemExit):
-            raise
-        except (UsageError, ConfigError) as exc:
-            fail(str(exc))
-        except OSError as exc:
-            where = f" ({exc.filename})" if exc.filename else ""
-            click.echo(f"error: {exc.strerror or exc}{where}", err=True)
-            sys.exit(3)
-        except Exception as exc:  # noqa: BLE001 - last line of defence, reported
-            first = (str(exc).strip().splitlines() or [""])[0]
-            click.echo(f"error: {type(exc).__name__}: {first}", err=True)
-            sys.exit(3)
 
 
 @click.group(cls=Group, context_settings={"help_option_names": ["-h", "--help"]})

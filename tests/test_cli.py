@@ -473,3 +473,26 @@ def test_every_shipped_config_has_a_valid_quick_profile(path):
 
     exp = load(path, quick=True)
     assert exp.name == path.stem
+
+
+def test_entry_point_lists_commands_without_loading_them():
+    """``estim --help`` and completion answer from cli.entry without importing the commands
+    (numpy, pandas, matplotlib); the short help names every command of cli.main."""
+    import subprocess
+    import sys
+
+    from cli import entry
+
+    assert set(entry.SHORT_HELP) == set(main.commands)
+    code = ("import sys; from click.testing import CliRunner; from cli.entry import main; "
+            "r = CliRunner().invoke(main, ['--help']); assert r.exit_code == 0, r.output; "
+            "print(sorted(m for m in ('pandas', 'matplotlib', 'scipy', 'cli.main') "
+            "if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         cwd=ROOT, check=True).stdout.strip()
+    assert out == "[]"
+    config = str(ROOT / "configs/passive_network.yaml")
+    result = CliRunner().invoke(entry.main, ["validate", config])
+    assert result.exit_code == 0 and "ok (passive_network)" in result.output
+    bad = CliRunner().invoke(entry.main, ["validate", config, "sample_time=-1"])
+    assert bad.exit_code == 2 and "sample_time" in bad.output
