@@ -529,6 +529,55 @@ def validate(configs, max_work) -> None:
         click.echo(f"{exp.source}: ok ({exp.name})")
 
 
+@main.command(name="report")
+@click.option("--results", type=click.Path(file_okay=False, path_type=Path),
+              help="Folder of stored results [default: the project's results/].")
+@click.option("--out", type=click.Path(dir_okay=False, path_type=Path), default="report.html",
+              show_default=True, help="The HTML file to write.")
+def report_page(results, out) -> None:
+    """Write one self-contained HTML page of the stored results: tables beside the printed
+    values (failing claims in red), every figure, the deviations each config cites, seeds
+    and versions."""
+    from core import report as html_report
+
+    where = project.locate()
+    results = results or where.results
+    notes = where.root / "docs" / "deviations.md" if where.root else None
+    entries = html_report.deviation_entries(notes.read_text()) if notes and notes.is_file() \
+        else {}
+    sections = []
+    for manifest_path in sorted(results.glob("*/manifest.json")):
+        folder = manifest_path.parent
+        manifest = read_manifest(folder)
+        if manifest is None or not isinstance(manifest.get("config"), dict):
+            raise UsageError(f"{manifest_path}: not a readable estim manifest")
+        config = manifest["config"]
+        analysis = ANALYSES.get(config.get("analysis", "estimation"))
+        section = html_report.Section(folder.name, str(config.get("title") or ""), manifest)
+        for metric, spec in (analysis.TABLES.items() if analysis else []):
+            path = folder / spec.file
+            if not path.is_file():
+                continue
+            df = tables.view(read_table(path, spec), spec)
+            if spec.join and "table_id" in df and df["table_id"].astype(str).str.len().any():
+                try:
+                    df = tables.with_reference(df, spec, allow_unmatched=True)
+                except ReferenceJoinError:
+                    pass
+            section.tables.append((f"{metric}: {spec.title}", df))
+        for png in sorted((folder / "figures").glob("*.png")):
+            section.figures.append((png.stem, png.read_bytes()))
+        source = where.config_dir / f"{folder.name}.yaml"
+        text_ = source.read_text() if source.is_file() else ""
+        section.deviations = [(d, entries[d]) for d in html_report.cited(text_) if d in entries]
+        sections.append(section)
+    if not sections:
+        fail(f"no stored results under {results}/ (run 'estim reproduce')")
+    page = html_report.page("estim: stored results", sections)
+    io.atomic_write_bytes(out, page.encode("utf-8"))
+    click.echo(f"report: {len(sections)} experiments -> {out}")
+
+
 @main.command(name="list")
 def list_configs() -> None:
     """Show the configs and the thesis tables each reproduces."""

@@ -496,3 +496,41 @@ def test_entry_point_lists_commands_without_loading_them():
     assert result.exit_code == 0 and "ok (passive_network)" in result.output
     bad = CliRunner().invoke(entry.main, ["validate", config, "sample_time=-1"])
     assert bad.exit_code == 2 and "sample_time" in bad.output
+
+
+def test_report_is_one_page_with_every_table_and_figure(tmp_path):
+    from html.parser import HTMLParser
+
+    path = write(tmp_path, tiny_config())
+    runner = CliRunner()
+    assert runner.invoke(main, ["run", str(path), "--out", str(tmp_path / "res"), "--quiet",
+                                "--runs", "2"]).exit_code == 0
+    out = tmp_path / "page.html"
+    result = runner.invoke(main, ["report", "--results", str(tmp_path / "res"), "--out",
+                                  str(out)])
+    assert result.exit_code == 0, result.output
+
+    class Page(HTMLParser):
+        def __init__(self):
+            super().__init__()
+            self.tables, self.images, self.failing, self.external = 0, [], 0, []
+
+        def handle_starttag(self, tag, attrs):
+            a = dict(attrs)
+            self.tables += tag == "table"
+            self.failing += tag == "tr" and a.get("class") == "fail"
+            if tag == "img":
+                self.images.append(a.get("alt"))
+                if not a.get("src", "").startswith("data:image/png;base64,"):
+                    self.external.append(a.get("src"))
+            if tag in ("link", "script") or (tag == "a" and "://" in a.get("href", "")):
+                self.external.append(a)
+
+    page = Page()
+    page.feed(out.read_text())
+    folder = tmp_path / "res" / "tiny"
+    assert page.tables == len(list(folder.glob("*.csv")))
+    assert sorted(page.images) == sorted(p.stem for p in (folder / "figures").glob("*.png"))
+    assert not page.external
+    claims = pd.read_csv(folder / "claims.csv")
+    assert page.failing == int((~claims["holds"].astype(bool)).sum())
