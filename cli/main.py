@@ -6,8 +6,10 @@ Exit codes: 0 ok, 1 a check found differences, 2 a usage or config error, 3 a ru
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import csv
+import hashlib
 import json
 import stat
 import sys
@@ -25,6 +27,7 @@ from cli import project
 from cli.group import Group, fail
 from core import io, runner, tables
 from core.analyses import ANALYSES
+from core.analyses.base import execution
 from core.config import (
     MAX_WORK,
     OVERRIDE_KEY,
@@ -106,11 +109,21 @@ def load_all(paths, overrides: dict | None = None, max_work: int = MAX_WORK,
 
 
 def run_one(exp: Experiment, out: Path, jobs: int, quiet: bool,
-            overrides: dict | None = None, on_done=None) -> runner.Result:
-    """Run ``exp`` and write ``out/<name>/`` as a unit: all old or all new (core.io)."""
+            overrides: dict | None = None, on_done=None, executor=None,
+            resume: bool = True) -> runner.Result:
+    """Run ``exp`` and write ``out/<name>/`` as a unit: all old or all new (core.io).
+
+    Each finished work unit is kept in ``out/.<name>.cells-<hash>/`` (of the config and of
+    estim's source) until the run
+    is written, so a run stopped by a crash or Ctrl-C resumes with the cells it has (unless
+    not ``resume``); ``executor`` runs the units elsewhere (core.executors)."""
     start = time.perf_counter()
     total = runner.work_units(exp)
-    with io.ResultFolder(out, exp.name) as folder:
+    key = hashlib.sha256((spec_hash(exp.spec) + io.code_fingerprint()).encode()).hexdigest()
+    store = io.CellStore(out / f".{exp.name}.cells-{key[:16]}")
+    if not resume:
+        store.clear()
+    with io.ResultFolder(out, exp.name) as folder, execution(executor, store):
         if quiet:
             result = runner.execute(exp, jobs, on_done=on_done)
         elif not sys.stderr.isatty():
@@ -128,6 +141,10 @@ def run_one(exp: Experiment, out: Path, jobs: int, quiet: bool,
                           time.perf_counter() - start, command=" ".join(["estim", *sys.argv[1:]]),
                           overrides=overrides or {})
         folder.commit()
+    if store.hits and not quiet:
+        click.echo(f"{exp.name}: resumed with {store.hits} finished cell(s) of an earlier run",
+                   err=True)
+    store.clear()
     return result
 
 
@@ -269,8 +286,17 @@ def _out_folder(out: Path | None, exps: list[Experiment], overridden: bool,
                    "short records, 3 runs); never written into results/.")
 @_jobs
 @_max_work
+@click.option("--executor", type=click.Choice(["local", "dask"]), default="local",
+              show_default=True, help="Where work units run: this machine (--jobs processes) "
+                                      "or a Dask cluster (pip install 'estim[dask]').")
+@click.option("--scheduler", metavar="ADDRESS",
+              help="With --executor dask: the scheduler (tcp://host:8786) [default: a local "
+                   "cluster of --jobs workers].")
+@click.option("--no-resume", is_flag=True,
+              help="Recompute every cell, even those an interrupted run left.")
 @click.option("--quiet", is_flag=True, help="No progress and no summary.")
-def run(configs, out, runs, seed, update_baseline, quick, jobs, max_work, quiet) -> None:
+def run(configs, out, runs, seed, update_baseline, quick, jobs, max_work, executor, scheduler,
+        no_resume, quiet) -> None:
     """Run the experiment(s) of CONFIGS and write OUT/<config name>/.
 
     CONFIGS may mix config files and overrides KEY.PATH=VALUE (the value is YAML; list
@@ -285,11 +311,42 @@ def run(configs, out, runs, seed, update_baseline, quick, jobs, max_work, quiet)
                                                 ("monte_carlo.seed", seed)) if v is not None}}
     if quick and update_baseline:
         fail("--quick never writes the baseline: drop --update-baseline")
+    if scheduler and executor != "dask":
+        fail("--scheduler needs --executor dask")
     exps = load_all(configs, overrides, max_work, quick)
     folder = _out_folder(out, exps, bool(overrides) or quick, update_baseline, quiet)
     io.ensure_writable(folder)
-    for exp in exps:
-        report(exp, folder, run_one(exp, folder, jobs, quiet, overrides), quiet)
+    with _executor(executor, scheduler, jobs) as units:
+        for exp in exps:
+            report(exp, folder, run_one(exp, folder, jobs, quiet, overrides, executor=units,
+                                        resume=not no_resume), quiet)
+
+
+@contextlib.contextmanager
+def _executor(kind: str, scheduler: str | None, jobs: int):
+    """``None`` for this machine, or a Dask executor on ``scheduler`` (a local cluster of
+    ``jobs`` single-threaded workers without one), closed afterwards."""
+    if kind == "local":
+        yield None
+        return
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        fail("--executor dask needs Dask distributed: pip install 'estim[dask]'")
+    from core.executors import dask_executor
+
+    cluster = None if scheduler else LocalCluster(n_workers=jobs, threads_per_worker=1,
+                                                  processes=True, dashboard_address=None)
+    try:
+        client = Client(scheduler) if scheduler else Client(cluster)
+    except OSError as exc:
+        raise UsageError(f"cannot reach the Dask scheduler {scheduler}: {exc}") from None
+    try:
+        yield dask_executor(client)
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
 
 
 @main.command()

@@ -324,3 +324,57 @@ def compare_tables(stored: pd.DataFrame, new: pd.DataFrame,
                 diffs.append({"row": i, "column": col, "expected": y, "obtained": x,
                               "difference": ""})
     return diffs
+
+
+class CellStore:
+    """Finished work units of one run, one pickle per cell in ``folder`` (written
+    atomically), so a run stopped by a crash or Ctrl-C resumes with the cells it has. The
+    folder name carries the config's hash: another config never reads them. Only estim
+    writes these files; they are read back by the same user's runs."""
+
+    def __init__(self, folder: Path) -> None:
+        self.folder = Path(folder)
+        self.hits = 0
+
+    def _path(self, key: tuple[int, int]) -> Path:
+        return self.folder / f"cell-{key[0]}-{key[1]}.pkl"
+
+    def get(self, key: tuple[int, int]) -> tuple[bool, object]:
+        import pickle
+
+        path = self._path(key)
+        if not path.is_file():
+            return False, None
+        try:
+            value = pickle.loads(path.read_bytes())
+        except Exception:  # noqa: BLE001 - a damaged cell is recomputed
+            return False, None
+        self.hits += 1
+        return True, value
+
+    def put(self, key: tuple[int, int], value: object) -> None:
+        import pickle
+
+        self.folder.mkdir(parents=True, exist_ok=True)
+        atomic_write_bytes(self._path(key), pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL))
+
+    def clear(self) -> None:
+        import shutil
+
+        shutil.rmtree(self.folder, ignore_errors=True)
+
+
+_FINGERPRINT: list[str] = []
+
+
+def code_fingerprint() -> str:
+    """A hash of estim's own source (every ``.py`` file of ``core``): stored cells of a run
+    are reused only by the same code."""
+    if not _FINGERPRINT:
+        root = Path(__file__).resolve().parent
+        digest = hashlib.sha256()
+        for path in sorted(root.rglob("*.py")):
+            digest.update(str(path.relative_to(root)).encode())
+            digest.update(path.read_bytes())
+        _FINGERPRINT.append(digest.hexdigest())
+    return _FINGERPRINT[0]

@@ -534,3 +534,58 @@ def test_report_is_one_page_with_every_table_and_figure(tmp_path):
     assert not page.external
     claims = pd.read_csv(folder / "claims.csv")
     assert page.failing == int((~claims["holds"].astype(bool)).sum())
+
+
+def test_a_dask_run_writes_the_same_bytes_as_jobs_1(tmp_path):
+    pytest.importorskip("distributed")
+    path = write(tmp_path, tiny_config())
+    runner = CliRunner()
+    local = runner.invoke(main, ["run", str(path), "--out", str(tmp_path / "a"), "--quiet",
+                                 "--runs", "2"])
+    dask = runner.invoke(main, ["run", str(path), "--out", str(tmp_path / "b"), "--quiet",
+                                "--runs", "2", "--executor", "dask", "--jobs", "2"])
+    assert local.exit_code == 0 and dask.exit_code == 0, dask.output
+    a, b = tmp_path / "a" / "tiny", tmp_path / "b" / "tiny"
+    files = sorted(p.relative_to(a) for p in a.rglob("*") if p.is_file()
+                   and p.name != "manifest.json")
+    assert files and files == sorted(p.relative_to(b) for p in b.rglob("*") if p.is_file()
+                                     and p.name != "manifest.json")
+    for f in files:
+        assert (a / f).read_bytes() == (b / f).read_bytes(), f
+    refused = runner.invoke(main, ["run", str(path), "--scheduler", "tcp://x:1"])
+    assert refused.exit_code == 2 and "--executor dask" in refused.output
+
+
+def test_an_interrupted_run_resumes_with_its_finished_cells(tmp_path, monkeypatch):
+    from core.analyses import estimation
+
+    path = write(tmp_path, tiny_config(**{"input.frequencies_hz": [100, 1000, 10000]}))
+    runner = CliRunner()
+    args = ["run", str(path), "--quiet", "--runs", "2"]
+    assert runner.invoke(main, [*args, "--out", str(tmp_path / "full")]).exit_code == 0
+    real, calls = estimation.run_point, []
+
+    def counted(*a, **k):
+        calls.append(1)
+        if stop_after and len(calls) > stop_after:
+            raise KeyboardInterrupt
+        return real(*a, **k)
+
+    monkeypatch.setattr(estimation, "run_point", counted)
+    stop_after = 2
+    stopped = runner.invoke(main, [*args, "--out", str(tmp_path / "res")])
+    assert stopped.exit_code == 130 and not (tmp_path / "res" / "tiny").exists()
+    assert len(list((tmp_path / "res").glob(".tiny.cells-*/cell-*.pkl"))) == 2
+    calls.clear()
+    stop_after = 0
+    resumed = runner.invoke(main, ["run", str(path), "--runs", "2", "--out",
+                                   str(tmp_path / "res")])
+    assert resumed.exit_code == 0, resumed.output
+    assert "resumed with 2 finished cell(s)" in resumed.output
+    total = len(pd.read_csv(tmp_path / "full" / "tiny" / "rmse.csv")
+                [["noise_reading", "noise_param", "frequency_hz"]].drop_duplicates())
+    assert len(calls) == total - 2
+    for name in ("rmse.csv", "residual.csv", "health.csv"):
+        assert (tmp_path / "res" / "tiny" / name).read_bytes() == \
+            (tmp_path / "full" / "tiny" / name).read_bytes()
+    assert not list((tmp_path / "res").glob(".tiny.cells-*"))

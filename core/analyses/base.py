@@ -20,8 +20,10 @@ An analysis is a module registered by one line in :data:`core.analyses.ANALYSES`
 from __future__ import annotations
 
 import signal
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ProcessPoolExecutor
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -83,20 +85,73 @@ def _ignore_interrupts() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
+@dataclass
+class Execution:
+    """How :func:`map_tasks` runs inside :func:`execution`: ``executor`` (``None``: this
+    machine, ``jobs`` processes) is a callable ``executor(fn, tasks) -> iterator of (index,
+    result)`` in any order (:func:`core.executors.dask_executor`); ``store`` keeps finished
+    cells, ``store.get(key) -> (found, value)`` and ``store.put(key, value)``
+    (:class:`core.io.CellStore`), keyed by the map call's number and the task's index."""
+
+    executor: Callable | None = None
+    store: Any = None
+    calls: int = 0
+
+
+_EXECUTION: ContextVar[Execution | None] = ContextVar("estim_execution", default=None)
+
+
+@contextmanager
+def execution(executor: Callable | None = None, store: Any = None) -> Iterator[Execution]:
+    """Run the analyses called inside on ``executor``, saving each finished cell in
+    ``store`` and taking the ones it already has from it (a resumed run)."""
+    token = _EXECUTION.set(Execution(executor, store))
+    try:
+        yield _EXECUTION.get()
+    finally:
+        _EXECUTION.reset(token)
+
+
 def map_tasks(fn: Callable[[Any], Any], tasks: Iterable, jobs: int = 1,
               on_done: Callable[[], None] | None = None) -> list:
-    """``[fn(t) for t in tasks]``, in ``jobs`` processes when more than one; results keep the
-    order of ``tasks`` and ``on_done`` is called once per finished task."""
+    """``[fn(t) for t in tasks]``, in ``jobs`` processes when more than one (or on the
+    executor of :func:`execution`); results keep the order of ``tasks`` and ``on_done`` is
+    called once per finished task. Every task is a cell of its own, seeded by its own key,
+    so where it runs does not change its result."""
     tasks = list(tasks)
-    out = []
-    if jobs > 1 and len(tasks) > 1:
-        pool = ProcessPoolExecutor(max_workers=min(jobs, len(tasks)),
+    ctx = _EXECUTION.get()
+    call = 0
+    if ctx is not None:
+        call, ctx.calls = ctx.calls, ctx.calls + 1
+    store = ctx.store if ctx is not None else None
+    out: list = [None] * len(tasks)
+    pending = []
+    for i in range(len(tasks)):
+        found, value = store.get((call, i)) if store is not None else (False, None)
+        if found:
+            out[i] = value
+            if on_done:
+                on_done()
+        else:
+            pending.append(i)
+
+    def finished(i: int, value: Any) -> None:
+        out[i] = value
+        if store is not None:
+            store.put((call, i), value)
+        if on_done:
+            on_done()
+
+    if ctx is not None and ctx.executor is not None and pending:
+        for i, value in ctx.executor(fn, {i: tasks[i] for i in pending}):
+            finished(i, value)
+    elif jobs > 1 and len(pending) > 1:
+        pool = ProcessPoolExecutor(max_workers=min(jobs, len(pending)),
                                    initializer=_ignore_interrupts)
         try:
-            for result in pool.map(fn, tasks):
-                out.append(result)
-                if on_done:
-                    on_done()
+            for i, value in zip(pending, pool.map(fn, [tasks[i] for i in pending]),
+                                strict=True):
+                finished(i, value)
         except BaseException:
             for process in list(getattr(pool, "_processes", {}).values()):
                 process.terminate()
@@ -104,8 +159,6 @@ def map_tasks(fn: Callable[[Any], Any], tasks: Iterable, jobs: int = 1,
             raise
         pool.shutdown()
     else:
-        for task in tasks:
-            out.append(fn(task))
-            if on_done:
-                on_done()
+        for i in pending:
+            finished(i, fn(tasks[i]))
     return out
