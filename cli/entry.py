@@ -20,6 +20,7 @@ SHORT_HELP = {
     "check": "Re-run configs and compare every cell with the stored tables.",
     "list": "Show the configs and the thesis tables each reproduces.",
     "report": "Write one self-contained HTML page of the stored results.",
+    "merge": "Gather the cells of sharded runs and write the tables.",
     "reproduce": "Run every config of configs/ (the thesis tables on the default settings).",
     "run": "Run the experiment(s) of CONFIGS and write OUT/<config name>/.",
     "table": "Print the METRIC tables of every experiment found under RESULTS.",

@@ -27,7 +27,7 @@ from cli import project
 from cli.group import Group, fail
 from core import io, runner, tables
 from core.analyses import ANALYSES
-from core.analyses.base import execution
+from core.analyses.base import ShardDone, execution
 from core.config import (
     MAX_WORK,
     OVERRIDE_KEY,
@@ -108,6 +108,12 @@ def load_all(paths, overrides: dict | None = None, max_work: int = MAX_WORK,
     return exps
 
 
+def cell_store(exp: Experiment, out: Path) -> io.CellStore:
+    """Where the finished cells of ``exp`` wait in ``out`` (keyed by config and source)."""
+    key = hashlib.sha256((spec_hash(exp.spec) + io.code_fingerprint()).encode()).hexdigest()
+    return io.CellStore(out / f".{exp.name}.cells-{key[:16]}")
+
+
 def run_one(exp: Experiment, out: Path, jobs: int, quiet: bool,
             overrides: dict | None = None, on_done=None, executor=None,
             resume: bool = True) -> runner.Result:
@@ -119,8 +125,7 @@ def run_one(exp: Experiment, out: Path, jobs: int, quiet: bool,
     not ``resume``); ``executor`` runs the units elsewhere (core.executors)."""
     start = time.perf_counter()
     total = runner.work_units(exp)
-    key = hashlib.sha256((spec_hash(exp.spec) + io.code_fingerprint()).encode()).hexdigest()
-    store = io.CellStore(out / f".{exp.name}.cells-{key[:16]}")
+    store = cell_store(exp, out)
     if not resume:
         store.clear()
     with io.ResultFolder(out, exp.name) as folder, execution(executor, store):
@@ -294,9 +299,12 @@ def _out_folder(out: Path | None, exps: list[Experiment], overridden: bool,
                    "cluster of --jobs workers].")
 @click.option("--no-resume", is_flag=True,
               help="Recompute every cell, even those an interrupted run left.")
+@click.option("--shard", metavar="K/N",
+              help="Compute only work units K, K+N, ... (1 <= K <= N) and keep them for "
+                   "'estim merge' (array jobs without a scheduler).")
 @click.option("--quiet", is_flag=True, help="No progress and no summary.")
 def run(configs, out, runs, seed, update_baseline, quick, jobs, max_work, executor, scheduler,
-        no_resume, quiet) -> None:
+        no_resume, shard, quiet) -> None:
     """Run the experiment(s) of CONFIGS and write OUT/<config name>/.
 
     CONFIGS may mix config files and overrides KEY.PATH=VALUE (the value is YAML; list
@@ -316,10 +324,62 @@ def run(configs, out, runs, seed, update_baseline, quick, jobs, max_work, execut
     exps = load_all(configs, overrides, max_work, quick)
     folder = _out_folder(out, exps, bool(overrides) or quick, update_baseline, quiet)
     io.ensure_writable(folder)
+    if shard is not None:
+        k, n = _parse_shard(shard)
+        for exp in exps:
+            store = cell_store(exp, folder)
+            try:
+                with execution(None, store, shard=(k, n)):
+                    runner.execute(exp, jobs)
+                click.echo(f"{exp.name}: shard {k}/{n} needed the whole run; its cells are in "
+                           f"{store.folder}")
+            except ShardDone as done:
+                click.echo(f"{exp.name}: shard {k}/{n}: {done.computed} cell(s) in "
+                           f"{store.folder}; finish with 'estim merge'")
+        return
     with _executor(executor, scheduler, jobs) as units:
         for exp in exps:
             report(exp, folder, run_one(exp, folder, jobs, quiet, overrides, executor=units,
                                         resume=not no_resume), quiet)
+
+
+def _parse_shard(text_: str) -> tuple[int, int]:
+    k, sep, n = text_.partition("/")
+    if not (sep and k.isdigit() and n.isdigit() and 1 <= int(k) <= int(n)):
+        fail(f"--shard {text_!r}: expected K/N with 1 <= K <= N")
+    return int(k), int(n)
+
+
+@main.command()
+@click.argument("configs", nargs=-1, required=True)
+@click.option("--from", "sources", multiple=True, required=True,
+              type=click.Path(file_okay=False, exists=True, path_type=Path),
+              help="A folder the shards wrote into (repeat for several).")
+@click.option("--out", type=click.Path(file_okay=False, path_type=Path),
+              help="Folder for results [default: as for run].")
+@_jobs
+@_max_work
+@click.option("--quiet", is_flag=True)
+def merge(configs, sources, out, jobs, max_work, quiet) -> None:
+    """Gather the cells of 'estim run --shard K/N' runs from the --from folders and write
+    the tables, computing any cell no shard made. CONFIGS and overrides as given to run."""
+    configs, overrides = split_overrides(configs)
+    exps = load_all(configs, overrides, max_work)
+    folder = _out_folder(out, exps, bool(overrides), False, quiet)
+    io.ensure_writable(folder)
+    for exp in exps:
+        target = cell_store(exp, folder)
+        copied = 0
+        for source in sources:
+            found = cell_store(exp, source).folder
+            for cell in sorted(found.glob("cell-*.pkl")) if found.is_dir() else []:
+                if found != target.folder:
+                    target.folder.mkdir(parents=True, exist_ok=True)
+                    io.atomic_write_bytes(target.folder / cell.name, cell.read_bytes())
+                copied += 1
+        if not quiet:
+            click.echo(f"{exp.name}: {copied} cell(s) from {len(sources)} folder(s)", err=True)
+        report(exp, folder, run_one(exp, folder, jobs, quiet, overrides), quiet)
 
 
 @contextlib.contextmanager

@@ -589,3 +589,24 @@ def test_an_interrupted_run_resumes_with_its_finished_cells(tmp_path, monkeypatc
         assert (tmp_path / "res" / "tiny" / name).read_bytes() == \
             (tmp_path / "full" / "tiny" / name).read_bytes()
     assert not list((tmp_path / "res").glob(".tiny.cells-*"))
+
+
+def test_shards_merged_give_the_tables_of_one_run(tmp_path):
+    path = write(tmp_path, tiny_config(**{"input.frequencies_hz": [100, 1000, 10000]}))
+    runner = CliRunner()
+    args = [str(path), "--runs", "2", "--quiet"]
+    assert runner.invoke(main, ["run", *args, "--out", str(tmp_path / "one")]).exit_code == 0
+    for k in (1, 2):
+        shard = runner.invoke(main, ["run", *args, "--out", str(tmp_path / f"s{k}"),
+                                     "--shard", f"{k}/2"])
+        assert shard.exit_code == 0 and f"shard {k}/2" in shard.output, shard.output
+        assert not (tmp_path / f"s{k}" / "tiny").exists()
+    merged = runner.invoke(main, ["merge", *args, "--from", str(tmp_path / "s1"), "--from",
+                                  str(tmp_path / "s2"), "--out", str(tmp_path / "m")])
+    assert merged.exit_code == 0, merged.output
+    for name in ("rmse.csv", "residual.csv", "health.csv", "claims.csv"):
+        assert (tmp_path / "m" / "tiny" / name).read_bytes() == \
+            (tmp_path / "one" / "tiny" / name).read_bytes()
+    for bad in ("0/2", "3/2", "x"):
+        refused = runner.invoke(main, ["run", *args, "--shard", bad])
+        assert refused.exit_code == 2 and "expected K/N" in refused.output

@@ -96,16 +96,28 @@ class Execution:
     executor: Callable | None = None
     store: Any = None
     calls: int = 0
+    shard: tuple[int, int] | None = None
+
+
+class ShardDone(Exception):
+    """A shard (``--shard K/N``) has stored its cells of a map call whose other cells it
+    does not have; the run stops there and ``estim merge`` finishes it."""
+
+    def __init__(self, computed: int) -> None:
+        super().__init__(f"{computed} cell(s) computed")
+        self.computed = computed
 
 
 _EXECUTION: ContextVar[Execution | None] = ContextVar("estim_execution", default=None)
 
 
 @contextmanager
-def execution(executor: Callable | None = None, store: Any = None) -> Iterator[Execution]:
+def execution(executor: Callable | None = None, store: Any = None,
+              shard: tuple[int, int] | None = None) -> Iterator[Execution]:
     """Run the analyses called inside on ``executor``, saving each finished cell in
-    ``store`` and taking the ones it already has from it (a resumed run)."""
-    token = _EXECUTION.set(Execution(executor, store))
+    ``store`` and taking the ones it already has from it (a resumed run); with ``shard =
+    (k, n)`` compute only the cells ``i`` with ``i % n == k - 1`` (:class:`ShardDone`)."""
+    token = _EXECUTION.set(Execution(executor, store, shard=shard))
     try:
         yield _EXECUTION.get()
     finally:
@@ -142,6 +154,14 @@ def map_tasks(fn: Callable[[Any], Any], tasks: Iterable, jobs: int = 1,
         if on_done:
             on_done()
 
+    shard = ctx.shard if ctx is not None else None
+    if shard is not None and pending:
+        k, n = shard
+        mine = [i for i in pending if i % n == k - 1]
+        others = [i for i in pending if i % n != k - 1]
+        pending = mine
+    else:
+        others = []
     if ctx is not None and ctx.executor is not None and pending:
         for i, value in ctx.executor(fn, {i: tasks[i] for i in pending}):
             finished(i, value)
@@ -161,4 +181,6 @@ def map_tasks(fn: Callable[[Any], Any], tasks: Iterable, jobs: int = 1,
     else:
         for i in pending:
             finished(i, fn(tasks[i]))
+    if others:
+        raise ShardDone(len(pending))
     return out
