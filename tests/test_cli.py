@@ -594,7 +594,7 @@ def test_an_interrupted_run_resumes_with_its_finished_cells(tmp_path, monkeypatc
 def test_shards_merged_give_the_tables_of_one_run(tmp_path):
     path = write(tmp_path, tiny_config(**{"input.frequencies_hz": [100, 1000, 10000]}))
     runner = CliRunner()
-    args = [str(path), "--runs", "2", "--quiet"]
+    args = [str(path), "monte_carlo.runs=2", "--quiet"]
     assert runner.invoke(main, ["run", *args, "--out", str(tmp_path / "one")]).exit_code == 0
     for k in (1, 2):
         shard = runner.invoke(main, ["run", *args, "--out", str(tmp_path / f"s{k}"),
