@@ -10,6 +10,7 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
+import math
 import re
 from typing import Any
 
@@ -159,6 +160,7 @@ def parse_data(data: dict, source: str, default_name: str,
                max_work: int = MAX_WORK) -> Experiment:
     """Validate an already loaded config mapping; ``max_work`` bounds its work size."""
     data = copy.deepcopy(data)
+    sweep = data.pop("sweep", None) if isinstance(data, dict) else None
     analysis = data.get("analysis") or "estimation"
     validate(analysis, text(ANALYSES), source, "analysis")
     spec = validate(data, schema_of(analysis), source, "")
@@ -181,7 +183,46 @@ def parse_data(data: dict, source: str, default_name: str,
                           f"more than the limit {max_work:.3g} (raise it with --max-work)")
     plan = module.prepare(spec, source)
     _check_tolerances(spec, module, source)
+    if sweep is not None:
+        spec["sweep"] = _check_sweep(sweep, data, source, default_name, max_work, work)
     return Experiment(name=spec["name"], source=source, spec=spec, plan=plan)
+
+
+MAX_SWEEP_CELLS = 10_000
+
+
+def _check_sweep(sweep: Any, data: dict, source: str, default_name: str, max_work: int,
+                 work: int) -> dict:
+    """``sweep: {key.path: [values], ...}``: every value of every key makes a valid config on
+    its own (checked here, before any work), and the whole grid stays under ``max_work``.
+    The grid is the product of the lists in the order given, the last key fastest."""
+    if not isinstance(sweep, dict) or not sweep:
+        raise ConfigError(source, "sweep", "expected a mapping of key paths to lists of values")
+    out = {}
+    for key, values in sweep.items():
+        if not isinstance(key, str) or not OVERRIDE_KEY.fullmatch(key) or key.startswith(
+                ("sweep", "name", "analysis")):
+            raise ConfigError(source, f"sweep.{key}", "expected a key path of the config "
+                              "(list items by index), not name, analysis or sweep")
+        if not isinstance(values, list) or not values or len(values) > MAX_SWEEP_CELLS:
+            raise ConfigError(source, f"sweep.{key}", f"expected a list of 1 to "
+                              f"{MAX_SWEEP_CELLS} values")
+        path = re.sub(r"\[(\d+)\]", r".\1", key)
+        for i, value in enumerate(values):
+            try:
+                parse_data(apply_overrides(data, {path: value}, source), source, default_name,
+                           max_work)
+            except ConfigError as exc:
+                raise ConfigError(source, f"sweep.{key}[{i}]",
+                                  f"{exc.path}: {exc.message}" if exc.path else exc.message
+                                  ) from None
+        out[path] = values
+    cells = math.prod(len(v) for v in out.values())
+    if cells > MAX_SWEEP_CELLS or work * cells > max_work:
+        raise ConfigError(source, "sweep", f"{cells} cells of about {work:.3g} state-samples "
+                          f"each exceed the limits ({MAX_SWEEP_CELLS} cells, {max_work:.3g} "
+                          "state-samples; raise the latter with --max-work)")
+    return out
 
 
 def _check_table_ids(spec: dict, module, source: str) -> None:

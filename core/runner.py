@@ -2,25 +2,66 @@
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable
+
+import pandas as pd
 
 from core.analyses import ANALYSES
 from core.analyses.base import Result
+from core.config import apply_overrides, parse_data
 from core.schema import Experiment
+
+
+def sweep_cells(exp: Experiment) -> list[tuple[dict, Experiment]]:
+    """The experiments of a ``sweep:`` block, each with its values (the product of the lists
+    in the order given, the last key fastest); ``[({}, exp)]`` without one. Every cell keeps
+    the config's seed: the cells share their random numbers, so their differences are the
+    swept values' own."""
+    sweep = exp.spec.get("sweep")
+    if not sweep:
+        return [({}, exp)]
+    base = {k: v for k, v in exp.spec.items() if k != "sweep"}
+    keys = list(sweep)
+    cells = []
+    for combo in itertools.product(*(sweep[k] for k in keys)):
+        values = dict(zip(keys, combo, strict=True))
+        cells.append((values, parse_data(apply_overrides(base, values, exp.source), exp.source,
+                                         exp.name, max_work=2**62)))
+    return cells
 
 
 def work_units(exp: Experiment) -> int:
     """Work units of the experiment, for progress reports."""
-    return ANALYSES[exp.analysis].work_units(exp)
+    return sum(ANALYSES[e.analysis].work_units(e) for _, e in sweep_cells(exp))
 
 
 def execute(exp: Experiment, jobs: int = 1,
             on_done: Callable[[], None] | None = None) -> Result:
-    """Run ``exp`` (its Monte Carlo runs and seed are in its config)."""
-    return ANALYSES[exp.analysis].run(exp, jobs, on_done)
+    """Run ``exp`` (its Monte Carlo runs and seed are in its config). A swept experiment
+    runs each cell and stacks its tables under a leading column per swept key; figures are
+    named ``<figure>_sweep<n>`` (n from 1, in the grid's order)."""
+    cells = sweep_cells(exp)
+    if len(cells) == 1 and not cells[0][0]:
+        return ANALYSES[exp.analysis].run(exp, jobs, on_done)
+    tables: dict[str, list] = {}
+    figures = {}
+    for n, (values, cell) in enumerate(cells, start=1):
+        result = ANALYSES[cell.analysis].run(cell, jobs, on_done)
+        for metric, df in result.tables.items():
+            df = df.copy()
+            for i, (key, value) in enumerate(values.items()):
+                df.insert(i, key, [value] * len(df))
+            tables.setdefault(metric, []).append(df)
+        figures.update({f"{name}_sweep{n}": fig for name, fig in result.figures.items()})
+    return Result(tables={m: pd.concat(parts, ignore_index=True) for m, parts in
+                          tables.items()}, figures=figures)
 
 
 def summary(exp: Experiment, result: Result) -> str:
+    if exp.spec.get("sweep"):
+        return "\n".join(f"{metric}: {len(df)} rows over {len(sweep_cells(exp))} sweep cells"
+                         for metric, df in result.tables.items())
     return ANALYSES[exp.analysis].summary(result)
 
 

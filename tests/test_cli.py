@@ -610,3 +610,29 @@ def test_shards_merged_give_the_tables_of_one_run(tmp_path):
     for bad in ("0/2", "3/2", "x"):
         refused = runner.invoke(main, ["run", *args, "--shard", bad])
         assert refused.exit_code == 2 and "expected K/N" in refused.output
+
+
+def test_a_sweep_block_runs_each_cell_as_its_override_would(tmp_path):
+    spec = tiny_config(**{"input.frequencies_hz": [1000], "noise.input_levels": [0.1],
+                          "figures.noise_level": 0.1, "figures.frequency_hz": 1000})
+    spec["sweep"] = {"model.params.V_IN": [0.3, 0.35], "noise.measurement_sigma": [0.05, 0.1]}
+    path = write(tmp_path, spec)
+    runner = CliRunner()
+    swept = runner.invoke(main, ["run", str(path), "--out", str(tmp_path / "sw"), "--quiet",
+                                 "--runs", "2"])
+    assert swept.exit_code == 0, swept.output
+    table = pd.read_csv(tmp_path / "sw" / "tiny" / "rmse.csv")
+    assert list(table.columns[:2]) == ["model.params.V_IN", "noise.measurement_sigma"]
+    assert list(table.drop_duplicates(list(table.columns[:2])).iloc[:, :2].itertuples(
+        index=False, name=None)) == [(0.3, 0.05), (0.3, 0.1), (0.35, 0.05), (0.35, 0.1)]
+    del spec["sweep"]
+    single = write(tmp_path, spec, "single.yaml")
+    one = runner.invoke(main, ["run", str(single), "model.params.V_IN=0.35",
+                               "noise.measurement_sigma=0.05", "--runs", "2", "--quiet",
+                               "--out", str(tmp_path / "one")])
+    assert one.exit_code == 0, one.output
+    ref = pd.read_csv(tmp_path / "one" / "tiny" / "rmse.csv")
+    cell = table[(table["model.params.V_IN"] == 0.35) & (table["noise.measurement_sigma"] == 0.05)]
+    pd.testing.assert_frame_equal(cell.iloc[:, 2:].reset_index(drop=True), ref)
+    bad = runner.invoke(main, ["validate", str(path), "sweep={model.params.V_NO: [1]}"])
+    assert bad.exit_code == 2 and ": sweep.model.params.V_NO[0]: " in bad.output
