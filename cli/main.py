@@ -116,7 +116,7 @@ def cell_store(exp: Experiment, out: Path) -> io.CellStore:
 
 def run_one(exp: Experiment, out: Path, jobs: int, quiet: bool,
             overrides: dict | None = None, on_done=None, executor=None,
-            resume: bool = True) -> runner.Result:
+            resume: bool = True, figure_format: str = "png") -> runner.Result:
     """Run ``exp`` and write ``out/<name>/`` as a unit: all old or all new (core.io).
 
     Each finished work unit is kept in ``out/.<name>.cells-<hash>/`` (of the config and of
@@ -140,7 +140,7 @@ def run_one(exp: Experiment, out: Path, jobs: int, quiet: bool,
         for metric, df in result.tables.items():
             io.write_csv(df, folder.path / f"{metric}.csv")
         for name, fig in result.figures.items():
-            io.write_figure(fig, folder.path / "figures" / f"{name}.png")
+            io.write_figure(fig, folder.path / "figures" / f"{name}.{figure_format}")
             plt.close(fig)
         io.write_manifest(folder.path, exp.spec, spec_hash(exp.spec),
                           time.perf_counter() - start, command=" ".join(["estim", *sys.argv[1:]]),
@@ -299,12 +299,14 @@ def _out_folder(out: Path | None, exps: list[Experiment], overridden: bool,
                    "cluster of --jobs workers].")
 @click.option("--no-resume", is_flag=True,
               help="Recompute every cell, even those an interrupted run left.")
+@click.option("--figure-format", type=click.Choice(["png", "pdf", "svg"]), default="png",
+              show_default=True, help="Figures as PNG, or as vector PDF/SVG for a paper.")
 @click.option("--shard", metavar="K/N",
               help="Compute only work units K, K+N, ... (1 <= K <= N) and keep them for "
                    "'estim merge' (array jobs without a scheduler).")
 @click.option("--quiet", is_flag=True, help="No progress and no summary.")
 def run(configs, out, runs, seed, update_baseline, quick, jobs, max_work, executor, scheduler,
-        no_resume, shard, quiet) -> None:
+        no_resume, figure_format, shard, quiet) -> None:
     """Run the experiment(s) of CONFIGS and write OUT/<config name>/.
 
     CONFIGS may mix config files and overrides KEY.PATH=VALUE (the value is YAML; list
@@ -340,7 +342,8 @@ def run(configs, out, runs, seed, update_baseline, quick, jobs, max_work, execut
     with _executor(executor, scheduler, jobs) as units:
         for exp in exps:
             report(exp, folder, run_one(exp, folder, jobs, quiet, overrides, executor=units,
-                                        resume=not no_resume), quiet)
+                                        resume=not no_resume, figure_format=figure_format),
+                   quiet)
 
 
 def _parse_shard(text_: str) -> tuple[int, int]:

@@ -167,10 +167,23 @@ def write_csv(df: pd.DataFrame, path: Path) -> None:
     atomic_write_bytes(path, df.to_csv(index=False, lineterminator="\n").encode())
 
 
+FIGURE_FORMATS = ("png", "pdf", "svg")
+
+
 def write_figure(fig, path: Path) -> None:
-    """PNG without a timestamp or software tag, written atomically."""
+    """A figure in the format its suffix names (PNG, PDF or SVG), without a timestamp or
+    software tag (the same figure gives the same bytes), written atomically."""
+    fmt = path.suffix.lstrip(".").lower() or "png"
+    if fmt not in FIGURE_FORMATS:
+        raise ValueError(f"figure format {fmt!r}: expected one of {FIGURE_FORMATS}")
+    meta = {"png": {"Software": None}, "pdf": {"Creator": None, "Producer": None,
+                                               "CreationDate": None},
+            "svg": {"Creator": None, "Date": None}}[fmt]
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=fig.dpi, metadata={"Software": None})
+    import matplotlib
+
+    with matplotlib.rc_context({"svg.hashsalt": "estim"}):
+        fig.savefig(buf, format=fmt, dpi=fig.dpi, metadata=meta)
     atomic_write_bytes(path, buf.getvalue())
 
 

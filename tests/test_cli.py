@@ -636,3 +636,18 @@ def test_a_sweep_block_runs_each_cell_as_its_override_would(tmp_path):
     pd.testing.assert_frame_equal(cell.iloc[:, 2:].reset_index(drop=True), ref)
     bad = runner.invoke(main, ["validate", str(path), "sweep={model.params.V_NO: [1]}"])
     assert bad.exit_code == 2 and ": sweep.model.params.V_NO[0]: " in bad.output
+
+
+@pytest.mark.parametrize("fmt, magic", [("pdf", b"%PDF"), ("svg", b"<?xml")])
+def test_vector_figures_are_deterministic(tmp_path, fmt, magic):
+    path = write(tmp_path, tiny_config())
+    runner = CliRunner()
+    for out in ("a", "b"):
+        assert runner.invoke(main, ["run", str(path), "--runs", "2", "--quiet", "--out",
+                                    str(tmp_path / out), "--figure-format", fmt]).exit_code == 0
+    figures = sorted((tmp_path / "a" / "tiny" / "figures").glob(f"*.{fmt}"))
+    assert figures and not list((tmp_path / "a" / "tiny" / "figures").glob("*.png"))
+    for f in figures:
+        data = f.read_bytes()
+        assert data.startswith(magic) and data == (tmp_path / "b" / "tiny" / "figures" /
+                                                   f.name).read_bytes()
