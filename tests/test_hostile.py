@@ -430,6 +430,12 @@ def test_a_failed_write_leaves_the_old_folder(tmp_path, monkeypatch):
     assert result.output.strip().splitlines() == [
         f"error: No space left on device ({calls[1]})"]
     assert folder_is_whole(out / "tiny") == "old"
+    # no half folder; the finished cells wait (hidden) for the re-run, which takes them
+    left = sorted(p.name for p in out.iterdir())
+    assert left[1:] == [".tiny.lock", "tiny"] and left[0].startswith(".tiny.cells-")
+    monkeypatch.setattr(io, "write_figure", real)
+    again = runner.invoke(main, ["run", str(path), "--out", str(out), "--seed", "2"])
+    assert again.exit_code == 0 and "resumed with" in again.output
     assert sorted(p.name for p in out.iterdir()) == [".tiny.lock", "tiny"]
 
 
