@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import textwrap
+
 import matplotlib
 import numpy as np
 
@@ -10,44 +12,85 @@ import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
 SIZE = (8.0, 6.0)
+LINESTYLES = ("-", "--", "-.", ":")
+"""Estimates that coincide (an EKF and a UKF on a near-linear model) stay distinguishable."""
 DPI = 100
 
 
-def estimates(trace: dict, title: str) -> Figure:
-    """Input (a) and output (b): actual, measured and every estimate (Figs 3.2-3.5)."""
-    fig, (ax_in, ax_out) = plt.subplots(2, 1, figsize=SIZE, sharex=True)
+def _clipped(ax, t, y, lo: float, hi: float, label: str, **style) -> None:
+    """Draw ``y`` until it first leaves ``[lo, hi]`` or stops being finite, and say so in its
+    label (a diverged filter is named, not hidden)."""
+    with np.errstate(invalid="ignore"):
+        outside = ~np.isfinite(y) | (y < lo) | (y > hi)
+    if outside.any():
+        k = int(np.argmax(outside))
+        label = f"{label} (leaves the axis at {t[k]:.3g} ms)" if k else f"{label} (off the axis)"
+        y = np.where(np.arange(y.size) < k, y, np.nan)
+    ax.plot(t, y, label=label, **style)
+
+
+def estimates(trace: dict, title: str, period_s: float | None = None,
+              window_periods: int = 3) -> Figure:
+    """Input and output, actual, measured and every estimate (Figs 3.2-3.5): (a) the input
+    and (b) the output over the whole record, and with ``period_s`` (c) the output over its
+    last ``window_periods`` periods, where the waveform can be read. The output axis holds
+    the actual signal's range; an estimate that leaves it is drawn until then and named.
+    Legends sit outside the data."""
+    zoom = period_s is not None and trace["t"][-1] - trace["t"][0] > 2 * window_periods * period_s
+    rows = 3 if zoom else 2
+    fig, axes = plt.subplots(rows, 1, figsize=(10.0, 3.0 * rows))
     t_ms = trace["t"] * 1e3
+    ax_in = axes[0]
     ax_in.plot(t_ms, trace["source"], lw=0.8, label="source (as applied)")
     ax_in.plot(t_ms, trace["clean"], lw=1.2, label="nominal input")
     ax_in.set_ylabel("v_in [V]")
-    ax_in.set_title(f"(a) input - {title}")
-    ax_in.legend(loc="upper right", fontsize=8)
-    ax_out.plot(t_ms, trace["z"], ".", ms=2, color="0.6", label="measurement")
-    ax_out.plot(t_ms, trace["actual"], lw=1.6, color="k", label="actual")
-    for label, y in trace["y_hat"].items():
-        ax_out.plot(t_ms, y, lw=1.0, label=label)
-    ax_out.set_xlabel("time [ms]")
-    ax_out.set_ylabel("output [V]")
-    ax_out.set_title("(b) estimated output")
-    ax_out.legend(loc="upper right", fontsize=8)
+    ax_in.set_xlabel("time [ms]")
+    ax_in.set_title(f"(a) input - {title}", fontsize=10)
+    actual = trace["actual"]
+    span = float(np.ptp(actual)) or 1e-3
+    lo, hi = float(actual.min()) - span, float(actual.max()) + span
+    panels = [(axes[1], slice(None), "(b) estimated output, whole record (run 1)")]
+    if zoom:
+        start = int(np.searchsorted(trace["t"], trace["t"][-1] - window_periods * period_s))
+        panels.append((axes[2], slice(start, None),
+                       f"(c) the last {window_periods} periods"))
+    for ax, part, heading in panels:
+        ax.plot(t_ms[part], trace["z"][part], ".", ms=2, color="0.6", label="measurement")
+        ax.plot(t_ms[part], actual[part], lw=1.6, color="k", label="actual")
+        for i, (label, y) in enumerate(trace["y_hat"].items()):
+            _clipped(ax, t_ms[part], y[part], lo, hi, label, lw=1.0,
+                     ls=LINESTYLES[i % len(LINESTYLES)])
+        ax.set_ylim(lo, hi)
+        ax.set_xlabel("time [ms]")
+        ax.set_ylabel("output [V]")
+        ax.set_title(heading, fontsize=10)
+    for ax in axes:
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     fig.tight_layout()
     return fig
 
 
 def _series(trace: dict, key: str, ylabel: str, title: str) -> Figure:
-    fig, ax = plt.subplots(figsize=SIZE)
-    for label, values in trace[key].items():
-        ax.plot(trace["t"] * 1e3, values, lw=1.0, label=label)
+    fig, ax = plt.subplots(figsize=(10.0, 4.5))
+    t_ms = trace["t"] * 1e3
+    for i, (label, values) in enumerate(trace[key].items()):
+        values = np.asarray(values, float)
+        if not np.isfinite(values).any():
+            label = f"{label} (no finite value: every run diverged)"
+        elif not np.isfinite(values).all():
+            label = f"{label} (not finite from {t_ms[np.argmax(~np.isfinite(values))]:.3g} ms)"
+        ax.plot(t_ms, values, lw=1.0, ls=LINESTYLES[i % len(LINESTYLES)], label=label)
     ax.set_xlabel("time [ms]")
     ax.set_ylabel(ylabel)
-    ax.set_title(title)
-    ax.legend(fontsize=8)
+    ax.set_title(title, fontsize=10)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+    ax.grid(True, lw=0.3)
     fig.tight_layout()
     return fig
 
 
 def running_rmse(trace: dict, title: str) -> Figure:
-    """RMSE across Monte Carlo runs at each sample (Fig 3.6)."""
+    """RMSE across the Monte Carlo runs that did not diverge, at each sample (Fig 3.6)."""
     return _series(trace, "running_rmse", "RMSE over runs [V]", title)
 
 
@@ -56,11 +99,25 @@ def residuals(trace: dict, title: str) -> Figure:
     return _series(trace, "innovation", "residual [V]", title)
 
 
+UNITS = {"R": "\u03a9", "C": "F", "L": "H", "V": "V", "U": "V", "I": "A"}
+"""The unit of a circuit parameter by its first letter (R_E, C_GX, L_1, V_CC, U_T, I_0)."""
+
+
+def with_unit(name: str, value: float) -> str:
+    """``L_1 = 6 \u00b5H`` for a parameter of a known kind, ``name = value`` otherwise."""
+    from matplotlib.ticker import EngFormatter
+
+    unit = UNITS.get(name[:1]) if "_" in name and name[:1].isupper() else None
+    if unit is None or not isinstance(value, (int, float)):
+        return f"{name} = {value:g}" if isinstance(value, (int, float)) else f"{name} = {value}"
+    return f"{name} = {EngFormatter(unit=unit, sep=' ')(float(value))}"
+
+
 def perturbation(trace: dict, title: str) -> Figure:
     """Input (a); zeroth-order, zeroth + first-order and full nonlinear output (b); the
     first-order output beside the true nonlinear part ``full - zeroth`` (c), on one time
     axis (Figs 2.2, 2.4, 2.6, 2.8)."""
-    fig, (ax_in, ax_out, ax_nl) = plt.subplots(3, 1, figsize=(8.0, 8.0), sharex=True)
+    fig, (ax_in, ax_out, ax_nl) = plt.subplots(3, 1, figsize=(10.0, 8.0), sharex=True)
     t, unit = trace["t"], "s"
     for scale, name in ((1e3, "ms"), (1e6, "us"), (1e9, "ns")):
         if t[-1] * scale >= 1.0:
@@ -68,21 +125,22 @@ def perturbation(trace: dict, title: str) -> Figure:
             break
     ax_in.plot(t, trace["input"], lw=1.0, color="C0")
     ax_in.set_ylabel("input [V]")
-    ax_in.set_title(f"(a) input (deviation from the bias) - {title}")
+    wrapped = "\n".join(textwrap.fill(line, 100) for line in title.splitlines())
+    ax_in.set_title(f"{wrapped}\n(a) input (deviation from the bias)", fontsize=9)
     ax_out.plot(t, trace["y_full"], lw=2.4, color="0.75", label="full nonlinear")
     ax_out.plot(t, trace["y0"], lw=1.0, color="C1", label="zeroth order (linear)")
     ax_out.plot(t, trace["y0"] + trace["y1"], "--", lw=1.0, color="C2",
                 label="zeroth + first order")
     ax_out.set_ylabel("output [V]")
     ax_out.set_title("(b) output (deviation from the operating point)")
-    ax_out.legend(loc="upper right", fontsize=8)
+    ax_out.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     ax_nl.plot(t, trace["y_full"] - trace["y0"], lw=2.4, color="0.75",
                label="full - zeroth order")
     ax_nl.plot(t, trace["y1"], "--", lw=1.0, color="C3", label="first order")
     ax_nl.set_xlabel(f"time [{unit}]")
     ax_nl.set_ylabel("nonlinear part [V]")
     ax_nl.set_title("(c) first-order output and the true nonlinear part")
-    ax_nl.legend(loc="upper right", fontsize=8)
+    ax_nl.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     fig.tight_layout()
     return fig
 

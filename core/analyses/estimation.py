@@ -630,18 +630,25 @@ def figures(exp: Experiment, known: dict) -> dict:
     data = figure_traces(exp, known)
     names = exp.spec["figures"]["names"]
     _, f, level, reading = figure_cases(exp)[0]
-    where = f"{f:g} Hz, input noise {level:g} ({reading})"
+    what = exp.spec["title"] or exp.name
+    period = 1.0 / f
+
+    def noise(level: float, reading: str) -> str:
+        return (f"input noise sigma = {level:g} V" if reading == "sigma"
+                else f"input noise variance = {level:g} V^2")
+
+    where = f"{f:g} Hz, {noise(level, reading)}"
     makers = {
-        "noiseless": lambda: plots.estimates(data["noiseless"], f"{exp.name}, noiseless input"),
-        "noisy": lambda: plots.estimates(data["noisy"], f"{exp.name}, {where}"),
-        "rmse": lambda: plots.running_rmse(data["noisy"], f"{exp.name}: RMSE, {where}"),
-        "residual": lambda: plots.residuals(data["noisy"], f"{exp.name}: residual, {where}"),
+        "noiseless": lambda: plots.estimates(data["noiseless"], f"{what}; {f:g} Hz, no input "
+                                             "noise", period),
+        "noisy": lambda: plots.estimates(data["noisy"], f"{what}; {where}", period),
+        "rmse": lambda: plots.running_rmse(data["noisy"], f"RMSE over runs: {what}; {where}"),
+        "residual": lambda: plots.residuals(data["noisy"], f"Residual (run 1): {what}; {where}"),
     }
     out = {names.get(kind, kind): makers[kind]() for kind in FIGURE_KINDS}
     for extra in exp.spec["figures"]["extra_noisy"]:
-        title = (f"{exp.name}, {f:g} Hz, input noise {extra['noise_level']:g} "
-                 f"({extra['reading']})")
-        out[extra["name"]] = plots.estimates(data[extra["name"]], title)
+        title = f"{what}; {f:g} Hz, {noise(extra['noise_level'], extra['reading'])}"
+        out[extra["name"]] = plots.estimates(data[extra["name"]], title, period)
     return out
 
 

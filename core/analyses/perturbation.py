@@ -232,12 +232,13 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     out = Result(tables={"distortion": df[TABLES["distortion"].columns].reset_index(drop=True)})
     data = figure_data(exp, {s["s_no"]: r for s, r in results})
     row = data["row"]
-    what = f"{row['amplitude_v']:g} V"
+    what = f"amplitude {row['amplitude_v']:g} V"
     if row["frequency_hz"] is not None:
         what += f", {row['frequency_hz']:g} Hz"
     if row["params"]:
-        what += f"\n{row_params(row)}"
-    out.figures[exp.spec["figures"]["name"]] = plots.perturbation(data, f"{exp.name}, {what}")
+        what += "\n" + ", ".join(plots.with_unit(k, v) for k, v in row["params"].items())
+    out.figures[exp.spec["figures"]["name"]] = plots.perturbation(
+        data, f"{exp.spec['title'] or exp.name}; {what}")
     if on_done:
         on_done()
     return out

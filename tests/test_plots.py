@@ -1,0 +1,49 @@
+"""Figures a researcher can put in a paper: diverged filters named, legends off the data,
+readable windows, units in titles."""
+
+import numpy as np
+
+from core import plots
+
+
+def _trace(n=400, f=1000.0, dt=1e-4):
+    t = dt * np.arange(1, n + 1)
+    actual = np.sin(2 * np.pi * f * t)
+    broken = actual.copy()
+    broken[250:] = np.inf
+    wild = actual.copy()
+    wild[100:] = 50.0
+    return {"t": t, "source": actual, "clean": actual, "actual": actual, "z": actual + 0.1,
+            "y_hat": {"EKF": actual + 0.01, "broken": broken, "wild": wild}}
+
+
+def test_estimates_name_diverged_filters_and_keep_legends_off_the_data():
+    fig = plots.estimates(_trace(), "test", period_s=1e-3)
+    axes = fig.axes
+    assert len(axes) == 3                                  # input, whole record, last periods
+    fig.canvas.draw()
+    labels = [t.get_text() for t in axes[1].get_legend().get_texts()]
+    assert any(label.startswith("broken (leaves the axis at 25") for label in labels), labels
+    assert any(label.startswith("wild (leaves the axis at 10") for label in labels), labels
+    assert "EKF" in labels
+    for ax in axes:
+        assert ax.get_legend().get_window_extent().x0 >= ax.get_window_extent().x1
+    start, end = axes[2].get_xlim()
+    assert end - start < 4.0                              # ms: three periods of 1 ms, zoomed
+    plots.plt.close(fig)
+
+
+def test_series_says_when_every_run_diverged():
+    t = np.arange(1, 11) * 1e-3
+    fig = plots.running_rmse({"t": t, "running_rmse": {"EKF": np.full(10, np.nan),
+                                                        "RLS": np.ones(10)}}, "test")
+    labels = [x.get_text() for x in fig.axes[0].get_legend().get_texts()]
+    assert labels == ["EKF (no finite value: every run diverged)", "RLS"]
+    plots.plt.close(fig)
+
+
+def test_parameters_carry_their_units():
+    assert plots.with_unit("L_1", 6e-6) == "L_1 = 6 \u00b5H"
+    assert plots.with_unit("R_E", 80.0) == "R_E = 80 \u03a9"
+    assert plots.with_unit("C_GX", 1e-12) == "C_GX = 1 pF"
+    assert plots.with_unit("eta", 1.3) == "eta = 1.3"
