@@ -443,7 +443,16 @@ def _stored_tables(results: Path, metric: str):
             yield folder, spec, folder / spec.file
 
 
-@main.command()
+def _metrics_help() -> str:
+    """The metrics of the registered analyses, for ``estim table --help``."""
+    lines = ["\b", "Metrics (analyses that write them):"]
+    for metric, specs in sorted(runner.table_specs().items()):
+        title = next((s.title for s in specs.values() if s.title), "")
+        lines.append(f"  {metric:<11} {title} [{', '.join(sorted(specs))}]")
+    return "\n".join(lines)
+
+
+@main.command(epilog=_metrics_help())
 @click.argument("metric", type=click.Choice(sorted(runner.table_specs())))
 @click.option("--results", type=click.Path(file_okay=False, path_type=Path),
               help="Folder of stored results [default: the project's results/].")

@@ -651,3 +651,12 @@ def test_vector_figures_are_deterministic(tmp_path, fmt, magic):
         data = f.read_bytes()
         assert data.startswith(magic) and data == (tmp_path / "b" / "tiny" / "figures" /
                                                    f.name).read_bytes()
+
+
+def test_table_help_lists_every_metric_with_its_analyses():
+    from core import runner
+
+    text = CliRunner().invoke(main, ["table", "--help"]).output
+    for metric, specs in runner.table_specs().items():
+        line = next(line for line in text.splitlines() if line.strip().startswith(metric + " "))
+        assert all(name in line for name in specs), line
