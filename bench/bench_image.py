@@ -9,19 +9,8 @@ compiles and is not timed); the strip filter runs all strips of the image as one
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
-
-
-def timed(fn, repeats: int = 3) -> float:
-    fn()
-    best = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best.append(time.perf_counter() - t0)
-    return float(np.median(best))
+from bench_field import timed
 
 
 def main() -> None:
@@ -51,7 +40,9 @@ def main() -> None:
     cases["Wiener 7x7 (scipy)"] = lambda: signal.wiener(y, (7, 7), noise=sigma_v2)
     cases["wavelet BayesShrink (scikit-image)"] = lambda: denoise_wavelet(
         y, sigma=np.sqrt(sigma_v2), method="BayesShrink", mode="soft", rescale_sigma=True)
-    seconds = {name: timed(fn) for name, fn in cases.items()}
+    for fn in cases.values():
+        fn()                                           # compile and warm up, untimed
+    seconds = {name: timed(fn, repeats=3) for name, fn in cases.items()}
     base = seconds["NSHP Kalman, M = 1"]
     print(f"{'filter':36s} {'s':>8s} {'pixels/s':>12s} {'x NSHP M=1':>11s}")
     for name, s in seconds.items():

@@ -30,9 +30,9 @@ from core.images import nshp
 
 
 @njit(cache=True)
-def _filter(y, A10, A01, left, sigma_e2, sigma_v2, boundary_variance, M):  # pragma: no cover
-    rows, cols = y.shape
-    n = A10.shape[0]
+def _states(rows, cols, n, M, boundary_variance):  # pragma: no cover
+    """Posterior local states and covariances, ``[m + 1, c + 1]`` for pixel ``(m, c)``; the
+    states off the image are the mean with ``boundary_variance I``."""
     Xa = np.zeros((rows + 1, cols + M + 1, n))
     Pa = np.zeros((rows + 1, cols + M + 1, n, n))
     for m in range(rows + 1):
@@ -40,30 +40,53 @@ def _filter(y, A10, A01, left, sigma_e2, sigma_v2, boundary_variance, M):  # pra
             if m == 0 or j == 0 or j > cols:
                 for i in range(n):
                     Pa[m, j, i, i] = boundary_variance
+    return Xa, Pa
+
+
+@njit(cache=True)
+def _carry_left(Xa, Pa, left, m):  # pragma: no cover
+    """The state left of row ``m`` takes the pixels of the rows above that it holds."""
+    for r in range(left.shape[0]):
+        i, col, j = left[r, 0], left[r, 1], left[r, 2]
+        Xa[m + 1, 0, i] = Xa[m, col + 1, j]
+        Pa[m + 1, 0, i, i] = Pa[m, col + 1, j, j]
+
+
+@njit(cache=True)
+def _step(Xa, Pa, m, c, F10, F01, M, sigma_e2, sigma_v2, y):  # pragma: no cover
+    """Eqs 13a-e at pixel ``(m, c)``; stores the posterior and returns ``(x_a, P_a, K,
+    innovation, its variance, I - K C)``."""
+    n = F10.shape[0]
+    left_x, left_P = Xa[m + 1, c], Pa[m + 1, c]
+    up_x, up_P = Xa[m, c + 1 + M], Pa[m, c + 1 + M]
+    xb = F10 @ left_x + F01 @ up_x
+    Pb = F10 @ left_P @ F10.T + F01 @ up_P @ F01.T
+    Pb[0, 0] += sigma_e2
+    S = Pb[0, 0] + sigma_v2
+    K = Pb[:, 0] / S
+    z = y - xb[0]
+    xa = xb + K * z
+    L = np.eye(n)
+    L[:, 0] -= K
+    P = L @ Pb @ L.T + np.outer(K, K) * sigma_v2
+    P = 0.5 * (P + P.T)
+    Xa[m + 1, c + 1] = xa
+    Pa[m + 1, c + 1] = P
+    return xa, P, K, z, S, L
+
+
+@njit(cache=True)
+def _filter(y, A10, A01, left, sigma_e2, sigma_v2, boundary_variance, M):  # pragma: no cover
+    rows, cols = y.shape
+    Xa, Pa = _states(rows, cols, A10.shape[0], M, boundary_variance)
     out = np.empty((rows, cols))
     p_norm = np.empty((rows, cols))
     k_norm = np.empty((rows, cols))
     for m in range(rows):
         if m > 0:
-            for r in range(left.shape[0]):
-                i, col, j = left[r, 0], left[r, 1], left[r, 2]
-                Xa[m + 1, 0, i] = Xa[m, col + 1, j]
-                Pa[m + 1, 0, i, i] = Pa[m, col + 1, j, j]
+            _carry_left(Xa, Pa, left, m)
         for c in range(cols):
-            left_x, left_P = Xa[m + 1, c], Pa[m + 1, c]
-            up_x, up_P = Xa[m, c + 1 + M], Pa[m, c + 1 + M]
-            xb = A10 @ left_x + A01 @ up_x
-            Pb = A10 @ left_P @ A10.T + A01 @ up_P @ A01.T
-            Pb[0, 0] += sigma_e2
-            S = Pb[0, 0] + sigma_v2
-            K = Pb[:, 0] / S
-            xa = xb + K * (y[m, c] - xb[0])
-            L = np.eye(n)
-            L[:, 0] -= K
-            P = L @ Pb @ L.T + np.outer(K, K) * sigma_v2
-            P = 0.5 * (P + P.T)
-            Xa[m + 1, c + 1] = xa
-            Pa[m + 1, c + 1] = P
+            xa, P, K, _, _, _ = _step(Xa, Pa, m, c, A10, A01, M, sigma_e2, sigma_v2, y[m, c])
             out[m, c] = xa[0]
             p_norm[m, c] = np.sqrt(np.sum(P * P))
             k_norm[m, c] = np.sqrt(np.sum(K * K))
@@ -87,23 +110,14 @@ def _adaptive(y, A10, A01, left, pmat, pcol, phi0, sigma_e2, sigma_v2, boundary_
               H0, lambda0, v0, mu_u, trace_row):  # pragma: no cover
     rows, cols = y.shape
     n, d = A10.shape[0], phi0.size
-    Xa = np.zeros((rows + 1, cols + M + 1, n))
-    Pa = np.zeros((rows + 1, cols + M + 1, n, n))
-    for m in range(rows + 1):
-        for j in range(cols + M + 1):
-            if m == 0 or j == 0 or j > cols:
-                for i in range(n):
-                    Pa[m, j, i, i] = boundary_variance
+    Xa, Pa = _states(rows, cols, n, M, boundary_variance)
     out = np.empty((rows, cols))
     p_norm = np.empty((rows, cols))
     k_norm = np.empty((rows, cols))
     trace = np.empty((cols, d))
     for m in range(rows):
         if m > 0:
-            for r in range(left.shape[0]):
-                i, col, j = left[r, 0], left[r, 1], left[r, 2]
-                Xa[m + 1, 0, i] = Xa[m, col + 1, j]
-                Pa[m + 1, 0, i, i] = Pa[m, col + 1, j, j]
+            _carry_left(Xa, Pa, left, m)
         phi = phi0.copy()                        # the adaptation restarts at every row
         H = H0 * np.eye(d)
         lam, v = lambda0, v0
@@ -117,19 +131,7 @@ def _adaptive(y, A10, A01, left, pmat, pcol, phi0, sigma_e2, sigma_v2, boundary_
             else:
                 F01[0, pcol[j]] = phi[j]
         for c in range(cols):
-            left_x, left_P = Xa[m + 1, c], Pa[m + 1, c]
-            up_x, up_P = Xa[m, c + 1 + M], Pa[m, c + 1 + M]
-            xb = F10 @ left_x + F01 @ up_x
-            Pb = F10 @ left_P @ F10.T + F01 @ up_P @ F01.T
-            Pb[0, 0] += sigma_e2
-            Rz = Pb[0, 0] + sigma_v2
-            K = Pb[:, 0] / Rz
-            z = y[m, c] - xb[0]
-            xa = xb + K * z
-            L = np.eye(n)
-            L[:, 0] -= K
-            P = L @ Pb @ L.T + np.outer(K, K) * sigma_v2
-            P = 0.5 * (P + P.T)
+            xa, P, K, z, Rz, L = _step(Xa, Pa, m, c, F10, F01, M, sigma_e2, sigma_v2, y[m, c])
             # Table I, in its order: Delta, H, phi, Sigma_a, Gamma, Sigma_b(k+1)
             lam = 0.99 * lam + 0.01
             v = 1.0 / (1.0 + lam / v)
@@ -142,8 +144,6 @@ def _adaptive(y, A10, A01, left, pmat, pcol, phi0, sigma_e2, sigma_v2, boundary_
                     F10[0, pcol[j]] = phi[j]
                 else:
                     F01[0, pcol[j]] = phi[j]
-            Xa[m + 1, c + 1] = xa
-            Pa[m + 1, c + 1] = P
             # Sigma_b for the next pixel: the left state's sensitivity (the row above is
             # fixed data after the restart) plus Gamma, the regressors of the next pixel
             Sb = F10 @ Sa
