@@ -410,6 +410,7 @@ def test_key_path_overrides_on_run_validate_and_check(tmp_path, monkeypatch):
     assert ok.exit_code == 0, ok.output
     manifest = json.loads((root / "scratch/tiny/manifest.json").read_text())
     assert manifest["overrides"] == {"simulation.rtol": 1e-6, "monte_carlo.runs": 2}
+    assert "git_commit" in manifest and "command" in manifest
     assert manifest["config"]["simulation"]["rtol"] == 1e-6
     assert manifest["config"]["monte_carlo"]["runs"] == 2
     listed = runner.invoke(main, ["run", config, "input.frequencies_hz=[1000]", "--quick",
@@ -660,3 +661,14 @@ def test_table_help_lists_every_metric_with_its_analyses():
     for metric, specs in runner.table_specs().items():
         line = next(line for line in text.splitlines() if line.strip().startswith(metric + " "))
         assert all(name in line for name in specs), line
+
+
+def test_without_a_terminal_progress_is_one_line_per_work_unit(tmp_path):
+    path = write(tmp_path, tiny_config(**{"input.frequencies_hz": [100, 1000]}))
+    result = CliRunner().invoke(main, ["run", str(path), "--runs", "2", "--out",
+                                       str(tmp_path / "res")])
+    assert result.exit_code == 0, result.output
+    lines = [line for line in result.output.splitlines() if " done, " in line]
+    total = int(lines[0].split("/")[1].split()[0])
+    assert len(lines) == total and lines[-1].startswith(f"tiny: {total}/{total} done")
+    assert all("s elapsed, about" in line and "s left" in line for line in lines)
