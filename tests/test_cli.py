@@ -672,3 +672,19 @@ def test_without_a_terminal_progress_is_one_line_per_work_unit(tmp_path):
     total = int(lines[0].split("/")[1].split()[0])
     assert len(lines) == total and lines[-1].startswith(f"tiny: {total}/{total} done")
     assert all("s elapsed, about" in line and "s left" in line for line in lines)
+
+
+def test_figure_streams_never_touch_the_tables(tmp_path):
+    """A figure case that is no sweep point draws its own batch from the figures' key space
+    (spawn key 2**31 + ...): adding one changes figures only, never a table."""
+    runner = CliRunner()
+    outs = []
+    for i, level in enumerate((0.01, 0.07)):                 # 0.07 is not a sweep point
+        path = write(tmp_path, tiny_config(**{"figures.noise_level": level}), f"c{i}.yaml")
+        out = tmp_path / f"r{i}"
+        assert runner.invoke(main, ["run", str(path), "--out", str(out), "--quiet"]).exit_code == 0
+        outs.append(out / "tiny")
+    for name in ("rmse.csv", "residual.csv", "health.csv", "claims.csv"):
+        assert (outs[0] / name).read_bytes() == (outs[1] / name).read_bytes(), name
+    fig = "figures/fig_3_5.png"
+    assert (outs[0] / fig).read_bytes() != (outs[1] / fig).read_bytes()
