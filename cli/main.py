@@ -70,7 +70,11 @@ def load(path: Path, overrides: dict | None = None, max_work: int = MAX_WORK,
         data = apply_overrides(data, overrides, str(path))
     exp = parse_data(data, str(path), path.stem, max_work)
     if quick:
-        small = ANALYSES[exp.analysis].tiny(copy.deepcopy(exp.spec))
+        spec = copy.deepcopy(exp.spec)
+        sweep = spec.pop("sweep", None)
+        if sweep:
+            spec = apply_overrides(spec, {k: v[0] for k, v in sweep.items()}, str(path))
+        small = ANALYSES[exp.analysis].tiny(spec)
         exp = parse_data(small, f"{path} (--quick)", path.stem, max_work)
     return exp
 
@@ -288,7 +292,8 @@ def _out_folder(out: Path | None, exps: list[Experiment], overridden: bool,
               help="Allow an overridden run to write into the stored results/.")
 @click.option("--quick", is_flag=True,
               help="A first look in seconds: each analysis' quick profile (one sweep point, "
-                   "short records, 3 runs); never written into results/.")
+                   "the first cell of a sweep: block, short records, 3 runs); never written "
+                   "into results/.")
 @_jobs
 @_max_work
 @click.option("--executor", type=click.Choice(["local", "dask"]), default="local",
@@ -331,10 +336,15 @@ def run(configs, out, runs, seed, update_baseline, quick, jobs, max_work, execut
         for exp in exps:
             store = cell_store(exp, folder)
             try:
-                with execution(None, store, shard=(k, n)):
+                with execution(None, store, shard=(k, n)) as ctx:
                     runner.execute(exp, jobs)
-                click.echo(f"{exp.name}: shard {k}/{n} needed the whole run; its cells are in "
-                           f"{store.folder}")
+                if not ctx.mapped:
+                    click.echo(f"{exp.name}: the {exp.analysis} analysis does not split into "
+                               "work units, so no shard keeps any of it; 'estim merge' runs it "
+                               "whole")
+                else:
+                    click.echo(f"{exp.name}: shard {k}/{n} needed the whole run; its cells "
+                               f"are in {store.folder}")
             except ShardDone as done:
                 click.echo(f"{exp.name}: shard {k}/{n}: {done.computed} cell(s) in "
                            f"{store.folder}; finish with 'estim merge'")
@@ -360,13 +370,18 @@ def _parse_shard(text_: str) -> tuple[int, int]:
               help="A folder the shards wrote into (repeat for several).")
 @click.option("--out", type=click.Path(file_okay=False, path_type=Path),
               help="Folder for results [default: as for run].")
+@click.option("--runs", type=click.IntRange(1), help="As given to the shards' run.")
+@click.option("--seed", type=click.IntRange(0), help="As given to the shards' run.")
 @_jobs
 @_max_work
 @click.option("--quiet", is_flag=True)
-def merge(configs, sources, out, jobs, max_work, quiet) -> None:
+def merge(configs, sources, out, runs, seed, jobs, max_work, quiet) -> None:
     """Gather the cells of 'estim run --shard K/N' runs from the --from folders and write
-    the tables, computing any cell no shard made. CONFIGS and overrides as given to run."""
-    configs, overrides = split_overrides(configs)
+    the tables, computing any cell no shard made. CONFIGS, overrides, --runs and --seed as
+    given to run: the cells are found by the config they were computed for."""
+    configs, given = split_overrides(configs)
+    overrides = {**given, **{k: v for k, v in (("monte_carlo.runs", runs),
+                                                ("monte_carlo.seed", seed)) if v is not None}}
     exps = load_all(configs, overrides, max_work)
     folder = _out_folder(out, exps, bool(overrides), False, quiet)
     io.ensure_writable(folder)
@@ -380,7 +395,11 @@ def merge(configs, sources, out, jobs, max_work, quiet) -> None:
                     target.folder.mkdir(parents=True, exist_ok=True)
                     io.atomic_write_bytes(target.folder / cell.name, cell.read_bytes())
                 copied += 1
-        if not quiet:
+        if not copied:
+            click.echo(f"{exp.name}: no cells of this config in the --from folder(s) (an analysis "
+                       "that does not split, or shards run with another config, overrides, "
+                       "--runs, --seed or estim version); computing it whole", err=True)
+        elif not quiet:
             click.echo(f"{exp.name}: {copied} cell(s) from {len(sources)} folder(s)", err=True)
         report(exp, folder, run_one(exp, folder, jobs, quiet, overrides), quiet)
 
@@ -592,8 +611,8 @@ def _check_one(exp: Experiment, stored_dir: Path, tmp: Path, jobs: int,
         if not diffs:
             click.echo(f"{exp.name}/{metric}.csv: {len(new)} rows match")
     for name in sorted(result.figures):
-        figure = stored_dir / "figures" / f"{name}.png"
-        if not figure.is_file() or figure.stat().st_size == 0:
+        stored_as = [stored_dir / "figures" / f"{name}.{fmt}" for fmt in ("png", "svg", "pdf")]
+        if not any(f.is_file() and f.stat().st_size > 0 for f in stored_as):
             click.echo(f"{exp.name}/figures/{name}.png: missing from the stored results")
             differing += 1
     return differing
@@ -694,8 +713,9 @@ def report_page(results, out) -> None:
                 except ReferenceJoinError:
                     pass
             section.tables.append((f"{metric}: {spec.title}", df))
-        for png in sorted((folder / "figures").glob("*.png")):
-            section.figures.append((png.stem, png.read_bytes()))
+        for figure in sorted((folder / "figures").glob("*")):
+            if figure.suffix in (".png", ".svg", ".pdf"):
+                section.figures.append((figure.name, figure.read_bytes()))
         source = where.config_dir / f"{folder.name}.yaml"
         text_ = source.read_text() if source.is_file() else ""
         section.deviations = [(d, entries[d]) for d in html_report.cited(text_) if d in entries]

@@ -108,6 +108,12 @@ class _ConfigLoader(yaml.SafeLoader):
         return super().construct_mapping(node, deep=deep)
 
 
+_ConfigLoader.add_implicit_resolver(                  # YAML 1.2 floats: 1e-6, 2E3 (1.1: text)
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
+    list("-+.0123456789"))
+
+
 class _Refused(Exception):
     def __init__(self, mark, message: str) -> None:
         super().__init__(message)
@@ -273,12 +279,10 @@ def parse_override(text_: str) -> tuple[str, Any]:
     if not sep or not OVERRIDE_KEY.fullmatch(key):
         raise UsageError(f"{text_!r}: expected key.path=value (list items by index)")
     try:
-        parsed = yaml.safe_load(value) if value.strip() else ""
-    except yaml.YAMLError as exc:
+        parsed = yaml.load(value, Loader=_ConfigLoader) if value.strip() else ""  # noqa: S506
+    except (yaml.YAMLError, _Refused) as exc:
         first = str(exc).strip().splitlines()[0]
         raise UsageError(f"{text_!r}: the value is not YAML ({first})") from None
-    if isinstance(parsed, str) and re.fullmatch(r"[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+", parsed):
-        parsed = float(parsed)                       # YAML 1.1 reads 1e-6 as text
     return re.sub(r"\[(\d+)\]", r".\1", key), parsed
 
 

@@ -349,10 +349,10 @@ class CellStore:
         self.folder = Path(folder)
         self.hits = 0
 
-    def _path(self, key: tuple[int, int]) -> Path:
-        return self.folder / f"cell-{key[0]}-{key[1]}.pkl"
+    def _path(self, key: tuple[int, ...]) -> Path:
+        return self.folder / ("cell-" + "-".join(str(k) for k in key) + ".pkl")
 
-    def get(self, key: tuple[int, int]) -> tuple[bool, object]:
+    def get(self, key: tuple[int, ...]) -> tuple[bool, object]:
         import pickle
 
         path = self._path(key)
@@ -365,7 +365,7 @@ class CellStore:
         self.hits += 1
         return True, value
 
-    def put(self, key: tuple[int, int], value: object) -> None:
+    def put(self, key: tuple[int, ...], value: object) -> None:
         import pickle
 
         self.folder.mkdir(parents=True, exist_ok=True)

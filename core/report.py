@@ -28,6 +28,9 @@ nav a { margin-right: 0.8em; }
 """
 
 
+MEDIA = {"png": "image/png", "svg": "image/svg+xml"}
+
+
 @dataclass
 class Section:
     """One experiment's part of the page."""
@@ -36,7 +39,7 @@ class Section:
     title: str
     manifest: dict
     tables: list[tuple[str, pd.DataFrame]] = field(default_factory=list)
-    figures: list[tuple[str, bytes]] = field(default_factory=list)
+    figures: list[tuple[str, bytes]] = field(default_factory=list)   # (file name, bytes)
     deviations: list[tuple[str, str]] = field(default_factory=list)
 
 
@@ -105,11 +108,20 @@ def page(title: str, sections: list[Section]) -> str:
         part = [f'<h2 id="{html.escape(s.name)}">{html.escape(s.name)}: '
                 f"{html.escape(s.title)}</h2>", _meta(s.manifest)]
         part += [_table(caption, df) for caption, df in s.tables]
-        for name, png in s.figures:
-            data = base64.b64encode(png).decode("ascii")
+        skipped = []
+        for name, data in s.figures:
+            kind = MEDIA.get(name.rpartition(".")[2])
+            if kind is None:
+                skipped.append(name)
+                continue
+            encoded = base64.b64encode(data).decode("ascii")
             part.append(f'<figure><img alt="{html.escape(name)}" '
-                        f'src="data:image/png;base64,{data}"><figcaption>{html.escape(name)}'
+                        f'src="data:{kind};base64,{encoded}"><figcaption>{html.escape(name)}'
                         "</figcaption></figure>")
+        if skipped:
+            part.append('<p class="meta">Not shown (a browser page cannot embed PDF as an '
+                        "image; re-run with --figure-format png or svg): "
+                        + html.escape(", ".join(skipped)) + "</p>")
         if s.deviations:
             part.append("<h3>Deviations this config cites (docs/deviations.md)</h3>")
             part += [f"<pre>{html.escape(text_)}</pre>" for _, text_ in s.deviations]

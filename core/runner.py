@@ -8,9 +8,10 @@ from collections.abc import Callable
 import pandas as pd
 
 from core.analyses import ANALYSES
-from core.analyses.base import Result
+from core.analyses.base import Result, ShardDone, sweep_cell
 from core.config import apply_overrides, parse_data
 from core.schema import Experiment
+from core.tables import SWEEP_PREFIX
 
 
 def sweep_cells(exp: Experiment) -> list[tuple[dict, Experiment]]:
@@ -39,21 +40,32 @@ def work_units(exp: Experiment) -> int:
 def execute(exp: Experiment, jobs: int = 1,
             on_done: Callable[[], None] | None = None) -> Result:
     """Run ``exp`` (its Monte Carlo runs and seed are in its config). A swept experiment
-    runs each cell and stacks its tables under a leading column per swept key; figures are
-    named ``<figure>_sweep<n>`` (n from 1, in the grid's order)."""
+    runs each cell and stacks its tables under a leading column ``sweep:<key path>`` per
+    swept key; figures are named ``<figure>_sweep<n>`` (n from 1, in the grid's order).
+
+    Under a shard (``--shard K/N``) every sweep cell computes its share before
+    :class:`ShardDone` reports the total."""
     cells = sweep_cells(exp)
     if len(cells) == 1 and not cells[0][0]:
         return ANALYSES[exp.analysis].run(exp, jobs, on_done)
     tables: dict[str, list] = {}
     figures = {}
+    sharded, incomplete = 0, False
     for n, (values, cell) in enumerate(cells, start=1):
-        result = ANALYSES[cell.analysis].run(cell, jobs, on_done)
+        try:
+            with sweep_cell(n):
+                result = ANALYSES[cell.analysis].run(cell, jobs, on_done)
+        except ShardDone as done:
+            sharded, incomplete = sharded + done.computed, True
+            continue
         for metric, df in result.tables.items():
             df = df.copy()
             for i, (key, value) in enumerate(values.items()):
-                df.insert(i, key, [value] * len(df))
+                df.insert(i, SWEEP_PREFIX + key, [value] * len(df))
             tables.setdefault(metric, []).append(df)
         figures.update({f"{name}_sweep{n}": fig for name, fig in result.figures.items()})
+    if incomplete:
+        raise ShardDone(sharded)
     return Result(tables={m: pd.concat(parts, ignore_index=True) for m, parts in
                           tables.items()}, figures=figures)
 

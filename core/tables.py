@@ -33,9 +33,14 @@ def reference_table(table_id: str) -> pd.DataFrame:
         return pd.read_csv(fh, dtype={"noise_param_value": float, "table_id": str})
 
 
+SWEEP_PREFIX = "sweep:"
+
+
 def view(df: pd.DataFrame, spec: TableSpec) -> pd.DataFrame:
-    """The columns of ``spec`` in a stored table (several metrics may share a file)."""
-    return df[[c for c in spec.columns if c in df.columns]]
+    """The columns of ``spec`` in a stored table (several metrics may share a file), after
+    the leading ``sweep:<key>`` columns of a swept run."""
+    swept = [c for c in df.columns if str(c).startswith(SWEEP_PREFIX)]
+    return df[swept + [c for c in spec.columns if c in df.columns]]
 
 
 def _describe(row: pd.Series) -> str:

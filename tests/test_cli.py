@@ -8,6 +8,7 @@ import yaml
 from click.testing import CliRunner
 
 from cli.main import main
+from core.config import parse_override
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -499,13 +500,14 @@ def test_entry_point_lists_commands_without_loading_them():
     assert bad.exit_code == 2 and "sample_time" in bad.output
 
 
-def test_report_is_one_page_with_every_table_and_figure(tmp_path):
+@pytest.mark.parametrize("fmt, media", [("png", "image/png"), ("svg", "image/svg+xml")])
+def test_report_is_one_page_with_every_table_and_figure(tmp_path, fmt, media):
     from html.parser import HTMLParser
 
     path = write(tmp_path, tiny_config())
     runner = CliRunner()
     assert runner.invoke(main, ["run", str(path), "--out", str(tmp_path / "res"), "--quiet",
-                                "--runs", "2"]).exit_code == 0
+                                "--runs", "2", "--figure-format", fmt]).exit_code == 0
     out = tmp_path / "page.html"
     result = runner.invoke(main, ["report", "--results", str(tmp_path / "res"), "--out",
                                   str(out)])
@@ -522,7 +524,7 @@ def test_report_is_one_page_with_every_table_and_figure(tmp_path):
             self.failing += tag == "tr" and a.get("class") == "fail"
             if tag == "img":
                 self.images.append(a.get("alt"))
-                if not a.get("src", "").startswith("data:image/png;base64,"):
+                if not a.get("src", "").startswith(f"data:{media};base64,"):
                     self.external.append(a.get("src"))
             if tag in ("link", "script") or (tag == "a" and "://" in a.get("href", "")):
                 self.external.append(a)
@@ -531,7 +533,8 @@ def test_report_is_one_page_with_every_table_and_figure(tmp_path):
     page.feed(out.read_text())
     folder = tmp_path / "res" / "tiny"
     assert page.tables == len(list(folder.glob("*.csv")))
-    assert sorted(page.images) == sorted(p.stem for p in (folder / "figures").glob("*.png"))
+    assert page.images and sorted(page.images) == sorted(
+        p.name for p in (folder / "figures").glob(f"*.{fmt}"))
     assert not page.external
     claims = pd.read_csv(folder / "claims.csv")
     assert page.failing == int((~claims["holds"].astype(bool)).sum())
@@ -623,7 +626,7 @@ def test_a_sweep_block_runs_each_cell_as_its_override_would(tmp_path):
                                  "--runs", "2"])
     assert swept.exit_code == 0, swept.output
     table = pd.read_csv(tmp_path / "sw" / "tiny" / "rmse.csv")
-    assert list(table.columns[:2]) == ["model.params.V_IN", "noise.measurement_sigma"]
+    assert list(table.columns[:2]) == ["sweep:model.params.V_IN", "sweep:noise.measurement_sigma"]
     assert list(table.drop_duplicates(list(table.columns[:2])).iloc[:, :2].itertuples(
         index=False, name=None)) == [(0.3, 0.05), (0.3, 0.1), (0.35, 0.05), (0.35, 0.1)]
     del spec["sweep"]
@@ -633,7 +636,8 @@ def test_a_sweep_block_runs_each_cell_as_its_override_would(tmp_path):
                                "--out", str(tmp_path / "one")])
     assert one.exit_code == 0, one.output
     ref = pd.read_csv(tmp_path / "one" / "tiny" / "rmse.csv")
-    cell = table[(table["model.params.V_IN"] == 0.35) & (table["noise.measurement_sigma"] == 0.05)]
+    cell = table[(table["sweep:model.params.V_IN"] == 0.35)
+                 & (table["sweep:noise.measurement_sigma"] == 0.05)]
     pd.testing.assert_frame_equal(cell.iloc[:, 2:].reset_index(drop=True), ref)
     bad = runner.invoke(main, ["validate", str(path), "sweep={model.params.V_NO: [1]}"])
     assert bad.exit_code == 2 and ": sweep.model.params.V_NO[0]: " in bad.output
@@ -688,3 +692,80 @@ def test_figure_streams_never_touch_the_tables(tmp_path):
         assert (outs[0] / name).read_bytes() == (outs[1] / name).read_bytes(), name
     fig = "figures/fig_3_5.png"
     assert (outs[0] / fig).read_bytes() != (outs[1] / fig).read_bytes()
+
+
+def test_a_sweep_over_a_key_that_is_also_a_column_keeps_both(tmp_path):
+    """``regime`` is a config key and an rmse column: the swept value gets its own column,
+    and ``estim table`` shows it in front."""
+    spec = tiny_config()
+    spec["sweep"] = {"regime": ["weak_inversion_saturation", "weak_inversion_conduction"]}
+    path = write(tmp_path, spec)
+    runner = CliRunner()
+    swept = runner.invoke(main, ["run", str(path), "--out", str(tmp_path / "sw"), "--quiet",
+                                 "--runs", "2"])
+    assert swept.exit_code == 0, swept.output
+    table = pd.read_csv(tmp_path / "sw" / "tiny" / "rmse.csv")
+    assert (table["sweep:regime"] == table["regime"]).all()
+    assert table["regime"].nunique() == 2
+    shown = runner.invoke(main, ["table", "rmse", "--results", str(tmp_path / "sw"),
+                                 "--format", "csv"])
+    assert shown.exit_code == 0, shown.output
+    assert list(pd.read_csv(StringIO(shown.output)).columns[:2]) == ["experiment",
+                                                                     "sweep:regime"]
+
+
+def test_shards_of_a_sweep_share_every_cell_and_merge_to_one_run(tmp_path):
+    spec = tiny_config(**{"input.frequencies_hz": [100, 1000]})
+    spec["sweep"] = {"noise.measurement_sigma": [0.05, 0.1]}
+    path = write(tmp_path, spec)
+    runner = CliRunner()
+    args = [str(path), "--runs", "2", "--quiet"]
+    assert runner.invoke(main, ["run", *args, "--out", str(tmp_path / "one")]).exit_code == 0
+    cells = []
+    for k in (1, 2):
+        shard = runner.invoke(main, ["run", *args, "--out", str(tmp_path / f"s{k}"),
+                                     "--shard", f"{k}/2"])
+        assert shard.exit_code == 0 and "finish with 'estim merge'" in shard.output
+        cells += [p.name for p in (tmp_path / f"s{k}").glob(".tiny.cells-*/cell-*.pkl")]
+    assert {c.split("-")[1] for c in cells} == {"1", "2"}      # both sweep cells were shared
+    merged = runner.invoke(main, ["merge", *args, "--from", str(tmp_path / "s1"), "--from",
+                                  str(tmp_path / "s2"), "--out", str(tmp_path / "m")])
+    assert merged.exit_code == 0, merged.output
+    assert not merged.output.count("no cells")
+    for name in ("rmse.csv", "residual.csv", "health.csv"):
+        assert (tmp_path / "m" / "tiny" / name).read_bytes() == \
+            (tmp_path / "one" / "tiny" / name).read_bytes()
+    lost = runner.invoke(main, ["merge", str(path), "--quiet", "--from", str(tmp_path / "s1"),
+                                "--out", str(tmp_path / "m3")])
+    assert lost.exit_code == 0 and "no cells of this config" in lost.output
+
+
+def test_an_analysis_that_does_not_split_says_so_under_shard(tmp_path):
+    spec = yaml.safe_load((ROOT / "configs" / "fir_differentiator.yaml").read_text())
+    path = write(tmp_path, spec, "fir.yaml")
+    result = CliRunner().invoke(main, ["run", str(path), "--shard", "1/2", "--out",
+                                       str(tmp_path / "s")])
+    assert result.exit_code == 0, result.output
+    assert "does not split into work units" in result.output
+    assert not list((tmp_path / "s").glob(".*cells-*"))
+
+
+def test_quick_runs_the_first_cell_of_a_sweep_over_list_items(tmp_path):
+    spec = tiny_config(**{"input.frequencies_hz": [100, 1000, 10000]})
+    spec["sweep"] = {"input.frequencies_hz[2]": [20000, 30000]}
+    path = write(tmp_path, spec)
+    result = CliRunner().invoke(main, ["run", str(path), "--quick", "--quiet", "--out",
+                                       str(tmp_path / "q")])
+    assert result.exit_code == 0, result.output
+    table = pd.read_csv(tmp_path / "q" / "tiny" / "rmse.csv")
+    assert not [c for c in table.columns if c.startswith("sweep:")]
+
+
+def test_exponent_floats_read_as_numbers_in_files_and_nested_overrides(tmp_path):
+    text_ = (ROOT / "configs" / "mosfet_saturation.yaml").read_text()
+    path = tmp_path / "e.yaml"
+    path.write_text(text_.replace("rtol: 1.0e-5", "rtol: 1e-5"))
+    assert "rtol: 1e-5" in path.read_text()
+    assert CliRunner().invoke(main, ["validate", str(path)]).exit_code == 0
+    key, value = parse_override("simulation={rtol: 1e-7, atol: 2E-9}")
+    assert value == {"rtol": 1e-7, "atol": 2e-9}

@@ -91,12 +91,16 @@ class Execution:
     machine, ``jobs`` processes) is a callable ``executor(fn, tasks) -> iterator of (index,
     result)`` in any order (:func:`core.executors.dask_executor`); ``store`` keeps finished
     cells, ``store.get(key) -> (found, value)`` and ``store.put(key, value)``
-    (:class:`core.io.CellStore`), keyed by the map call's number and the task's index."""
+    (:class:`core.io.CellStore`), keyed by the sweep cell, the map call's number within it
+    and the task's index; ``mapped`` counts every map call (none: the analysis does not split
+    into work units, so a shard cannot share it out)."""
 
     executor: Callable | None = None
     store: Any = None
     calls: int = 0
     shard: tuple[int, int] | None = None
+    cell: int = 0
+    mapped: int = 0
 
 
 class ShardDone(Exception):
@@ -124,6 +128,22 @@ def execution(executor: Callable | None = None, store: Any = None,
         _EXECUTION.reset(token)
 
 
+@contextmanager
+def sweep_cell(n: int) -> Iterator[None]:
+    """Key the map calls made inside by sweep cell ``n`` (their numbers restart at 0), so a
+    cell's stored work units are found again whatever the other cells did or did not do."""
+    ctx = _EXECUTION.get()
+    if ctx is None:
+        yield
+        return
+    saved = ctx.cell, ctx.calls
+    ctx.cell, ctx.calls = n, 0
+    try:
+        yield
+    finally:
+        ctx.cell, ctx.calls = saved
+
+
 def map_tasks(fn: Callable[[Any], Any], tasks: Iterable, jobs: int = 1,
               on_done: Callable[[], None] | None = None) -> list:
     """``[fn(t) for t in tasks]``, in ``jobs`` processes when more than one (or on the
@@ -132,14 +152,16 @@ def map_tasks(fn: Callable[[Any], Any], tasks: Iterable, jobs: int = 1,
     so where it runs does not change its result."""
     tasks = list(tasks)
     ctx = _EXECUTION.get()
-    call = 0
+    key: tuple[int, ...] = (0,)
     if ctx is not None:
-        call, ctx.calls = ctx.calls, ctx.calls + 1
+        key = (ctx.cell, ctx.calls) if ctx.cell else (ctx.calls,)
+        ctx.calls += 1
+        ctx.mapped += 1
     store = ctx.store if ctx is not None else None
     out: list = [None] * len(tasks)
     pending = []
     for i in range(len(tasks)):
-        found, value = store.get((call, i)) if store is not None else (False, None)
+        found, value = store.get((*key, i)) if store is not None else (False, None)
         if found:
             out[i] = value
             if on_done:
@@ -150,7 +172,7 @@ def map_tasks(fn: Callable[[Any], Any], tasks: Iterable, jobs: int = 1,
     def finished(i: int, value: Any) -> None:
         out[i] = value
         if store is not None:
-            store.put((call, i), value)
+            store.put((*key, i), value)
         if on_done:
             on_done()
 
