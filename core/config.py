@@ -200,11 +200,12 @@ MAX_SWEEP_CELLS = 10_000
 def _check_sweep(sweep: Any, data: dict, source: str, default_name: str, max_work: int,
                  work: int) -> dict:
     """``sweep: {key.path: [values], ...}``: every value of every key makes a valid config on
-    its own (checked here, before any work), and the whole grid stays under ``max_work``.
+    its own (checked here, before any work), and the whole grid stays under ``max_work``
+    (each value scales the work of the config as it does alone, e.g. ``monte_carlo.runs``).
     The grid is the product of the lists in the order given, the last key fastest."""
     if not isinstance(sweep, dict) or not sweep:
         raise ConfigError(source, "sweep", "expected a mapping of key paths to lists of values")
-    out = {}
+    out, total = {}, float(max(work, 1))
     for key, values in sweep.items():
         if not isinstance(key, str) or not OVERRIDE_KEY.fullmatch(key) or key.startswith(
                 ("sweep", "name", "analysis")):
@@ -214,19 +215,22 @@ def _check_sweep(sweep: Any, data: dict, source: str, default_name: str, max_wor
             raise ConfigError(source, f"sweep.{key}", f"expected a list of 1 to "
                               f"{MAX_SWEEP_CELLS} values")
         path = re.sub(r"\[(\d+)\]", r".\1", key)
+        scale = 0.0
         for i, value in enumerate(values):
             try:
-                parse_data(apply_overrides(data, {path: value}, source), source, default_name,
-                           max_work)
+                cell = parse_data(apply_overrides(data, {path: value}, source), source,
+                                  default_name, max_work)
             except ConfigError as exc:
                 raise ConfigError(source, f"sweep.{key}[{i}]",
                                   f"{exc.path}: {exc.message}" if exc.path else exc.message
                                   ) from None
+            scale += ANALYSES[cell.analysis].work_size(cell.spec) / max(work, 1)
         out[path] = values
+        total *= scale
     cells = math.prod(len(v) for v in out.values())
-    if cells > MAX_SWEEP_CELLS or work * cells > max_work:
-        raise ConfigError(source, "sweep", f"{cells} cells of about {work:.3g} state-samples "
-                          f"each exceed the limits ({MAX_SWEEP_CELLS} cells, {max_work:.3g} "
+    if cells > MAX_SWEEP_CELLS or total > max_work:
+        raise ConfigError(source, "sweep", f"{cells} cells of about {total:.3g} state-samples "
+                          f"in all exceed the limits ({MAX_SWEEP_CELLS} cells, {max_work:.3g} "
                           "state-samples; raise the latter with --max-work)")
     return out
 

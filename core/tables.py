@@ -113,7 +113,8 @@ characters."""
 
 _LATEX_SPECIAL = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#",
                   "_": r"\_", "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}",
-                  "^": r"\textasciicircum{}"}
+                  "^": r"\textasciicircum{}", "<": r"\textless{}", ">": r"\textgreater{}",
+                  "|": r"\textbar{}"}
 
 
 def latex_escape(text_: str) -> str:
@@ -124,7 +125,8 @@ def latex_escape(text_: str) -> str:
 def number(value) -> str:
     """A cell: integers (a frequency, a count) in full, other numbers to 4 significant
     digits, missing values as ``--``."""
-    if value is None or value is pd.NA or (isinstance(value, float) and np.isnan(value)):
+    if value is None or value is pd.NA or (isinstance(value, (float, np.floating))
+                                            and np.isnan(value)):
         return "--"
     if isinstance(value, (bool, np.bool_)):
         return str(bool(value))

@@ -769,3 +769,21 @@ def test_exponent_floats_read_as_numbers_in_files_and_nested_overrides(tmp_path)
     assert CliRunner().invoke(main, ["validate", str(path)]).exit_code == 0
     key, value = parse_override("simulation={rtol: 1e-7, atol: 2E-9}")
     assert value == {"rtol": 1e-7, "atol": 2e-9}
+
+
+def test_sweep_work_counts_what_each_value_costs(tmp_path):
+    """A swept ``monte_carlo.runs`` scales the grid's work: the --max-work bound sees it."""
+    from core.analyses import ANALYSES
+    from core.config import parse_data
+
+    spec = tiny_config()
+    work = ANALYSES["estimation"].work_size(parse_data(spec, "t", "tiny").spec)
+    runner = CliRunner()
+    spec["sweep"] = {"monte_carlo.runs": [3, 3]}
+    cheap = write(tmp_path, spec, "cheap.yaml")
+    limit = str(int(3.5 * work))                  # each cell below it, the grid of [3, 9] above
+    assert runner.invoke(main, ["validate", str(cheap), "--max-work", limit]).exit_code == 0
+    spec["sweep"] = {"monte_carlo.runs": [3, 9]}
+    dear = write(tmp_path, spec, "dear.yaml")
+    refused = runner.invoke(main, ["validate", str(dear), "--max-work", limit])
+    assert refused.exit_code == 2 and ": sweep: 2 cells of about" in refused.output

@@ -97,3 +97,5 @@ def test_render_latex_markdown_and_text_are_fit_for_a_paper():
     assert max(len(line) for line in tables.render(wide, "text").splitlines()) <= 100
     md = tables.render(df, "markdown")
     assert md.splitlines()[1].startswith("|---") or "--:" in md.splitlines()[1]
+    assert tables.latex_escape("a<b>c|d") == r"a\textless{}b\textgreater{}c\textbar{}d"
+    assert tables.number(np.float32("nan")) == "--" and tables.number(np.float32(2.5)) == "2.5"
