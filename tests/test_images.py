@@ -55,6 +55,9 @@ def test_the_filter_with_the_true_model_restores_a_synthetic_field_to_its_error_
     mse = np.mean((out["image"] - u)[inner] ** 2)
     assert mse < 0.5 * sigma_v2
     assert np.all(np.isfinite(out["P_norm"])) and np.all(out["K_norm"] > 0)
+    z, s = out["innovation"][inner], out["innovation_variance"][inner]
+    assert np.mean(z**2 / s) == pytest.approx(1.0, abs=0.05)      # NIS of a consistent filter
+    assert abs(np.corrcoef(z[:, 1:].ravel(), z[:, :-1].ravel())[0, 1]) < 0.1
 
 
 def test_non_adaptive_filter_improves_camera_at_5_db():

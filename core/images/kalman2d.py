@@ -82,27 +82,32 @@ def _filter(y, A10, A01, left, sigma_e2, sigma_v2, boundary_variance, M):  # pra
     out = np.empty((rows, cols))
     p_norm = np.empty((rows, cols))
     k_norm = np.empty((rows, cols))
+    z = np.empty((rows, cols))
+    s = np.empty((rows, cols))
     for m in range(rows):
         if m > 0:
             _carry_left(Xa, Pa, left, m)
         for c in range(cols):
-            xa, P, K, _, _, _ = _step(Xa, Pa, m, c, A10, A01, M, sigma_e2, sigma_v2, y[m, c])
+            xa, P, K, z[m, c], s[m, c], _ = _step(Xa, Pa, m, c, A10, A01, M, sigma_e2,
+                                                  sigma_v2, y[m, c])
             out[m, c] = xa[0]
             p_norm[m, c] = np.sqrt(np.sum(P * P))
             k_norm[m, c] = np.sqrt(np.sum(K * K))
-    return out, p_norm, k_norm
+    return out, p_norm, k_norm, z, s
 
 
 def restore(noisy: np.ndarray, A10: np.ndarray, A01: np.ndarray, sigma_e2: float,
             sigma_v2: float, M: int, boundary_variance: float | None = None) -> dict:
     """The filtered image of a zero-mean ``noisy`` one, with the Frobenius norms of ``P_a``
-    and ``K`` at every pixel (the paper's Figs 5 and 6)."""
+    and ``K`` at every pixel (the paper's Figs 5 and 6), and the innovation ``y - C X_b``
+    and the variance the filter gives it (eq 13c's denominator) at every pixel."""
     y = np.ascontiguousarray(noisy, dtype=float)
     var = float(np.var(y) - sigma_v2) if boundary_variance is None else boundary_variance
-    out, p_norm, k_norm = _filter(y, np.ascontiguousarray(A10), np.ascontiguousarray(A01),
+    out, p_norm, k_norm, z, s = _filter(y, np.ascontiguousarray(A10), np.ascontiguousarray(A01),
                                   nshp.left_boundary(M), float(sigma_e2), float(sigma_v2),
                                   max(var, 0.0), int(M))
-    return {"image": out, "P_norm": p_norm, "K_norm": k_norm}
+    return {"image": out, "P_norm": p_norm, "K_norm": k_norm, "innovation": z,
+            "innovation_variance": s}
 
 
 @njit(cache=True)
