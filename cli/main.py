@@ -11,6 +11,7 @@ import copy
 import csv
 import hashlib
 import json
+import re
 import stat
 import sys
 import tempfile
@@ -67,9 +68,10 @@ def load(path: Path, overrides: dict | None = None, max_work: int = MAX_WORK,
         raise ConfigError(str(path), "", "not a UTF-8 text file") from None
     data = load_yaml(text, str(path))
     if overrides:
+        _refuse_swept_overrides(data, overrides, str(path))
         data = apply_overrides(data, overrides, str(path))
-    exp = parse_data(data, str(path), path.stem, max_work)
-    if quick:
+    exp = parse_data(data, str(path), path.stem, 2**62 if quick else max_work)
+    if quick:                          # the first cell of a sweep, shrunk: the grid's size is moot
         spec = copy.deepcopy(exp.spec)
         sweep = spec.pop("sweep", None)
         if sweep:
@@ -77,6 +79,21 @@ def load(path: Path, overrides: dict | None = None, max_work: int = MAX_WORK,
         small = ANALYSES[exp.analysis].tiny(spec)
         exp = parse_data(small, f"{path} (--quick)", path.stem, max_work)
     return exp
+
+
+def _refuse_swept_overrides(data: dict, overrides: dict, source: str) -> None:
+    """An override of a key the config's ``sweep:`` block sets would be overwritten in
+    every cell: refuse it, naming the sweep key to change instead."""
+    sweep = data.get("sweep") if isinstance(data, dict) else None
+    if not isinstance(sweep, dict):
+        return
+    for key in sweep:
+        swept = re.sub(r"\[(\d+)\]", r".\1", str(key))
+        for given in overrides:
+            if given == swept or swept.startswith(given + ".") or given.startswith(swept + "."):
+                raise ConfigError(source, given, f"the config's sweep block sets {key} in "
+                                  "every cell; give the whole block instead, e.g. "
+                                  f"'sweep={{{key}: [...]}}'")
 
 
 def split_overrides(args) -> tuple[list[Path], dict]:
@@ -335,18 +352,17 @@ def run(configs, out, runs, seed, update_baseline, quick, jobs, max_work, execut
         k, n = _parse_shard(shard)
         for exp in exps:
             store = cell_store(exp, folder)
-            try:
-                with execution(None, store, shard=(k, n)) as ctx:
+            with execution(None, store, shard=(k, n)) as ctx:
+                try:
                     runner.execute(exp, jobs)
-                if not ctx.mapped:
-                    click.echo(f"{exp.name}: the {exp.analysis} analysis does not split into "
-                               "work units, so no shard keeps any of it; 'estim merge' runs it "
-                               "whole")
-                else:
-                    click.echo(f"{exp.name}: shard {k}/{n} needed the whole run; its cells "
-                               f"are in {store.folder}")
-            except ShardDone as done:
-                click.echo(f"{exp.name}: shard {k}/{n}: {done.computed} cell(s) in "
+                except ShardDone:
+                    pass
+            if not ctx.mapped:
+                click.echo(f"{exp.name}: the {exp.analysis} analysis does not split into "
+                           "work units, so no shard keeps any of it; 'estim merge' runs it "
+                           "whole")
+            else:
+                click.echo(f"{exp.name}: shard {k}/{n}: {ctx.computed} cell(s) in "
                            f"{store.folder}; finish with 'estim merge'")
         return
     with _executor(executor, scheduler, jobs) as units:
@@ -372,18 +388,19 @@ def _parse_shard(text_: str) -> tuple[int, int]:
               help="Folder for results [default: as for run].")
 @click.option("--runs", type=click.IntRange(1), help="As given to the shards' run.")
 @click.option("--seed", type=click.IntRange(0), help="As given to the shards' run.")
+@click.option("--quick", is_flag=True, help="As given to the shards' run.")
 @_jobs
 @_max_work
 @click.option("--quiet", is_flag=True)
-def merge(configs, sources, out, runs, seed, jobs, max_work, quiet) -> None:
+def merge(configs, sources, out, runs, seed, quick, jobs, max_work, quiet) -> None:
     """Gather the cells of 'estim run --shard K/N' runs from the --from folders and write
     the tables, computing any cell no shard made. CONFIGS, overrides, --runs and --seed as
     given to run: the cells are found by the config they were computed for."""
     configs, given = split_overrides(configs)
     overrides = {**given, **{k: v for k, v in (("monte_carlo.runs", runs),
                                                 ("monte_carlo.seed", seed)) if v is not None}}
-    exps = load_all(configs, overrides, max_work)
-    folder = _out_folder(out, exps, bool(overrides), False, quiet)
+    exps = load_all(configs, overrides, max_work, quick)
+    folder = _out_folder(out, exps, bool(overrides) or quick, False, quiet)
     io.ensure_writable(folder)
     for exp in exps:
         target = cell_store(exp, folder)
@@ -493,7 +510,8 @@ def table(metric, results, fmt, thesis, partial) -> None:
     frames = []
     for folder, spec, path in _stored_tables(results, metric):
         df = tables.view(read_table(path, spec), spec)
-        if df.drop(columns=list(spec.keys), errors="ignore").isna().all().all():
+        values = df.drop(columns=[*spec.keys, *tables.sweep_columns(df)], errors="ignore")
+        if values.isna().all().all():
             continue
         shown += 1
         if thesis and spec.join and "table_id" in df:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import copy
 import hashlib
+import itertools
 import json
 import math
 import re
@@ -195,12 +196,15 @@ def parse_data(data: dict, source: str, default_name: str,
 
 
 MAX_SWEEP_CELLS = 10_000
+MAX_CHECKED_CELLS = 1_000      # grids up to this size have every combination validated up front
 
 
 def _check_sweep(sweep: Any, data: dict, source: str, default_name: str, max_work: int,
                  work: int) -> dict:
     """``sweep: {key.path: [values], ...}``: every value of every key makes a valid config on
-    its own (checked here, before any work), and the whole grid stays under ``max_work``
+    its own, and so does every combination of a grid of up to :data:`MAX_CHECKED_CELLS`
+    cells (checked here, before any work; a larger grid's cells are parsed when it runs,
+    before its first cell), and the whole grid stays under ``max_work``
     (each value scales the work of the config as it does alone, e.g. ``monte_carlo.runs``).
     The grid is the product of the lists in the order given, the last key fastest."""
     if not isinstance(sweep, dict) or not sweep:
@@ -225,6 +229,8 @@ def _check_sweep(sweep: Any, data: dict, source: str, default_name: str, max_wor
                                   f"{exc.path}: {exc.message}" if exc.path else exc.message
                                   ) from None
             scale += ANALYSES[cell.analysis].work_size(cell.spec) / max(work, 1)
+        if path in out:
+            raise ConfigError(source, f"sweep.{key}", "the same key path as another sweep key")
         out[path] = values
         total *= scale
     cells = math.prod(len(v) for v in out.values())
@@ -232,6 +238,16 @@ def _check_sweep(sweep: Any, data: dict, source: str, default_name: str, max_wor
         raise ConfigError(source, "sweep", f"{cells} cells of about {total:.3g} state-samples "
                           f"in all exceed the limits ({MAX_SWEEP_CELLS} cells, {max_work:.3g} "
                           "state-samples; raise the latter with --max-work)")
+    if len(out) > 1 and cells <= MAX_CHECKED_CELLS:
+        for combo in itertools.product(*out.values()):
+            values = dict(zip(out, combo, strict=True))
+            try:
+                parse_data(apply_overrides(data, values, source), source, default_name,
+                           2**62)
+            except ConfigError as exc:
+                shown = ", ".join(f"{k}={v!r}" for k, v in values.items())
+                raise ConfigError(source, "sweep", f"the cell {shown}: " + (
+                    f"{exc.path}: {exc.message}" if exc.path else exc.message)) from None
     return out
 
 

@@ -36,11 +36,15 @@ def reference_table(table_id: str) -> pd.DataFrame:
 SWEEP_PREFIX = "sweep:"
 
 
+def sweep_columns(df: pd.DataFrame) -> list[str]:
+    """The ``sweep:<key>`` columns of a swept run's table."""
+    return [c for c in df.columns if str(c).startswith(SWEEP_PREFIX)]
+
+
 def view(df: pd.DataFrame, spec: TableSpec) -> pd.DataFrame:
     """The columns of ``spec`` in a stored table (several metrics may share a file), after
     the leading ``sweep:<key>`` columns of a swept run."""
-    swept = [c for c in df.columns if str(c).startswith(SWEEP_PREFIX)]
-    return df[swept + [c for c in spec.columns if c in df.columns]]
+    return df[sweep_columns(df) + [c for c in spec.columns if c in df.columns]]
 
 
 def _describe(row: pd.Series) -> str:

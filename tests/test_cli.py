@@ -738,6 +738,10 @@ def test_shards_of_a_sweep_share_every_cell_and_merge_to_one_run(tmp_path):
     lost = runner.invoke(main, ["merge", str(path), "--quiet", "--from", str(tmp_path / "s1"),
                                 "--out", str(tmp_path / "m3")])
     assert lost.exit_code == 0 and "no cells of this config" in lost.output
+    for k in (1, 2, 3, 4):             # 4 work units over 2 sweep cells: one for each shard
+        shard = runner.invoke(main, ["run", *args, "--out", str(tmp_path / "q"),
+                                     "--shard", f"{k}/4"])
+        assert f"shard {k}/4: 1 cell(s)" in shard.output, shard.output
 
 
 def test_an_analysis_that_does_not_split_says_so_under_shard(tmp_path):
@@ -787,3 +791,50 @@ def test_sweep_work_counts_what_each_value_costs(tmp_path):
     dear = write(tmp_path, spec, "dear.yaml")
     refused = runner.invoke(main, ["validate", str(dear), "--max-work", limit])
     assert refused.exit_code == 2 and ": sweep: 2 cells of about" in refused.output
+
+
+def test_a_sweep_grid_is_validated_whole_and_overrides_of_swept_keys_are_refused(tmp_path):
+    spec = tiny_config()
+    spec["sweep"] = {"estimators[2].label": ["X", "Y"], "estimators[3].label": ["Y", "Z"]}
+    path = write(tmp_path, spec)
+    runner = CliRunner()
+    bad = runner.invoke(main, ["validate", str(path)])
+    assert bad.exit_code == 2 and ": sweep: the cell estimators.2.label='Y', " in bad.output
+    assert "duplicate label 'Y'" in bad.output, bad.output
+    spec["sweep"] = {"estimators[2].label": ["X"], "estimators.2.label": ["Y"]}
+    twice = runner.invoke(main, ["validate", str(write(tmp_path, spec, "twice.yaml"))])
+    assert twice.exit_code == 2 and "the same key path as another sweep key" in twice.output
+    spec["sweep"] = {"noise.measurement_sigma": [0.05, 0.1], "monte_carlo.runs": [2, 3]}
+    swept = write(tmp_path, spec, "swept.yaml")
+    for args in (["noise.measurement_sigma=0.2"], ["--runs", "4"], ["noise=null"]):
+        refused = runner.invoke(main, ["run", str(swept), *args, "--out", str(tmp_path / "o")])
+        assert refused.exit_code == 2 and "the config's sweep block sets" in refused.output, \
+            refused.output
+
+
+def test_quick_ignores_the_size_of_the_grid_it_does_not_run(tmp_path):
+    spec = tiny_config()
+    spec["sweep"] = {"monte_carlo.runs": [3, 4, 5]}
+    path = write(tmp_path, spec)
+    runner = CliRunner()
+    from core.analyses import ANALYSES
+    from core.config import parse_data
+
+    work = ANALYSES["estimation"].work_size(parse_data(tiny_config(), "t", "tiny").spec)
+    limit = str(2 * work)                       # one cell fits, the grid of three does not
+    assert runner.invoke(main, ["validate", str(path), "--max-work", limit]).exit_code == 2
+    quick = runner.invoke(main, ["run", str(path), "--quick", "--quiet", "--max-work", limit,
+                                 "--out", str(tmp_path / "q")])
+    assert quick.exit_code == 0, quick.output
+
+
+def test_gain_table_skips_a_swept_experiment_without_gain_values(tmp_path):
+    spec = yaml.safe_load((ROOT / "configs" / "cco_distortion.yaml").read_text())
+    spec["sweep"] = {"title": ["a", "b"]}
+    path = write(tmp_path, spec, "cco.yaml")
+    runner = CliRunner()
+    assert runner.invoke(main, ["run", str(path), "--quiet", "--out",
+                                str(tmp_path / "r")]).exit_code == 0
+    assert "sweep:title" in (tmp_path / "r" / "cco_distortion" / "distortion.csv").read_text()
+    shown = runner.invoke(main, ["table", "gain", "--results", str(tmp_path / "r")])
+    assert shown.exit_code == 2 and "no gain values" in shown.output, shown.output

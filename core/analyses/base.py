@@ -101,6 +101,8 @@ class Execution:
     shard: tuple[int, int] | None = None
     cell: int = 0
     mapped: int = 0
+    offsets: dict = field(default_factory=dict)
+    computed: int = 0
 
 
 class ShardDone(Exception):
@@ -120,7 +122,8 @@ def execution(executor: Callable | None = None, store: Any = None,
               shard: tuple[int, int] | None = None) -> Iterator[Execution]:
     """Run the analyses called inside on ``executor``, saving each finished cell in
     ``store`` and taking the ones it already has from it (a resumed run); with ``shard =
-    (k, n)`` compute only the cells ``i`` with ``i % n == k - 1`` (:class:`ShardDone`)."""
+    (k, n)`` compute only the cells whose number, counted over the sweep cells of a swept
+    run, is ``k - 1`` modulo ``n`` (:class:`ShardDone`)."""
     token = _EXECUTION.set(Execution(executor, store, shard=shard))
     try:
         yield _EXECUTION.get()
@@ -153,8 +156,11 @@ def map_tasks(fn: Callable[[Any], Any], tasks: Iterable, jobs: int = 1,
     tasks = list(tasks)
     ctx = _EXECUTION.get()
     key: tuple[int, ...] = (0,)
+    offset = 0
     if ctx is not None:
         key = (ctx.cell, ctx.calls) if ctx.cell else (ctx.calls,)
+        offset = ctx.offsets.get(ctx.calls, 0)         # tasks of this call in earlier cells
+        ctx.offsets[ctx.calls] = offset + len(tasks)
         ctx.calls += 1
         ctx.mapped += 1
     store = ctx.store if ctx is not None else None
@@ -171,6 +177,8 @@ def map_tasks(fn: Callable[[Any], Any], tasks: Iterable, jobs: int = 1,
 
     def finished(i: int, value: Any) -> None:
         out[i] = value
+        if ctx is not None:
+            ctx.computed += 1
         if store is not None:
             store.put((*key, i), value)
         if on_done:
@@ -179,8 +187,8 @@ def map_tasks(fn: Callable[[Any], Any], tasks: Iterable, jobs: int = 1,
     shard = ctx.shard if ctx is not None else None
     if shard is not None and pending:
         k, n = shard
-        mine = [i for i in pending if i % n == k - 1]
-        others = [i for i in pending if i % n != k - 1]
+        mine = [i for i in pending if (offset + i) % n == k - 1]
+        others = [i for i in pending if (offset + i) % n != k - 1]
         pending = mine
     else:
         others = []
