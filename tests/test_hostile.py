@@ -201,6 +201,7 @@ HOSTILE = [
     ("image_kalman", {"images": ["camera", "camera"]}, "images[1]", "repeats"),
     ("image_kalman", {"nshp.order": 4}, "nshp.order", "integer from 1 to 3"),
     ("image_kalman", {"adaptive.v0": 0}, "adaptive.v0", "positive number"),
+    ("image_kalman", {"adaptive.gradient": "exact"}, "adaptive.gradient", "'approximate'"),
     ("image_kalman", {"figures.image": "coins"}, "figures.image", "expected one of the images"),
     ("image_kalman", {"figures.row": 600}, "figures.row", "has 512 rows"),
     ("image_kalman", {"monte_carlo.runs": 0}, "monte_carlo.runs", "integer from 1"),

@@ -58,6 +58,7 @@ SCHEMA: dict = {
         "lambda0": (number(minimum=0.0, maximum=1.0), 0.95),
         "v0": (number(positive=True, maximum=1.0), 1.0),
         "mu_u": (number(minimum=-1e3, maximum=1e3), 0.0),
+        "gradient": (text({"full", "approximate"}), "full"),
     }, {}),
     "strip": ({
         "width": (integer(1, 64), 8),

@@ -111,8 +111,55 @@ def restore(noisy: np.ndarray, A10: np.ndarray, A01: np.ndarray, sigma_e2: float
 
 
 @njit(cache=True)
+def _set_phi(F10, F01, pmat, pcol, phi):  # pragma: no cover
+    for j in range(phi.size):
+        if pmat[j] == 0:
+            F10[0, pcol[j]] = phi[j]
+        else:
+            F01[0, pcol[j]] = phi[j]
+
+
+@njit(cache=True)
+def _regressors(Xa, m, c, pmat, pcol, M, cols):  # pragma: no cover
+    """Gamma's first row at pixel ``(m, c)`` (eq 21b): the entries of its left and upper
+    local states that each parameter multiplies."""
+    left, up = Xa[m + 1, c], Xa[m, min(c + 1 + M, cols + M)]
+    out = np.empty(pmat.size)
+    for j in range(pmat.size):
+        out[j] = left[pcol[j]] if pmat[j] == 0 else up[pcol[j]]
+    return out
+
+
+@njit(cache=True)
+def _gain_derivative(F10, F01, pmat, pcol, left_P, up_P, dleft, dup, Pb, K, S,
+                     sigma_v2):  # pragma: no cover
+    """``kappa`` (eq 22b), column ``j`` = dK/dphi_j, and dP_a/dphi_j (13b-e differentiated
+    with phi held: the recursive way of eq 22b's note)."""
+    d, n = pmat.size, F10.shape[0]
+    kappa = np.zeros((n, d))
+    dPa = np.zeros((d, n, n))
+    L = np.eye(n)
+    L[:, 0] -= K
+    for j in range(d):
+        dF10 = np.zeros((n, n))
+        dF01 = np.zeros((n, n))
+        if pmat[j] == 0:
+            dF10[0, pcol[j]] = 1.0
+        else:
+            dF01[0, pcol[j]] = 1.0
+        a = dF10 @ left_P @ F10.T + dF01 @ up_P @ F01.T
+        dPb = a + a.T + F10 @ dleft[j] @ F10.T + F01 @ dup[j] @ F01.T
+        kappa[:, j] = dPb[:, 0] / S - Pb[:, 0] * dPb[0, 0] / (S * S)
+        dL = np.zeros((n, n))
+        dL[:, 0] = -kappa[:, j]
+        b = dL @ Pb @ L.T + np.outer(kappa[:, j], K) * sigma_v2
+        dPa[j] = b + b.T + L @ dPb @ L.T
+    return kappa, dPa
+
+
+@njit(cache=True)
 def _adaptive(y, A10, A01, left, pmat, pcol, phi0, sigma_e2, sigma_v2, boundary_variance, M,
-              H0, lambda0, v0, mu_u, trace_row):  # pragma: no cover
+              H0, lambda0, v0, mu_u, trace_row, full):  # pragma: no cover
     rows, cols = y.shape
     n, d = A10.shape[0], phi0.size
     Xa, Pa = _states(rows, cols, n, M, boundary_variance)
@@ -120,9 +167,22 @@ def _adaptive(y, A10, A01, left, pmat, pcol, phi0, sigma_e2, sigma_v2, boundary_
     p_norm = np.empty((rows, cols))
     k_norm = np.empty((rows, cols))
     trace = np.empty((cols, d))
+    sens = np.zeros((rows, cols, d))
+    # sensitivities of the stored posteriors, this row and the one above (ring of two):
+    # Sigma_a = dX_a/dphi and dP_a/dphi; zero off the image
+    Sa_rows = np.zeros((2, cols + M + 1, n, d))
+    dP_rows = np.zeros((2, cols + M + 1, d, n, n))
     for m in range(rows):
+        here, above = (m + 1) % 2, m % 2
+        Sa_rows[here] = 0.0
+        dP_rows[here] = 0.0
         if m > 0:
             _carry_left(Xa, Pa, left, m)
+            if full:
+                for r in range(left.shape[0]):
+                    i, col, jj = left[r, 0], left[r, 1], left[r, 2]
+                    Sa_rows[here, 0, i] = Sa_rows[above, col + 1, jj]
+                    dP_rows[here, 0, :, i, i] = dP_rows[above, col + 1, :, jj, jj]
         phi = phi0.copy()                        # the adaptation restarts at every row
         H = H0 * np.eye(d)
         lam, v = lambda0, v0
@@ -130,39 +190,44 @@ def _adaptive(y, A10, A01, left, pmat, pcol, phi0, sigma_e2, sigma_v2, boundary_
         Sb[0, :] = mu_u
         Sb[0, 0] = -mu_u
         F10, F01 = A10.copy(), A01.copy()
-        for j in range(d):
-            if pmat[j] == 0:
-                F10[0, pcol[j]] = phi[j]
-            else:
-                F01[0, pcol[j]] = phi[j]
+        _set_phi(F10, F01, pmat, pcol, phi)
+        if full and m > 0:                       # eq 21a at the row's first pixel too
+            Sb = F10 @ Sa_rows[here, 0] + F01 @ Sa_rows[above, 1 + M]
+            Sb[0] += _regressors(Xa, m, 0, pmat, pcol, M, cols)
         for c in range(cols):
+            left_P, up_P = Pa[m + 1, c].copy(), Pa[m, c + 1 + M].copy()
             xa, P, K, z, Rz, L = _step(Xa, Pa, m, c, F10, F01, M, sigma_e2, sigma_v2, y[m, c])
+            if full:
+                Pb = F10 @ left_P @ F10.T + F01 @ up_P @ F01.T
+                Pb[0, 0] += sigma_e2
+                kappa, dPa = _gain_derivative(F10, F01, pmat, pcol, left_P, up_P,
+                                              dP_rows[here, c], dP_rows[above, c + 1 + M],
+                                              Pb, K, Rz, sigma_v2)
             # Table I, in its order: Delta, H, phi, Sigma_a, Gamma, Sigma_b(k+1)
             lam = 0.99 * lam + 0.01
             v = 1.0 / (1.0 + lam / v)
             delta = Sb[0, :].copy()
             H = H + v * (np.outer(delta, delta) / Rz - H)
             phi = phi + v * np.linalg.solve(H, delta) * (z / Rz)
-            Sa = L @ Sb                              # kappa z left out: dK/dphi not tracked
-            for j in range(d):
-                if pmat[j] == 0:
-                    F10[0, pcol[j]] = phi[j]
-                else:
-                    F01[0, pcol[j]] = phi[j]
-            # Sigma_b for the next pixel: the left state's sensitivity (the row above is
-            # fixed data after the restart) plus Gamma, the regressors of the next pixel
+            Sa = L @ Sb
+            if full:
+                Sa += kappa * z
+                Sa_rows[here, c + 1] = Sa
+                dP_rows[here, c + 1] = dPa
+            _set_phi(F10, F01, pmat, pcol, phi)
+            # Sigma_b for the next pixel (eq 21a): A10 Sigma_a(left) + A01 Sigma_a(above)
+            # + Gamma, the regressors of the next pixel
             Sb = F10 @ Sa
-            for j in range(d):
-                if pmat[j] == 0:
-                    Sb[0, j] += xa[pcol[j]]
-                else:
-                    Sb[0, j] += Xa[m, min(c + 2 + M, cols + M), pcol[j]]
+            if full:
+                Sb += F01 @ Sa_rows[above, min(c + 2 + M, cols + M)]
+            Sb[0] += _regressors(Xa, m, c + 1, pmat, pcol, M, cols)
             out[m, c] = xa[0]
+            sens[m, c] = Sa[0]
             p_norm[m, c] = np.sqrt(np.sum(P * P))
             k_norm[m, c] = np.sqrt(np.sum(K * K))
             if m == trace_row:
                 trace[c] = phi
-    return out, p_norm, k_norm, trace
+    return out, p_norm, k_norm, trace, sens
 
 
 def restore_adaptive(noisy: np.ndarray, a0: np.ndarray, sigma_e2: float, sigma_v2: float,
@@ -172,20 +237,80 @@ def restore_adaptive(noisy: np.ndarray, a0: np.ndarray, sigma_e2: float, sigma_v
     stochastic Newton recursion of Table I (eqs 16-24), restarted from ``a0`` at every row.
 
     ``settings``: ``H0`` (eq 25's ``rho^-1``; the paper's experiment uses 1), ``lambda0``
-    (0.95, eq 24), ``v0`` (not given) and ``mu_u`` (the first row of ``Sigma_b(0)``).
-    ``R_z`` is the filter's own prediction-error variance ``C P_b C' + s_v^2``; ``kappa =
-    dK/dphi`` (eq 22b) is left out, as in the approximate recursive prediction-error
-    methods; after a restart the rows above are fixed data, so their sensitivities are zero
-    and ``Sigma_b = A10 Sigma_a(k-1) + Gamma``. No stability projection: a run whose image
-    is not finite is reported as diverged by the caller.
+    (0.95, eq 24), ``v0`` (not given), ``mu_u`` (the first row of ``Sigma_b(0)``) and
+    ``gradient``: ``full`` is Table I as printed, ``Sigma_a = (I - K C) Sigma_b + kappa z``
+    with ``kappa = dK/dphi`` (eq 22b) computed recursively (the covariance recursion
+    differentiated with phi held, ``dP_a/dphi`` kept per stored state) and ``Sigma_b =
+    A10 Sigma_a(left) + A01 Sigma_a(above) + Gamma`` (eq 21a) at every pixel, the printed
+    ``Sigma_b(0)`` (with ``mu_u``) at the image's first; ``approximate`` leaves out
+    ``kappa`` and the row above's sensitivity (the rows above as fixed data) and starts
+    every row from the printed ``Sigma_b(0)``. ``R_z`` is
+    the filter's own prediction-error variance ``C P_b C' + s_v^2``. No stability
+    projection: a run whose image is not finite is reported as diverged by the caller.
+    Returns the image, the norms of Figs 5-6, the parameters along ``trace_row`` (Fig 7)
+    and ``sensitivity``, the recursion's d(restored pixel)/dphi (first row of Sigma_a).
     """
     A10, A01, _ = nshp.state_matrices(a0, M)
     pmat, pcol = nshp.parameter_positions(M)
     y = np.ascontiguousarray(noisy, dtype=float)
     var = float(np.var(y) - sigma_v2) if boundary_variance is None else boundary_variance
-    out, p_norm, k_norm, trace = _adaptive(
+    out, p_norm, k_norm, trace, sens = _adaptive(
         y, A10, A01, nshp.left_boundary(M), pmat, pcol, np.asarray(a0, float),
         float(sigma_e2), float(sigma_v2), max(var, 0.0), int(M), float(settings["H0"]),
         float(settings["lambda0"]), float(settings["v0"]), float(settings["mu_u"]),
-        int(trace_row))
-    return {"image": out, "P_norm": p_norm, "K_norm": k_norm, "trace": trace}
+        int(trace_row), settings.get("gradient", "full") == "full")
+    return {"image": out, "P_norm": p_norm, "K_norm": k_norm, "trace": trace,
+            "sensitivity": sens}
+
+
+@njit(cache=True)
+def _exact(y, lags, coeffs, cols_q, sigma_e2, sigma_v2, D):  # pragma: no cover
+    rows, cols = y.shape
+    w = np.zeros(D)                      # w[j] = u(k - 1 - j) in raster order, zero off the image
+    P = np.zeros((D, D))
+    out = np.empty((rows, cols))
+    z = np.empty((rows, cols))
+    s = np.empty((rows, cols))
+    c = np.zeros(D)
+    for m in range(rows):
+        for n in range(cols):
+            c[:] = 0.0
+            for t in range(lags.size):
+                if m - (lags[t] - cols_q[t]) // cols >= 0 and 0 <= n - cols_q[t] < cols:
+                    c[lags[t] - 1] += coeffs[t]
+            Pc = P @ c
+            prior_x = c @ w
+            prior_v = c @ Pc + sigma_e2
+            w[1:] = w[:-1].copy()
+            w[0] = prior_x
+            Pn = np.empty((D, D))
+            Pn[1:, 1:] = P[:-1, :-1]
+            Pn[0, 1:] = Pc[:-1]
+            Pn[1:, 0] = Pc[:-1]
+            Pn[0, 0] = prior_v
+            S = prior_v + sigma_v2
+            K = Pn[:, 0] / S
+            z[m, n] = y[m, n] - prior_x
+            s[m, n] = S
+            w += K * z[m, n]
+            P = Pn - np.outer(K, K) * S
+            P = 0.5 * (P + P.T)
+            out[m, n] = w[0]
+    return out, z, s
+
+
+def restore_exact(noisy: np.ndarray, a: np.ndarray, M: int, sigma_e2: float,
+                  sigma_v2: float) -> dict:
+    """The optimal causal (filtered, not smoothed) estimate of an NSHP field of eq 1 (zero
+    outside the image) from ``noisy = u + v``: a Kalman filter on the wavefront state, the
+    last ``M N + M`` pixels in raster order, whose covariance keeps every cross term that
+    eq 13b drops. ``O((M N)^2)`` per pixel: a reference for narrow fields, not for images.
+    Returns the image, the innovations and their variances."""
+    y = np.ascontiguousarray(noisy, dtype=float)
+    cols = y.shape[1]
+    offsets = nshp.window(M)
+    lags = np.array([p * cols + q for p, q in offsets], dtype=np.int64)
+    cols_q = np.array([q for _, q in offsets], dtype=np.int64)
+    out, z, s = _exact(y, lags, np.asarray(a, float), cols_q, float(sigma_e2),
+                       float(sigma_v2), int(M * cols + M))
+    return {"image": out, "innovation": z, "innovation_variance": s}
