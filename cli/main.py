@@ -138,7 +138,9 @@ def cell_store(exp: Experiment, out: Path) -> io.CellStore:
 def run_one(exp: Experiment, out: Path, jobs: int, quiet: bool,
             overrides: dict | None = None, on_done=None, executor=None,
             resume: bool = True, figure_format: str = "png") -> runner.Result:
-    """Run ``exp`` and write ``out/<name>/`` as a unit: all old or all new (core.io).
+    """Run ``exp`` and write ``out/<name>/`` as a unit: all old or all new (core.io); the
+    result's tables and the names of the figures written (each written and closed as its
+    sweep cell finishes).
 
     Each finished work unit is kept in ``out/.<name>.cells-<hash>/`` (of the config and of
     estim's source) until the run
@@ -149,20 +151,24 @@ def run_one(exp: Experiment, out: Path, jobs: int, quiet: bool,
     store = cell_store(exp, out)
     if not resume:
         store.clear()
+    written: dict[str, None] = {}
     with io.ResultFolder(out, exp.name) as folder, execution(executor, store):
+        def write_figures(figures: dict) -> None:
+            for name, fig in figures.items():
+                io.write_figure(fig, folder.path / "figures" / f"{name}.{figure_format}")
+                plt.close(fig)
+                written[name] = None
+
         if quiet:
-            result = runner.execute(exp, jobs, on_done=on_done)
+            result = runner.execute(exp, jobs, on_done, write_figures)
         elif not sys.stderr.isatty():
             click.echo(f"{exp.name}: {total} work units ...", err=True)
-            result = runner.execute(exp, jobs, on_done=progress_lines(exp.name, total))
+            result = runner.execute(exp, jobs, progress_lines(exp.name, total), write_figures)
         else:
             with click.progressbar(length=total, label=exp.name, file=sys.stderr) as bar:
-                result = runner.execute(exp, jobs, on_done=lambda: bar.update(1))
+                result = runner.execute(exp, jobs, lambda: bar.update(1), write_figures)
         for metric, df in result.tables.items():
             io.write_csv(df, folder.path / f"{metric}.csv")
-        for name, fig in result.figures.items():
-            io.write_figure(fig, folder.path / "figures" / f"{name}.{figure_format}")
-            plt.close(fig)
         io.write_manifest(folder.path, exp.spec, spec_hash(exp.spec),
                           time.perf_counter() - start, command=" ".join(["estim", *sys.argv[1:]]),
                           overrides=overrides or {})
@@ -171,7 +177,7 @@ def run_one(exp: Experiment, out: Path, jobs: int, quiet: bool,
         click.echo(f"{exp.name}: resumed with {store.hits} finished cell(s) of an earlier run",
                    err=True)
     store.clear()
-    return result
+    return runner.Result(tables=result.tables, figures=written)
 
 
 def progress_lines(name: str, total: int, prefix: str = ""):

@@ -37,17 +37,23 @@ def work_units(exp: Experiment) -> int:
     return sum(ANALYSES[e.analysis].work_units(e) for _, e in sweep_cells(exp))
 
 
-def execute(exp: Experiment, jobs: int = 1,
-            on_done: Callable[[], None] | None = None) -> Result:
+def execute(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = None,
+            on_figures: Callable[[dict], None] | None = None) -> Result:
     """Run ``exp`` (its Monte Carlo runs and seed are in its config). A swept experiment
     runs each cell and stacks its tables under a leading column ``sweep:<key path>`` per
     swept key; figures are named ``<figure>_sweep<n>`` (n from 1, in the grid's order).
 
     Under a shard (``--shard K/N``) every sweep cell computes its share before
-    :class:`ShardDone` reports the total."""
+    :class:`ShardDone` reports the total. With ``on_figures`` each cell's figures are handed
+    to it as they are drawn (to be written and closed) instead of kept in the result, so a
+    long sweep holds one cell's figures at a time."""
     cells = sweep_cells(exp)
     if len(cells) == 1 and not cells[0][0]:
-        return ANALYSES[exp.analysis].run(exp, jobs, on_done)
+        result = ANALYSES[exp.analysis].run(exp, jobs, on_done)
+        if on_figures is None:
+            return result
+        on_figures(result.figures)
+        return Result(tables=result.tables)
     tables: dict[str, list] = {}
     figures = {}
     sharded, incomplete = 0, False
@@ -63,7 +69,11 @@ def execute(exp: Experiment, jobs: int = 1,
             for i, (key, value) in enumerate(values.items()):
                 df.insert(i, SWEEP_PREFIX + key, [value] * len(df))
             tables.setdefault(metric, []).append(df)
-        figures.update({f"{name}_sweep{n}": fig for name, fig in result.figures.items()})
+        drawn = {f"{name}_sweep{n}": fig for name, fig in result.figures.items()}
+        if on_figures is None:
+            figures.update(drawn)
+        else:
+            on_figures(drawn)
     if incomplete:
         raise ShardDone(sharded)
     return Result(tables={m: pd.concat(parts, ignore_index=True) for m, parts in
