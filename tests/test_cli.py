@@ -616,16 +616,22 @@ def test_shards_merged_give_the_tables_of_one_run(tmp_path):
         assert refused.exit_code == 2 and "expected K/N" in refused.output
 
 
+def run_swept(tmp_path, spec: dict) -> tuple[Path, pd.DataFrame]:
+    """Write ``spec`` (with its sweep block), run it with 2 runs into ``tmp_path/sw`` and
+    return the config's path and its rmse table."""
+    path = write(tmp_path, spec)
+    swept = CliRunner().invoke(main, ["run", str(path), "--out", str(tmp_path / "sw"),
+                                      "--quiet", "--runs", "2"])
+    assert swept.exit_code == 0, swept.output
+    return path, pd.read_csv(tmp_path / "sw" / "tiny" / "rmse.csv")
+
+
 def test_a_sweep_block_runs_each_cell_as_its_override_would(tmp_path):
     spec = tiny_config(**{"input.frequencies_hz": [1000], "noise.input_levels": [0.1],
                           "figures.noise_level": 0.1, "figures.frequency_hz": 1000})
     spec["sweep"] = {"model.params.V_IN": [0.3, 0.35], "noise.measurement_sigma": [0.05, 0.1]}
-    path = write(tmp_path, spec)
+    path, table = run_swept(tmp_path, spec)
     runner = CliRunner()
-    swept = runner.invoke(main, ["run", str(path), "--out", str(tmp_path / "sw"), "--quiet",
-                                 "--runs", "2"])
-    assert swept.exit_code == 0, swept.output
-    table = pd.read_csv(tmp_path / "sw" / "tiny" / "rmse.csv")
     assert list(table.columns[:2]) == ["sweep:model.params.V_IN", "sweep:noise.measurement_sigma"]
     assert list(table.drop_duplicates(list(table.columns[:2])).iloc[:, :2].itertuples(
         index=False, name=None)) == [(0.3, 0.05), (0.3, 0.1), (0.35, 0.05), (0.35, 0.1)]
@@ -699,12 +705,8 @@ def test_a_sweep_over_a_key_that_is_also_a_column_keeps_both(tmp_path):
     and ``estim table`` shows it in front."""
     spec = tiny_config()
     spec["sweep"] = {"regime": ["weak_inversion_saturation", "weak_inversion_conduction"]}
-    path = write(tmp_path, spec)
+    _, table = run_swept(tmp_path, spec)
     runner = CliRunner()
-    swept = runner.invoke(main, ["run", str(path), "--out", str(tmp_path / "sw"), "--quiet",
-                                 "--runs", "2"])
-    assert swept.exit_code == 0, swept.output
-    table = pd.read_csv(tmp_path / "sw" / "tiny" / "rmse.csv")
     assert (table["sweep:regime"] == table["regime"]).all()
     assert table["regime"].nunique() == 2
     shown = runner.invoke(main, ["table", "rmse", "--results", str(tmp_path / "sw"),

@@ -8,6 +8,13 @@ from core.images import kalman2d, nshp
 A_TRUE = np.array([0.6, 0.3, 0.5, -0.45])        # M = 1: (0,1), (1,-1), (1,0), (1,1)
 
 
+def noisy_field(seed: int, shape: tuple[int, int], sigma_v2: float = 4.0):
+    """A field of ``A_TRUE`` (unit driving noise) and it with white noise of ``sigma_v2``."""
+    rng = np.random.default_rng(seed)
+    u = nshp.simulate(A_TRUE, 1, rng.standard_normal(shape))
+    return u, u + np.sqrt(sigma_v2) * rng.standard_normal(u.shape), sigma_v2
+
+
 @pytest.mark.parametrize("M", [1, 2, 3])
 def test_eq_1_and_the_state_space_form_give_the_same_field(M):
     rng = np.random.default_rng(M)
@@ -45,10 +52,7 @@ def test_noise_corrected_yule_walker_recovers_a_synthetic_field():
 def test_the_filter_with_the_true_model_restores_a_synthetic_field_to_its_error_variance():
     """With the model that made the field, the filter halves the noise's mean square error
     away from the image's edges."""
-    rng = np.random.default_rng(5)
-    u = nshp.simulate(A_TRUE, 1, rng.standard_normal((200, 200)))
-    sigma_v2 = 4.0
-    noisy = u + np.sqrt(sigma_v2) * rng.standard_normal(u.shape)
+    u, noisy, sigma_v2 = noisy_field(5, (200, 200))
     A10, A01, _ = nshp.state_matrices(A_TRUE, 1)
     out = kalman2d.restore(noisy, A10, A01, 1.0, sigma_v2, 1)
     inner = (slice(20, None), slice(20, -20))
@@ -242,10 +246,7 @@ def test_the_exact_filter_is_the_conditional_mean_of_the_field(M):
 def test_the_reduced_filter_of_eq_13b_predicts_worse_than_the_exact_filter():
     """Eq 13b's dropped cross-covariance costs prediction power: on a stationary field the
     exact filter's innovations are smaller, and its estimate closer to the field."""
-    rng = np.random.default_rng(4)
-    u = nshp.simulate(A_TRUE, 1, rng.standard_normal((400, 30)))
-    sigma_v2 = 4.0
-    noisy = u + np.sqrt(sigma_v2) * rng.standard_normal(u.shape)
+    u, noisy, sigma_v2 = noisy_field(4, (400, 30))
     A10, A01, _ = nshp.state_matrices(A_TRUE, 1)
     reduced = kalman2d.restore(noisy, A10, A01, 1.0, sigma_v2, 1)
     exact = kalman2d.restore_exact(noisy, A_TRUE, 1, 1.0, sigma_v2)
