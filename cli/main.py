@@ -11,7 +11,6 @@ import copy
 import csv
 import hashlib
 import json
-import re
 import stat
 import sys
 import tempfile
@@ -68,7 +67,6 @@ def load(path: Path, overrides: dict | None = None, max_work: int = MAX_WORK,
         raise ConfigError(str(path), "", "not a UTF-8 text file") from None
     data = load_yaml(text, str(path))
     if overrides:
-        _refuse_swept_overrides(data, overrides, str(path))
         data = apply_overrides(data, overrides, str(path))
     exp = parse_data(data, str(path), path.stem, 2**62 if quick else max_work)
     if quick:                          # the first cell of a sweep, shrunk: the grid's size is moot
@@ -79,21 +77,6 @@ def load(path: Path, overrides: dict | None = None, max_work: int = MAX_WORK,
         small = ANALYSES[exp.analysis].tiny(spec)
         exp = parse_data(small, f"{path} (--quick)", path.stem, max_work)
     return exp
-
-
-def _refuse_swept_overrides(data: dict, overrides: dict, source: str) -> None:
-    """An override of a key the config's ``sweep:`` block sets would be overwritten in
-    every cell: refuse it, naming the sweep key to change instead."""
-    sweep = data.get("sweep") if isinstance(data, dict) else None
-    if not isinstance(sweep, dict):
-        return
-    for key in sweep:
-        swept = re.sub(r"\[(\d+)\]", r".\1", str(key))
-        for given in overrides:
-            if given == swept or swept.startswith(given + ".") or given.startswith(swept + "."):
-                raise ConfigError(source, given, f"the config's sweep block sets {key} in "
-                                  "every cell; give the whole block instead, e.g. "
-                                  f"'sweep={{{key}: [...]}}'")
 
 
 def split_overrides(args) -> tuple[list[Path], dict]:
@@ -363,7 +346,7 @@ def run(configs, out, runs, seed, update_baseline, quick, jobs, max_work, execut
                     runner.execute(exp, jobs)
                 except ShardDone:
                     pass
-            if not ctx.mapped:
+            if not ctx.offsets:
                 click.echo(f"{exp.name}: the {exp.analysis} analysis does not split into "
                            "work units, so no shard keeps any of it; 'estim merge' runs it "
                            "whole")

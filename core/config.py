@@ -218,7 +218,7 @@ def _check_sweep(sweep: Any, data: dict, source: str, default_name: str, max_wor
         if not isinstance(values, list) or not values or len(values) > MAX_SWEEP_CELLS:
             raise ConfigError(source, f"sweep.{key}", f"expected a list of 1 to "
                               f"{MAX_SWEEP_CELLS} values")
-        path = re.sub(r"\[(\d+)\]", r".\1", key)
+        path = key_path(key)
         scale = 0.0
         for i, value in enumerate(values):
             try:
@@ -303,7 +303,12 @@ def parse_override(text_: str) -> tuple[str, Any]:
     except (yaml.YAMLError, _Refused) as exc:
         first = str(exc).strip().splitlines()[0]
         raise UsageError(f"{text_!r}: the value is not YAML ({first})") from None
-    return re.sub(r"\[(\d+)\]", r".\1", key), parsed
+    return key_path(key), parsed
+
+
+def key_path(key: str) -> str:
+    """A key path with list items by dot: ``estimators[0].label`` -> ``estimators.0.label``."""
+    return re.sub(r"\[(\d+)\]", r".\1", key)
 
 
 def _shown(keys: list[str]) -> str:
@@ -314,10 +319,25 @@ def _shown(keys: list[str]) -> str:
     return out
 
 
+def _refuse_swept(data: dict, overrides: dict[str, Any], source: str) -> None:
+    sweep = data.get("sweep") if isinstance(data, dict) else None
+    if not isinstance(sweep, dict):
+        return
+    for key in sweep:
+        swept = key_path(str(key))
+        for given in overrides:
+            if given == swept or swept.startswith(given + ".") or given.startswith(swept + "."):
+                raise ConfigError(source, given, f"the config's sweep block sets {key} in "
+                                  "every cell; give the whole block instead, e.g. "
+                                  f"'sweep={{{key}: [...]}}'")
+
+
 def apply_overrides(data: dict, overrides: dict[str, Any], source: str = "") -> dict:
     """``data`` with each dotted key path of ``overrides`` set (list items by index). A path
     through a missing list item or a plain value raises ``ConfigError`` naming it; a new
-    mapping key is set, so validation names it if it is not a key."""
+    mapping key is set, so validation names it if it is not a key. A key that ``data``'s
+    ``sweep:`` block sets in every cell is refused (the sweep would overwrite it)."""
+    _refuse_swept(data, overrides, source)
     data = copy.deepcopy(data)
     for path, value in overrides.items():
         keys = path.split(".")

@@ -44,7 +44,7 @@ def execute(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None =
     swept key; figures are named ``<figure>_sweep<n>`` (n from 1, in the grid's order).
 
     Under a shard (``--shard K/N``) every sweep cell computes its share before
-    :class:`ShardDone` reports the total. With ``on_figures`` each cell's figures are handed
+    :class:`ShardDone` is raised. With ``on_figures`` each cell's figures are handed
     to it as they are drawn (to be written and closed) instead of kept in the result, so a
     long sweep holds one cell's figures at a time."""
     cells = sweep_cells(exp)
@@ -56,13 +56,13 @@ def execute(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None =
         return Result(tables=result.tables)
     tables: dict[str, list] = {}
     figures = {}
-    sharded, incomplete = 0, False
+    incomplete = False
     for n, (values, cell) in enumerate(cells, start=1):
         try:
             with sweep_cell(n):
                 result = ANALYSES[cell.analysis].run(cell, jobs, on_done)
-        except ShardDone as done:
-            sharded, incomplete = sharded + done.computed, True
+        except ShardDone:
+            incomplete = True
             continue
         for metric, df in result.tables.items():
             df = df.copy()
@@ -75,7 +75,7 @@ def execute(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None =
         else:
             on_figures(drawn)
     if incomplete:
-        raise ShardDone(sharded)
+        raise ShardDone
     return Result(tables={m: pd.concat(parts, ignore_index=True) for m, parts in
                           tables.items()}, figures=figures)
 

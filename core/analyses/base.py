@@ -92,26 +92,23 @@ class Execution:
     result)`` in any order (:func:`core.executors.dask_executor`); ``store`` keeps finished
     cells, ``store.get(key) -> (found, value)`` and ``store.put(key, value)``
     (:class:`core.io.CellStore`), keyed by the sweep cell, the map call's number within it
-    and the task's index; ``mapped`` counts every map call (none: the analysis does not split
-    into work units, so a shard cannot share it out)."""
+    and the task's index. ``offsets`` counts the tasks of each map call number over the
+    sweep cells so far (empty: the analysis made no map call, so a shard cannot share it
+    out); ``computed`` counts the cells computed here."""
 
     executor: Callable | None = None
     store: Any = None
     calls: int = 0
     shard: tuple[int, int] | None = None
     cell: int = 0
-    mapped: int = 0
     offsets: dict = field(default_factory=dict)
     computed: int = 0
 
 
 class ShardDone(Exception):
     """A shard (``--shard K/N``) has stored its cells of a map call whose other cells it
-    does not have; the run stops there and ``estim merge`` finishes it."""
-
-    def __init__(self, computed: int) -> None:
-        super().__init__(f"{computed} cell(s) computed")
-        self.computed = computed
+    does not have; the run stops there and ``estim merge`` finishes it (the cells it
+    computed are counted in :attr:`Execution.computed`)."""
 
 
 _EXECUTION: ContextVar[Execution | None] = ContextVar("estim_execution", default=None)
@@ -162,7 +159,6 @@ def map_tasks(fn: Callable[[Any], Any], tasks: Iterable, jobs: int = 1,
         offset = ctx.offsets.get(ctx.calls, 0)         # tasks of this call in earlier cells
         ctx.offsets[ctx.calls] = offset + len(tasks)
         ctx.calls += 1
-        ctx.mapped += 1
     store = ctx.store if ctx is not None else None
     out: list = [None] * len(tasks)
     pending = []
@@ -212,5 +208,5 @@ def map_tasks(fn: Callable[[Any], Any], tasks: Iterable, jobs: int = 1,
         for i in pending:
             finished(i, fn(tasks[i]))
     if others:
-        raise ShardDone(len(pending))
+        raise ShardDone
     return out

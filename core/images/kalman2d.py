@@ -55,7 +55,7 @@ def _carry_left(Xa, Pa, left, m):  # pragma: no cover
 @njit(cache=True)
 def _step(Xa, Pa, m, c, F10, F01, M, sigma_e2, sigma_v2, y):  # pragma: no cover
     """Eqs 13a-e at pixel ``(m, c)``; stores the posterior and returns ``(x_a, P_a, K,
-    innovation, its variance, I - K C)``."""
+    innovation, its variance, I - K C, P_b)``."""
     n = F10.shape[0]
     left_x, left_P = Xa[m + 1, c], Pa[m + 1, c]
     up_x, up_P = Xa[m, c + 1 + M], Pa[m, c + 1 + M]
@@ -72,7 +72,7 @@ def _step(Xa, Pa, m, c, F10, F01, M, sigma_e2, sigma_v2, y):  # pragma: no cover
     P = 0.5 * (P + P.T)
     Xa[m + 1, c + 1] = xa
     Pa[m + 1, c + 1] = P
-    return xa, P, K, z, S, L
+    return xa, P, K, z, S, L, Pb
 
 
 @njit(cache=True)
@@ -88,7 +88,7 @@ def _filter(y, A10, A01, left, sigma_e2, sigma_v2, boundary_variance, M):  # pra
         if m > 0:
             _carry_left(Xa, Pa, left, m)
         for c in range(cols):
-            xa, P, K, z[m, c], s[m, c], _ = _step(Xa, Pa, m, c, A10, A01, M, sigma_e2,
+            xa, P, K, z[m, c], s[m, c], _, _ = _step(Xa, Pa, m, c, A10, A01, M, sigma_e2,
                                                   sigma_v2, y[m, c])
             out[m, c] = xa[0]
             p_norm[m, c] = np.sqrt(np.sum(P * P))
@@ -103,9 +103,9 @@ def restore(noisy: np.ndarray, A10: np.ndarray, A01: np.ndarray, sigma_e2: float
     and the variance the filter gives it (eq 13c's denominator) at every pixel."""
     y = np.ascontiguousarray(noisy, dtype=float)
     var = float(np.var(y) - sigma_v2) if boundary_variance is None else boundary_variance
-    out, p_norm, k_norm, z, s = _filter(y, np.ascontiguousarray(A10), np.ascontiguousarray(A01),
-                                  nshp.left_boundary(M), float(sigma_e2), float(sigma_v2),
-                                  max(var, 0.0), int(M))
+    out, p_norm, k_norm, z, s = _filter(
+        y, np.ascontiguousarray(A10), np.ascontiguousarray(A01), nshp.left_boundary(M),
+        float(sigma_e2), float(sigma_v2), max(var, 0.0), int(M))
     return {"image": out, "P_norm": p_norm, "K_norm": k_norm, "innovation": z,
             "innovation_variance": s}
 
@@ -131,28 +131,21 @@ def _regressors(Xa, m, c, pmat, pcol, M, cols):  # pragma: no cover
 
 
 @njit(cache=True)
-def _gain_derivative(F10, F01, pmat, pcol, left_P, up_P, dleft, dup, Pb, K, S,
+def _gain_derivative(F10, F01, pmat, pcol, left_P, up_P, dleft, dup, Pb, K, L, S,
                      sigma_v2):  # pragma: no cover
     """``kappa`` (eq 22b), column ``j`` = dK/dphi_j, and dP_a/dphi_j (13b-e differentiated
-    with phi held: the recursive way of eq 22b's note)."""
+    with phi held: the recursive way of eq 22b's note). dA/dphi_j has one entry, in the
+    first row, so d(A P A')/dphi_j is ``e1 r' + r e1'`` with ``r = A P[col]``."""
     d, n = pmat.size, F10.shape[0]
     kappa = np.zeros((n, d))
     dPa = np.zeros((d, n, n))
-    L = np.eye(n)
-    L[:, 0] -= K
     for j in range(d):
-        dF10 = np.zeros((n, n))
-        dF01 = np.zeros((n, n))
-        if pmat[j] == 0:
-            dF10[0, pcol[j]] = 1.0
-        else:
-            dF01[0, pcol[j]] = 1.0
-        a = dF10 @ left_P @ F10.T + dF01 @ up_P @ F01.T
-        dPb = a + a.T + F10 @ dleft[j] @ F10.T + F01 @ dup[j] @ F01.T
+        r = F10 @ left_P[pcol[j]] if pmat[j] == 0 else F01 @ up_P[pcol[j]]
+        dPb = F10 @ dleft[j] @ F10.T + F01 @ dup[j] @ F01.T
+        dPb[0, :] += r
+        dPb[:, 0] += r
         kappa[:, j] = dPb[:, 0] / S - Pb[:, 0] * dPb[0, 0] / (S * S)
-        dL = np.zeros((n, n))
-        dL[:, 0] = -kappa[:, j]
-        b = dL @ Pb @ L.T + np.outer(kappa[:, j], K) * sigma_v2
+        b = np.outer(kappa[:, j], K * sigma_v2 - L @ Pb[0])       # P_b is symmetric
         dPa[j] = b + b.T + L @ dPb @ L.T
     return kappa, dPa
 
@@ -195,14 +188,13 @@ def _adaptive(y, A10, A01, left, pmat, pcol, phi0, sigma_e2, sigma_v2, boundary_
             Sb = F10 @ Sa_rows[here, 0] + F01 @ Sa_rows[above, 1 + M]
             Sb[0] += _regressors(Xa, m, 0, pmat, pcol, M, cols)
         for c in range(cols):
-            left_P, up_P = Pa[m + 1, c].copy(), Pa[m, c + 1 + M].copy()
-            xa, P, K, z, Rz, L = _step(Xa, Pa, m, c, F10, F01, M, sigma_e2, sigma_v2, y[m, c])
-            if full:
-                Pb = F10 @ left_P @ F10.T + F01 @ up_P @ F01.T
-                Pb[0, 0] += sigma_e2
-                kappa, dPa = _gain_derivative(F10, F01, pmat, pcol, left_P, up_P,
-                                              dP_rows[here, c], dP_rows[above, c + 1 + M],
-                                              Pb, K, Rz, sigma_v2)
+            xa, P, K, z, Rz, L, Pb = _step(Xa, Pa, m, c, F10, F01, M, sigma_e2, sigma_v2,
+                                           y[m, c])
+            if full:                             # _step leaves the left and upper states
+                kappa, dPa = _gain_derivative(F10, F01, pmat, pcol, Pa[m + 1, c],
+                                              Pa[m, c + 1 + M], dP_rows[here, c],
+                                              dP_rows[above, c + 1 + M], Pb, K, L, Rz,
+                                              sigma_v2)
             # Table I, in its order: Delta, H, phi, Sigma_a, Gamma, Sigma_b(k+1)
             lam = 0.99 * lam + 0.01
             v = 1.0 / (1.0 + lam / v)
@@ -264,6 +256,57 @@ def restore_adaptive(noisy: np.ndarray, a0: np.ndarray, sigma_e2: float, sigma_v
 
 
 @njit(cache=True)
+def _wavefront_row(m, n, cols, lags, cols_q, phi, c, E):  # pragma: no cover
+    """The prediction row ``c`` of pixel ``(m, n)`` on the wavefront state (``w[j] =
+    u(k - 1 - j)``: the coefficient of each window pixel inside the image) and ``E[t] =
+    dc/dphi_t``."""
+    c[:] = 0.0
+    E[:, :] = 0.0
+    for t in range(lags.size):
+        if m - (lags[t] - cols_q[t]) // cols >= 0 and 0 <= n - cols_q[t] < cols:
+            c[lags[t] - 1] += phi[t]
+            E[t, lags[t] - 1] = 1.0
+
+
+@njit(cache=True)
+def _push(x, first):  # pragma: no cover
+    """The wavefront vector one pixel on: ``[first, x[:-1]]``."""
+    out = np.empty_like(x)
+    out[0] = first
+    out[1:] = x[:-1]
+    return out
+
+
+@njit(cache=True)
+def _push_cov(P, Pc, first):  # pragma: no cover
+    """The covariance of the pushed state, ``[[first, Pc[:-1]'], [Pc[:-1], P[:-1, :-1]]]``
+    (``Pc``: the new pixel's covariance with the old state)."""
+    out = np.empty_like(P)
+    out[1:, 1:] = P[:-1, :-1]
+    out[0, 1:] = Pc[:-1]
+    out[1:, 0] = Pc[:-1]
+    out[0, 0] = first
+    return out
+
+
+@njit(cache=True)
+def _wavefront_predict(P, w, c, sigma_e2, sigma_v2):  # pragma: no cover
+    """Predict the next pixel from the wavefront state: ``(P c, its prediction, the pushed
+    state's covariance, the innovation variance S, the gain K)``."""
+    Pc = P @ c
+    Pn = _push_cov(P, Pc, c @ Pc + sigma_e2)
+    S = Pn[0, 0] + sigma_v2
+    return Pc, c @ w, Pn, S, Pn[:, 0] / S
+
+
+@njit(cache=True)
+def _wavefront_update(w, prior, Pn, K, S, z):  # pragma: no cover
+    """The posterior wavefront state and covariance (kept symmetric) after innovation z."""
+    P = Pn - np.outer(K, K) * S
+    return _push(w, prior) + K * z, 0.5 * (P + P.T)
+
+
+@njit(cache=True)
 def _exact(y, lags, coeffs, cols_q, sigma_e2, sigma_v2, D):  # pragma: no cover
     rows, cols = y.shape
     w = np.zeros(D)                      # w[j] = u(k - 1 - j) in raster order, zero off the image
@@ -272,29 +315,14 @@ def _exact(y, lags, coeffs, cols_q, sigma_e2, sigma_v2, D):  # pragma: no cover
     z = np.empty((rows, cols))
     s = np.empty((rows, cols))
     c = np.zeros(D)
+    E = np.zeros((lags.size, D))
     for m in range(rows):
         for n in range(cols):
-            c[:] = 0.0
-            for t in range(lags.size):
-                if m - (lags[t] - cols_q[t]) // cols >= 0 and 0 <= n - cols_q[t] < cols:
-                    c[lags[t] - 1] += coeffs[t]
-            Pc = P @ c
-            prior_x = c @ w
-            prior_v = c @ Pc + sigma_e2
-            w[1:] = w[:-1].copy()
-            w[0] = prior_x
-            Pn = np.empty((D, D))
-            Pn[1:, 1:] = P[:-1, :-1]
-            Pn[0, 1:] = Pc[:-1]
-            Pn[1:, 0] = Pc[:-1]
-            Pn[0, 0] = prior_v
-            S = prior_v + sigma_v2
-            K = Pn[:, 0] / S
-            z[m, n] = y[m, n] - prior_x
+            _wavefront_row(m, n, cols, lags, cols_q, coeffs, c, E)
+            _, prior, Pn, S, K = _wavefront_predict(P, w, c, sigma_e2, sigma_v2)
+            z[m, n] = y[m, n] - prior
             s[m, n] = S
-            w += K * z[m, n]
-            P = Pn - np.outer(K, K) * S
-            P = 0.5 * (P + P.T)
+            w, P = _wavefront_update(w, prior, Pn, K, S, z[m, n])
             out[m, n] = w[0]
     return out, z, s
 
@@ -336,44 +364,19 @@ def _adaptive_exact(y, lags, cols_q, phi0, sigma_e2, sigma_v2, D, H0, lambda0,
     k = 0
     for m in range(rows):
         for n in range(cols):
-            c[:] = 0.0
-            E[:, :] = 0.0
-            for t in range(d):
-                if m - (lags[t] - cols_q[t]) // cols >= 0 and 0 <= n - cols_q[t] < cols:
-                    c[lags[t] - 1] += phi[t]
-                    E[t, lags[t] - 1] = 1.0
-            Pc = P @ c
-            prior = c @ w
-            S = c @ Pc + sigma_e2 + sigma_v2
+            _wavefront_row(m, n, cols, lags, cols_q, phi, c, E)
+            Pc, prior, Pn, S, K = _wavefront_predict(P, w, c, sigma_e2, sigma_v2)
             z = y[m, n] - prior
             for j in range(d):               # Delta (eq 20a): d(y_hat)/dphi_j
                 psi[j] = E[j] @ w + c @ W[j]
-            Pn = np.empty((D, D))
-            Pn[1:, 1:] = P[:-1, :-1]
-            Pn[0, 1:] = Pc[:-1]
-            Pn[1:, 0] = Pc[:-1]
-            Pn[0, 0] = S - sigma_v2
-            K = Pn[:, 0] / S
             for j in range(d):
-                dPc = dP[j] @ c + P @ E[j]
-                dPn = np.empty((D, D))
-                dPn[1:, 1:] = dP[j, :-1, :-1]
-                dPn[0, 1:] = dPc[:-1]
-                dPn[1:, 0] = dPc[:-1]
-                dPn[0, 0] = 2.0 * (E[j] @ Pc) + c @ dP[j] @ c
+                dPc = dP[j] @ c                  # dP/dphi_j is symmetric: c' dP c = c' dPc
+                dPn = _push_cov(dP[j], dPc + P @ E[j], 2.0 * (E[j] @ Pc) + c @ dPc)
                 dS = dPn[0, 0]
                 dK = dPn[:, 0] / S - Pn[:, 0] * dS / (S * S)
-                Wn = np.empty(D)
-                Wn[0] = psi[j]
-                Wn[1:] = W[j, :-1]
-                W[j] = Wn + dK * z - K * psi[j]
+                W[j] = _push(W[j], psi[j]) + dK * z - K * psi[j]
                 dP[j] = dPn - (np.outer(dK, K) + np.outer(K, dK)) * S - np.outer(K, K) * dS
-            wn = np.empty(D)
-            wn[0] = prior
-            wn[1:] = w[:-1]
-            w = wn + K * z
-            P = Pn - np.outer(K, K) * S
-            P = 0.5 * (P + P.T)
+            w, P = _wavefront_update(w, prior, Pn, K, S, z)
             lam = 0.99 * lam + 0.01             # Table I: gain sequence, H, phi
             v = 1.0 / (1.0 + lam / v)
             H = H + v * (np.outer(psi, psi) / S - H)
