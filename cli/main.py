@@ -205,7 +205,7 @@ def read_table(path: Path, spec=None) -> pd.DataFrame:
         missing = [c for c in spec.columns if c not in df.columns]
         if missing:
             raise UsageError(f"{path}: no column {missing[0]!r}")
-        for column in spec.values:
+        for column in (c for c in spec.values if c not in spec.text):
             if not pd.api.types.is_numeric_dtype(df[column]):
                 for i, cell in enumerate(df[column]):
                     if pd.isna(cell) or str(cell) in ("True", "False"):

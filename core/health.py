@@ -1,22 +1,26 @@
-"""Filter health over a Monte Carlo batch: consistency, whiteness and divergence.
+"""Filter health over a Monte Carlo batch: divergence, consistency and whiteness.
 
-A Kalman-type filter is *consistent* when its errors match the covariances it reports
-(Bar-Shalom, Li and Kirubarajan 2001, §5.4):
+Two different things, kept apart (docs/claims.md):
 
-* NEES ``e_k^T P_k^-1 e_k``, ``e_k = x_k - x_hat_k`` (needs the true state), is chi-square
-  with ``n`` degrees of freedom;
-* NIS ``nu_k^T S_k^-1 nu_k`` (the innovation of eq 3.84 and its covariance) is chi-square
-  with ``m`` degrees of freedom.
+* A run *diverged* (:func:`diverged`) when its estimate broke: the filter's numbers became
+  non-finite (``Estimate.broken``), the output estimate stayed outside the model's physical
+  range for ``consecutive`` steps, or the error ran away (:func:`runaway`: the RMS error of
+  the last quarter of the record is more than ``growth`` times that of the second quarter
+  and larger than the actual output's own RMS swing). A diverged run counts as a loss for
+  its filter in every claim; the RMSE over all runs stays the headline, with the RMSE over
+  the runs that did not diverge beside it.
+* A filter is *consistent* when its errors match the covariances it reports (Bar-Shalom,
+  Li and Kirubarajan 2001, sec 5.4): NEES ``e_k^T P_k^-1 e_k`` (``e_k = x_k - x_hat_k``,
+  needs the true state) is chi-square with ``n`` degrees of freedom, NIS
+  ``nu_k^T S_k^-1 nu_k`` (the innovation of eq 3.84) with ``m``. A run is *inconsistent*
+  (:func:`inconsistent`) when its time-averaged NIS (or NEES) lies outside the two-sided
+  ``band`` of ``chi-square(K m) / K`` over its ``K`` steps. Inconsistency is a health
+  column: it never drops a run and never decides a claim.
 
 Averaged over ``N`` runs at one step, ``N`` times the average is chi-square with ``N n``
 (``N m``) degrees of freedom; :func:`averaged_in_band` gives the fraction of steps whose
-run-average falls in the two-sided 95 % band of that law. The innovations of a consistent
-filter are also white: :func:`ljung_box` tests each run's innovations.
-
-A run *diverges* (:func:`diverged`) when the filter broke numerically, when its NIS stays
-above the ``level`` quantile of chi-square(m) for ``consecutive`` steps in a row, or when
-its estimate of the output leaves the model's physical range for ``consecutive`` steps.
-For a filter with no noise model (RLS: no ``S``) only the first and last apply.
+run-average falls in the band. The innovations of a consistent filter are also white:
+:func:`ljung_box` tests each run's innovations.
 """
 
 from __future__ import annotations
@@ -30,8 +34,8 @@ DEFAULTS = {
     "band": 0.95,            # two-sided probability of the NEES/NIS band
     "lag": 10,               # Ljung-Box lag
     "white_level": 0.05,     # Ljung-Box test size
-    "nis_level": 0.999,      # a step's NIS above this chi-square quantile is an excess
-    "consecutive": 5,        # excesses in a row that make a run diverged
+    "consecutive": 5,        # steps in a row outside the physical range that make a run diverged
+    "growth": 10.0,          # last-quarter over second-quarter RMS error of a runaway run
 }
 
 
@@ -132,23 +136,72 @@ def _runs_of(flags: np.ndarray, consecutive: int) -> np.ndarray:
     return np.any(np.all(window, axis=-1), axis=1)
 
 
-def diverged(est: Estimate, nis_values: np.ndarray | None = None,
+def runaway(error: np.ndarray, scale: np.ndarray | float = 0.0,
+            growth: float = DEFAULTS["growth"]) -> np.ndarray:
+    """``(runs,)`` runs whose error ``(runs, steps, m)`` grows without bound: the RMS error
+    over the last quarter of the record exceeds ``growth`` times the RMS error over the
+    second quarter and exceeds ``scale`` (per run or one number: the size below which an
+    error is no runaway, e.g. the actual signal's own swing). Records shorter than 8 steps
+    are never runaways. A run with a non-finite error is left to the ``broken`` flag."""
+    error = np.asarray(error, float)
+    runs, steps = error.shape[:2]
+    if steps < 8:
+        return np.zeros(runs, bool)
+    q = steps // 4
+    with np.errstate(invalid="ignore", over="ignore"):
+        second = np.sqrt(np.mean(error[:, q:2 * q] ** 2, axis=(1, 2)))
+        last = np.sqrt(np.mean(error[:, steps - q:] ** 2, axis=(1, 2)))
+        out = (last > growth * second) & (last > np.asarray(scale, float))
+    return np.where(np.isfinite(last) & np.isfinite(second), out, False)
+
+
+def diverged(est: Estimate, actual: np.ndarray | None = None,
              output_range: tuple[float, float] | None = None,
-             nis_level: float = DEFAULTS["nis_level"],
-             consecutive: int = DEFAULTS["consecutive"]) -> np.ndarray:
+             consecutive: int = DEFAULTS["consecutive"],
+             growth: float = DEFAULTS["growth"]) -> np.ndarray:
     """``(runs,)`` runs that diverged by the criterion of the module docstring.
 
-    ``nis_values`` is :func:`nis` of the estimate (``None``: the filter has no ``S``);
+    ``actual`` is the true output ``(runs, steps, m)`` (``None``: no runaway test);
     ``output_range`` the model's physical range of the measured output (``None``: none).
     """
     out = np.asarray(est.broken, bool).copy()
-    if nis_values is not None:
-        bound = stats.chi2.ppf(nis_level, est.innovation.shape[-1])
-        with np.errstate(invalid="ignore"):
-            out |= _runs_of(nis_values > bound, consecutive)
     if output_range is not None:
         lo, hi = output_range
         with np.errstate(invalid="ignore"):
             outside = np.any((est.y_hat < lo) | (est.y_hat > hi), axis=-1)
         out |= _runs_of(outside, consecutive)
+    if actual is not None:
+        actual = np.asarray(actual, float)
+        swing = np.sqrt(np.mean((actual - actual.mean(axis=1, keepdims=True)) ** 2,
+                                axis=(1, 2)))
+        out |= runaway(est.y_hat - actual, swing, growth)
+    return out
+
+
+def run_average_outside(values: np.ndarray, dof: int,
+                        probability: float = DEFAULTS["band"]) -> np.ndarray:
+    """``(runs,)`` whether each run's time average of ``values (runs, steps)`` (chi-square
+    with ``dof`` per step) lies outside the two-sided ``probability`` band of
+    ``chi-square(steps dof) / steps``. False for a run with a non-finite value (broken:
+    counted as diverged, not as inconsistent)."""
+    values = np.asarray(values, float)
+    ok = np.all(np.isfinite(values), axis=1)
+    out = np.zeros(values.shape[0], bool)
+    if not ok.any():
+        return out
+    lo, hi = band(dof, values.shape[1], probability)
+    avg = values[ok].mean(axis=1)
+    out[ok] = (avg < lo) | (avg > hi)
+    return out
+
+
+def inconsistent(nis_values: np.ndarray | None, m: int, nees_values: np.ndarray | None = None,
+                 n: int = 0, probability: float = DEFAULTS["band"]) -> np.ndarray | None:
+    """``(runs,)`` runs whose time-averaged NIS (``m`` outputs) or NEES (``n`` states) lies
+    outside its band (:func:`run_average_outside`); ``None`` for a filter with neither."""
+    out = None
+    for values, dof in ((nis_values, m), (nees_values, n)):
+        if values is not None:
+            flags = run_average_outside(values, dof, probability)
+            out = flags if out is None else out | flags
     return out

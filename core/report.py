@@ -72,7 +72,7 @@ def cited(text_: str) -> list[str]:
 
 
 def _table(caption: str, df: pd.DataFrame) -> str:
-    failing = (df["holds"].astype(str).str.lower() == "false") if "holds" in df else None
+    failing = (df["verdict"].astype(str) == "fails") if "verdict" in df else None
     head = "".join(f"<th>{html.escape(str(c))}</th>" for c in df.columns)
     rows = []
     for i, row in enumerate(df.itertuples(index=False)):

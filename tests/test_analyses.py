@@ -8,7 +8,7 @@ import yaml
 from click.testing import CliRunner
 
 from cli.main import main
-from core import io
+from core import claims, io
 from core.analyses import ANALYSES
 from core.config import parse_data
 
@@ -56,6 +56,16 @@ def test_analysis_contract(tmp_path, name):
             df = pd.read_csv(folder / table.file)
             assert [c for c in table.columns if c in df] == table.columns, metric
     assert (folder / "manifest.json").is_file()
+    # every analysis' claims go through the one engine: its table, its columns, its verdicts
+    assert module.TABLES.get("claims") is claims.TABLE, f"{name} declares its own claims table"
+    table = pd.read_csv(folder / "claims.csv")
+    assert list(table.columns) == claims.TABLE.columns and len(table), name
+    assert set(table["verdict"]) <= set(claims.VERDICTS)
+    assert set(table["method"]) <= set(claims.METHODS)
+    for _, row in table.iterrows():
+        low, high = row["difference_low"], row["difference_high"]
+        expected = ("holds" if high < 0 else "fails" if low > 0 else "undecided")
+        assert row["verdict"] == expected, (name, row["cell"], row["claim"])
 
     nested = next(k for k, (sub, _) in module.SCHEMA.items()
                   if isinstance(sub, dict) and isinstance(spec.get(k), dict))

@@ -89,7 +89,7 @@ def write(tmp_path: Path, spec: dict, name: str = "tiny.yaml") -> Path:
     ({"regime": "triode"}, "regime", "expected one of ['weak_inversion'"),
     ({"regime": 3}, "regime", "non-empty string"),
     ({"health": {"consecutive": 0}}, "health.consecutive", "integer from 1"),
-    ({"health": {"nis_level": 1.5}}, "health.nis_level", "number <="),
+    ({"health": {"growth": 1.0}}, "health.growth", "number >= 1.5"),
     ({"health": {"whiteness_lag": "ten"}}, "health.whiteness_lag", "integer"),
     ({"health": {"band": 0.1}}, "health.band", "number >= 0.5"),
     ({"health": {"nees": 1}}, "health.nees", "unknown key"),
@@ -537,7 +537,7 @@ def test_report_is_one_page_with_every_table_and_figure(tmp_path, fmt, media):
         p.name for p in (folder / "figures").glob(f"*.{fmt}"))
     assert not page.external
     claims = pd.read_csv(folder / "claims.csv")
-    assert page.failing == int((~claims["holds"].astype(bool)).sum())
+    assert page.failing == int((claims["verdict"] == "fails").sum())
 
 
 def test_a_dask_run_writes_the_same_bytes_as_jobs_1(tmp_path):

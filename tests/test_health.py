@@ -72,16 +72,43 @@ def test_whiteness_of_a_consistent_kf_passes_at_about_the_nominal_rate():
     assert 0.90 <= passed.mean() <= 0.99       # 95 % +- 4 binomial SD of 300 runs
 
 
-def test_divergence_flags_a_wrong_model_and_not_a_consistent_one():
-    """The truth is driven by a known input; the wrong model leaves the input out and
-    trusts its own prediction (Q a thousandth of the truth's)."""
+def test_a_consistent_kf_is_neither_diverged_nor_often_inconsistent_and_a_wrong_one_is_only_inconsistent():
+    """The truth is driven by a known input; the wrong model leaves the input out and trusts
+    its own prediction (Q a thousandth of the truth's): its NIS leaves the band in every run
+    (inconsistent), but its error stays bounded (the stable model pulls it back), so no run
+    diverged. The right model's runs fall outside the 95 % band about 5 % of the time."""
     runs, steps = 200, 300
-    _, z = linear_gaussian(runs, steps, seed=5, drive=1.0)
+    states, z = linear_gaussian(runs, steps, seed=5, drive=1.0)
+    actual = states @ C.T
     u = np.ones((steps, 1))
     good = kf(b=(1.0, 0.0)).run(None, z, u)
-    assert not health.diverged(good, health.nis(good.innovation, good.S)).any()
+    nis_good = health.nis(good.innovation, good.S)
+    assert not health.diverged(good, actual).any()
+    assert 0.01 <= health.inconsistent(nis_good, 1).mean() <= 0.10
     wrong = kf(q=Q / 1000).run(None, z, u)
-    assert health.diverged(wrong, health.nis(wrong.innovation, wrong.S)).all()
+    assert health.inconsistent(health.nis(wrong.innovation, wrong.S), 1).all()
+    assert not health.diverged(wrong, actual).any()
+
+
+def test_a_constructed_runaway_is_diverged_and_a_biased_run_is_inconsistent_not_diverged():
+    """Run 0's error grows tenfold every quarter of the record (a runaway); run 1 is off by a
+    constant bias far outside the covariance it reports (NIS ~ 100 at every step) but its
+    error does not grow; run 2 is right and consistent."""
+    steps = 400
+    t = np.arange(steps) / steps
+    actual = np.broadcast_to(np.sin(2 * np.pi * 5 * t)[None, :, None], (3, steps, 1)).copy()
+    y_hat = actual.copy()
+    y_hat[0, :, 0] += 1e-3 * np.exp(4 * np.log(10) * t)
+    y_hat[1, :, 0] += 1.0
+    rng = np.random.default_rng(9)
+    y_hat[2, :, 0] += 0.1 * rng.standard_normal(steps)
+    innovation = y_hat - actual
+    S = np.full((3, steps, 1, 1), 0.01)
+    est = Estimate(y_hat=y_hat, innovation=innovation, broken=np.zeros(3, bool), S=S)
+    assert health.diverged(est, actual).tolist() == [True, False, False]
+    assert health.inconsistent(health.nis(innovation, S), 1).tolist() == [True, True, False]
+    assert health.runaway(y_hat - actual, 0.0, growth=10.0).tolist() == [True, False, False]
+    assert not health.runaway(y_hat - actual, 10.0).any()      # below the scale: no runaway
 
 
 def test_divergence_by_output_range_for_a_filter_without_noise_model():
@@ -89,6 +116,7 @@ def test_divergence_by_output_range_for_a_filter_without_noise_model():
     est = RecursiveLeastSquares(order=2).run(None, z, np.ones((50, 1)))
     assert not health.diverged(est, None, (-10.0, 10.0)).any()
     assert health.diverged(est, None, (5.0, 10.0)).all()
+    assert health.inconsistent(None, 1) is None          # no noise model: no consistency
 
 
 def test_rls_lambda0_is_refused_where_it_would_do_nothing():
@@ -129,15 +157,14 @@ def test_rls_reports_the_sine_regressors_poor_excitation_and_p_max_bounds_it():
     assert bounded.diagnostics["p_max_eig"][0] <= 1e3 * (1 + 1e-9)
 
 
-def test_divergence_needs_the_stated_number_of_consecutive_excesses():
-    """NIS above the bound on 4 steps in a row is not divergence at 5; on 5 it is, and
-    excesses that are not consecutive never are."""
+def test_divergence_needs_the_stated_number_of_consecutive_steps_out_of_range():
+    """The estimate outside the physical range on 4 steps in a row is not divergence at 5;
+    on 5 it is, and steps outside that are not consecutive never are."""
     steps = 20
-    nu = np.zeros((3, steps, 1))
-    nu[0, 3:7] = 10.0                      # 4 in a row
-    nu[1, 3:8] = 10.0                      # 5 in a row
-    nu[2, ::2] = 10.0                      # every other step
-    S = np.ones((3, steps, 1, 1))
-    est = Estimate(y_hat=np.zeros_like(nu), innovation=nu, broken=np.zeros(3, bool), S=S)
-    flagged = health.diverged(est, health.nis(nu, S), consecutive=5)
+    y = np.zeros((3, steps, 1))
+    y[0, 3:7] = 10.0                       # 4 in a row
+    y[1, 3:8] = 10.0                       # 5 in a row
+    y[2, ::2] = 10.0                       # every other step
+    est = Estimate(y_hat=y, innovation=y, broken=np.zeros(3, bool))
+    flagged = health.diverged(est, None, (-1.0, 1.0), consecutive=5)
     assert flagged.tolist() == [False, True, False]

@@ -36,7 +36,7 @@ import numpy as np
 import pandas as pd
 from scipy.spatial import cKDTree
 
-from core import metrics, plots
+from core import claims, metrics, plots
 from core.analyses import dipole as literal
 from core.analyses.base import Result, TableSpec, map_tasks
 from core.analyses.dipole import COMPONENTS, TABLE_IDS, sinusoid_rls
@@ -114,11 +114,12 @@ TABLES = {
                       reference=("rmse",), join=(("s_no", ("s_no",)), ("part", ("part",))),
                       title="RMSE of the fields against the analytic dipole (field filter)",
                       reference_ids=tuple(TABLE_IDS.values())),
-    "claims": TableSpec("claims.csv", ("claim", "scenario", "zone", "noise_reading",
-                                       "noise_param", "field_component", "part"),
-                        ("rmse_better", "rmse_worse", "ratio", "holds"),
-                        title="the field filter against RLS and against the open loop"),
+    "claims": claims.TABLE,
 }
+CLAIMS = ((KF, RLS), (KF, PLAIN), (KF, "measurement"), (RLS, "measurement"))
+"""The thesis' headline (the filter below RLS), the filter against the plain simulation
+(the open loop: with the true source, the grid's floor) and each filter against the raw
+nearest sensor."""
 
 
 def prepare(spec: dict, source: str) -> dict:
@@ -232,7 +233,7 @@ def sensor_operators(grid: Grid, sensors: np.ndarray) -> tuple:
     return grad_s.tocsr(), curl_z.tocsr(), sensors
 
 
-def run_point(exp: Experiment, key: tuple) -> tuple[list[dict], dict]:
+def run_point(exp: Experiment, key: tuple) -> tuple[list[dict], list, dict]:
     """Rows of one scenario and noise row over every run; and, for the first noise row of a
     scenario, the figure's slices from run 1 at the last recorded step."""
     spec, plan = exp.spec, exp.plan
@@ -312,7 +313,8 @@ def run_point(exp: Experiment, key: tuple) -> tuple[list[dict], dict]:
         if run == 0 and r_idx == 0 and l_idx == 0:
             slices = _slices(grid, phasors, dipole, sensors, times, traces, smooth[-1])
     figure = {"scenario": scenario["name"], **slices} if r_idx == 0 and l_idx == 0 else {}
-    return _rows(exp, key, reading, level, per_run), figure
+    rows, cells = _rows(exp, key, reading, level, per_run)
+    return rows, cells, figure
 
 
 def _smoothed(measured: np.ndarray, times: np.ndarray, omega: float, rls: dict) -> np.ndarray:
@@ -429,27 +431,35 @@ def _errors(exp, grid, phasors, dipole, sensors, times, traces, measured, smooth
     return out
 
 
-def _rows(exp, key, reading, level, per_run) -> list[dict]:
+def _rows(exp, key, reading, level, per_run) -> tuple[list[dict], list]:
+    """The rows of one scenario and noise row, and per zone, component and part the cell's
+    per-run losses (RMSE) for the claims; an RMSE above :data:`DIVERGED_RATIO` times the
+    field's RMS is a diverged run (reported ``inf``)."""
     spec = exp.spec
     scenario = spec["scenarios"][key[0]]["name"]
     s_no = key[2] + 1
-    rows = []
+    rows, losses = [], {}
     for cell in per_run[0]:
         name, zone, comp, part = cell
         present = [r for r in per_run if cell in per_run[r]]     # the Euler run: run 1 only
         mse = np.array([per_run[r][cell][0] for r in present])
         ref = float(np.mean([per_run[r][cell][1] for r in present]))
         values = np.sqrt(mse)
+        broke = ~(values <= DIVERGED_RATIO * np.sqrt(ref))
         mean, se = metrics.mean_and_se(values) if len(values) > 1 else (float(values[0]),
                                                                         float("nan"))
-        if not mean <= DIVERGED_RATIO * np.sqrt(ref):
+        if broke.any():
             mean, se = float("inf"), float("nan")
+        losses.setdefault((zone, comp, part), {})[name] = claims.Losses(values, broke)
         rows.append({"table_id": TABLE_IDS.get((comp, zone, name), ""), "s_no": s_no,
                      "scenario": scenario, "zone": zone, "noise_reading": reading,
                      "noise_param": level, "estimator": name, "field_component": comp,
                      "part": part, "rmse": mean, "rmse_se": se, "runs": len(values),
                      "field_rms": np.sqrt(ref), "relative": mean / np.sqrt(ref)})
-    return rows
+    cells = [(claims.cell(scenario=scenario, zone=zone, noise_reading=reading,
+                          noise_param=level, field_component=comp, part=part), cell_losses)
+             for (zone, comp, part), cell_losses in losses.items()]
+    return rows, cells
 
 
 def _run_point_args(args):
@@ -458,27 +468,17 @@ def _run_point_args(args):
 
 def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = None) -> Result:
     done = map_tasks(_run_point_args, [(exp, k) for k in _points(exp)], jobs, on_done)
-    df = pd.DataFrame([row for part, _ in done for row in part])[TABLES["rmse"].columns]
-    keys = ["scenario", "zone", "noise_reading", "noise_param", "field_component", "part"]
-    parts = []
-    for better, worse in ((KF, RLS), (KF, PLAIN)):
-        a = df[df["estimator"] == better].set_index(keys)["rmse"]
-        b = df[df["estimator"] == worse].set_index(keys)["rmse"]
-        c = pd.DataFrame({"rmse_better": a, "rmse_worse": b}).reset_index()
-        c["ratio"] = c["rmse_better"] / c["rmse_worse"]
-        c["holds"] = c["rmse_better"] < c["rmse_worse"]
-        c.insert(0, "claim", f"{better} RMSE < {worse} RMSE")
-        parts.append(c)
-    claims = pd.concat(parts, ignore_index=True)[TABLES["claims"].columns]
+    df = pd.DataFrame([row for part, _, _ in done for row in part])[TABLES["rmse"].columns]
+    table = claims.table([c for _, cells, _ in done for c in cells], CLAIMS, "RMSE")
     figures = {}
-    for _, fig in done:
+    for _, _, fig in done:
         if fig:
             name = "field_slices_" + "".join(ch if ch.isalnum() else "_"
                                              for ch in fig["scenario"]).strip("_")
             figures[name] = plots.field_slices(
                 fig, f"{fig['scenario']}: |E| and |H| in the x-z plane through the source, "
                 f"t = {fig['time']:.3g} periods (run 1)")
-    return Result(tables={"rmse": df.reset_index(drop=True), "claims": claims},
+    return Result(tables={"rmse": df.reset_index(drop=True), "claims": table},
                   figures=figures)
 
 

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from core import health, kalman_differentiator, metrics, plots, registry, signals, tables, tuning
+from core import claims, health, kalman_differentiator, metrics, plots, registry, signals, tables, tuning
 from core.analyses.base import Result, TableSpec, map_tasks
 from core.errors import ConfigError, UsageError
 from core.estimators.base import as_matrix
@@ -111,8 +111,8 @@ SCHEMA: dict = {
         "band": (number(minimum=0.5, maximum=0.9999), health.DEFAULTS["band"]),
         "whiteness_lag": (integer(1, 1000), health.DEFAULTS["lag"]),
         "whiteness_level": (number(minimum=1e-6, maximum=0.5), health.DEFAULTS["white_level"]),
-        "nis_level": (number(minimum=0.5, maximum=1 - 1e-12), health.DEFAULTS["nis_level"]),
         "consecutive": (integer(1, 1_000_000), health.DEFAULTS["consecutive"]),
+        "growth": (number(minimum=1.5, maximum=1e6), health.DEFAULTS["growth"]),
     }, {}),
     "claims": (list_of({
         "better": (text(max_length=60), REQUIRED),
@@ -138,31 +138,30 @@ _JOIN = (("s_no", ("s_no",)), ("estimator", ("estimator",)))
 MEASUREMENT = "measurement"
 """Label of the baseline row: the raw measurement taken as the estimate."""
 
+RMSE_VALUES = ("rmse", "rmse_se", "rmse_median", "runs", "diverged", "rmse_kept",
+               "rmse_kept_se")
+"""RMSE over every run (the headline; a run whose estimate broke counts as an infinite
+error), its standard error and median, the runs and how many diverged, and the RMSE over
+the runs that did not diverge."""
+HEALTH_VALUES = ("runs", "broken", "diverged", "inconsistent", "nees_mean", "nees_in_band",
+                 "nis_mean", "nis_in_band", "white_fraction", "whiteness_lag")
+
 TABLES = {
-    "rmse": TableSpec("rmse.csv", (*_ROW_KEYS, "regime"),
-                      ("rmse", "rmse_se", "runs", "diverged", "rmse_all", "rmse_all_se",
-                       "rmse_all_median", "regime_fraction"),
+    "rmse": TableSpec("rmse.csv", (*_ROW_KEYS, "regime"), (*RMSE_VALUES, "regime_fraction"),
                       reference=("rmse",), join=_JOIN, title="RMSE (eq 3.42)",
                       reference_ids=("3.1", "3.2", "3.5")),
     "health": TableSpec("health.csv", _ROW_KEYS,
-                        ("runs", "broken", "diverged", "nees_mean", "nees_in_band", "nis_mean",
-                         "nis_in_band", "white_fraction", "whiteness_lag", "regressor_rank",
-                         "regressor_size", "lambda_at_floor", "p_max_eig"),
-                        title="filter health: consistency, whiteness, divergence, excitation"),
+                        (*HEALTH_VALUES, "regressor_rank", "regressor_size", "lambda_at_floor",
+                         "p_max_eig"),
+                        title="filter health: divergence, consistency, whiteness, excitation"),
     "residual": TableSpec("residual.csv", _ROW_KEYS,
                           ("residual_mean", "residual_mean_se", "residual_variance",
                            "residual_variance_se", "runs", "diverged"),
                           reference=("residual_mean", "residual_variance"), join=_JOIN,
-                          title="residual (innovation) mean and variance",
+                          title="residual (innovation) mean and variance, runs that did not "
+                                "diverge",
                           reference_ids=("3.3", "3.4")),
-    "claims": TableSpec("claims.csv",
-                        ("claim", "s_no", "measurement", "noise_reading", "noise_param",
-                         "frequency_hz",
-                         "better", "worse"),
-                        ("rmse_better", "rmse_se_better", "rmse_worse", "rmse_se_worse",
-                         "ratio", "ratio_se", "runs", "diverged_better", "diverged_worse",
-                         "holds"),
-                        title="headline claim, row by row"),
+    "claims": claims.TABLE,
 }
 
 
@@ -391,18 +390,25 @@ def estimate_point(exp: Experiment, data: dict) -> list:
 
 
 def judge(exp: Experiment, data: dict, est, model) -> dict:
-    """One estimator's health on one batch (:mod:`core.health`), per run and summarised."""
+    """One estimator's health on one batch (:mod:`core.health`): per run ``diverged`` (the
+    estimate broke or ran away), ``broken`` and ``inconsistent`` (NIS or NEES outside its
+    band; NaN-free only for filters with a noise model), and the batch summaries."""
     cfg = exp.spec["health"]
     nis = None if est.S is None else health.nis(est.innovation, est.S)
-    diverged = health.diverged(est, nis, model.output_range(), cfg["nis_level"],
-                               cfg["consecutive"])
-    out = {"diverged": diverged, "broken": np.asarray(est.broken, bool)}
+    nees = None
+    if est.x_hat is not None and est.P is not None and est.x_hat.shape == data["states"].shape:
+        nees = health.nees(data["states"], est.x_hat, est.P)
+    out = {"diverged": health.diverged(est, data["actual"], model.output_range(),
+                                       cfg["consecutive"], cfg["growth"]),
+           "broken": np.asarray(est.broken, bool),
+           "inconsistent": health.inconsistent(nis, est.innovation.shape[-1], nees,
+                                               0 if est.x_hat is None else est.x_hat.shape[-1],
+                                               cfg["band"])}
     nan = float("nan")
     out["nees_mean"] = out["nees_in_band"] = out["nis_mean"] = out["nis_in_band"] = nan
-    if est.x_hat is not None and est.P is not None and est.x_hat.shape == data["states"].shape:
-        values = health.nees(data["states"], est.x_hat, est.P)
+    if nees is not None:
         out["nees_mean"], out["nees_in_band"] = health.averaged_in_band(
-            values, est.x_hat.shape[-1], cfg["band"])
+            nees, est.x_hat.shape[-1], cfg["band"])
     if nis is not None:
         out["nis_mean"], out["nis_in_band"] = health.averaged_in_band(
             nis, est.innovation.shape[-1], cfg["band"])
@@ -416,22 +422,66 @@ def judge(exp: Experiment, data: dict, est, model) -> dict:
     return out
 
 
-def _rmse_all(actual: np.ndarray, y_hat: np.ndarray) -> tuple[float, float, float]:
-    """Mean (with standard error) and median of the per-run RMSE over every run; a run with
-    a non-finite estimate (the filter broke) has an infinite error."""
+def rmse_columns(actual: np.ndarray, y_hat: np.ndarray, diverged: np.ndarray) -> tuple[dict,
+                                                                                       np.ndarray]:
+    """The RMSE columns (:data:`RMSE_VALUES`) of one estimator on one batch, and its per-run
+    RMSE (a run whose estimate is not finite has an infinite error): the loss its claims
+    compare."""
     with np.errstate(invalid="ignore", over="ignore"):
         per_run = metrics.rmse_per_run(actual, y_hat)
     per_run = np.where(np.isfinite(per_run), per_run, np.inf)
     if np.isinf(per_run).any():
-        return float("inf"), float("nan"), float(np.median(per_run))
-    mean, se = metrics.mean_and_se(per_run)
-    return mean, se, float(np.median(per_run))
+        mean, se = float("inf"), float("nan")
+    else:
+        mean, se = metrics.mean_and_se(per_run)
+    kept, kept_se = metrics.mean_and_se(per_run[~diverged])
+    return {"rmse": mean, "rmse_se": se, "rmse_median": float(np.median(per_run)),
+            "runs": int(per_run.size), "diverged": int(diverged.sum()), "rmse_kept": kept,
+            "rmse_kept_se": kept_se}, per_run
 
 
-def run_point(exp: Experiment, point: SweepPoint, traces: bool = False) -> tuple[list, dict]:
+def score(exp: Experiment, data: dict, filters: tuple, estimates: list, common: dict,
+          measured: str = "") -> tuple[list[dict], dict, list]:
+    """Rows of every table for one batch: the raw measurement's row, then one per filter
+    (``filters``: ``(label, estimator, model, ...)``, with their ``estimates``), each with its RMSE, health and
+    residual columns; the per-run losses of every row for the claims; and each filter's
+    per-run divergence flags. ``measured`` names what the measurement row measures, when the
+    table says."""
+    raw = metrics.rmse_per_run(data["actual"], data["z"])
+    none = np.zeros(raw.size, bool)
+    columns, _ = rmse_columns(data["actual"], data["z"], none)
+    rows = [{**common, **columns, "estimator": MEASUREMENT, "broken": 0,
+             **({"measures": measured} if measured else {})}]
+    losses = {MEASUREMENT: claims.Losses(raw)}
+    verdicts = []
+    for (label, _, model, *_), est in zip(filters, estimates, strict=True):
+        verdict = judge(exp, data, est, model)
+        diverged = verdict["diverged"]
+        verdicts.append(diverged)
+        columns, per_run = rmse_columns(data["actual"], est.y_hat, diverged)
+        ok = ~diverged
+        res_mean, res_var = metrics.residual_stats(est.innovation[ok])
+        mean, mean_se = metrics.mean_and_se(res_mean)
+        var, var_se = metrics.mean_and_se(res_var)
+        flags = verdict["inconsistent"]
+        rows.append({
+            **common, **{k: v for k, v in verdict.items()
+                         if k not in ("diverged", "broken", "inconsistent")},
+            **columns, "estimator": label,
+            "broken": int(verdict["broken"].sum()),
+            "inconsistent": float("nan") if flags is None else int(flags.sum()),
+            "residual_mean": mean, "residual_mean_se": mean_se,
+            "residual_variance": var, "residual_variance_se": var_se,
+        })
+        losses[label] = claims.Losses(per_run, diverged)
+    return rows, losses, verdicts
+
+
+def run_point(exp: Experiment, point: SweepPoint, traces: bool = False) -> tuple[list, dict,
+                                                                                  dict]:
     """Table rows (the measurement baseline, then one per estimator) for one sweep point,
-    and with ``traces`` the figure traces of its first run (the figures show the runs the
-    table averages)."""
+    the per-run losses for the claims, and with ``traces`` the figure traces of its first
+    run (the figures show the runs the table averages)."""
     mc = exp.spec["monte_carlo"]
     rng = np.random.default_rng(np.random.SeedSequence(mc["seed"], spawn_key=(point.index,)))
     data = simulate_point(exp, point.frequency_hz, point.sigma, mc["runs"], rng,
@@ -445,33 +495,8 @@ def run_point(exp: Experiment, point: SweepPoint, traces: bool = False) -> tuple
               "noise_sigma": point.sigma, "frequency_hz": point.frequency_hz,
               "samples_per_period": 1.0 / (point.frequency_hz * data["dt"]),
               "regime": regime or "", "regime_fraction": fraction}
-    runs = data["z"].shape[0]
-    raw = metrics.rmse_per_run(data["actual"], data["z"])
-    mean, se = metrics.mean_and_se(raw)
-    rows = [{**common, "estimator": MEASUREMENT, "rmse": mean, "rmse_se": se, "runs": runs,
-             "diverged": 0, "broken": 0, "rmse_all": mean, "rmse_all_se": se,
-             "rmse_all_median": float(np.median(raw))}]
-    verdicts = []
-    for (label, _, model), est in zip(exp.plan.filters, estimates, strict=True):
-        verdict = judge(exp, data, est, model)
-        verdicts.append(verdict["diverged"])
-        ok = ~verdict["diverged"]
-        rmse, rmse_se = metrics.mean_and_se(
-            metrics.rmse_per_run(data["actual"][ok], est.y_hat[ok]))
-        rmse_all, rmse_all_se, rmse_median = _rmse_all(data["actual"], est.y_hat)
-        res_mean, res_var = metrics.residual_stats(est.innovation[ok])
-        mean, mean_se = metrics.mean_and_se(res_mean)
-        var, var_se = metrics.mean_and_se(res_var)
-        rows.append({
-            **common, **{k: v for k, v in verdict.items() if k not in ("diverged", "broken")},
-            "estimator": label, "rmse": rmse, "rmse_se": rmse_se,
-            "rmse_all": rmse_all, "rmse_all_se": rmse_all_se, "rmse_all_median": rmse_median,
-            "residual_mean": mean, "residual_mean_se": mean_se,
-            "residual_variance": var, "residual_variance_se": var_se,
-            "runs": int(ok.sum()), "diverged": int((~ok).sum()),
-            "broken": int(verdict["broken"].sum()),
-        })
-    return rows, (_traces(exp, data, estimates, verdicts) if traces else {})
+    rows, losses, verdicts = score(exp, data, exp.plan.filters, estimates, common)
+    return rows, losses, (_traces(exp, data, estimates, verdicts) if traces else {})
 
 
 def _traces(exp: Experiment, data: dict, estimates: list, diverged: list) -> dict:
@@ -533,39 +558,23 @@ def result_table(rows: list[dict], metric: str, table_id: str | None) -> pd.Data
     return df[TABLES[metric].columns].reset_index(drop=True)
 
 
-def claims(rmse: pd.DataFrame, better: str, worse: str,
-           keys: list[str] | None = None) -> pd.DataFrame:
-    """A headline claim row by row: RMSE of ``better`` below that of ``worse``.
-
-    A diverged run has an unbounded error, so any divergence of ``better`` fails the claim
-    and any divergence of ``worse`` (with none of ``better``) makes it hold; otherwise the
-    RMSEs decide. ``ratio_se`` is the delta-method standard error of the ratio.
-    """
-    keys = keys or ["measurement", "noise_reading", "noise_param", "frequency_hz"]
-    a = rmse.loc[rmse["estimator"] == better, ["s_no", *keys, "rmse", "rmse_se", "runs",
-                                                "diverged"]]
-    b = rmse.loc[rmse["estimator"] == worse, [*keys, "rmse", "rmse_se", "diverged"]]
-    j = a.merge(b, on=keys, suffixes=("_better", "_worse"))
-    j["runs"] = j["runs"] + j["diverged_better"]
-    ra, rb = j["rmse_better"], j["rmse_worse"]
-    j["ratio"] = ra / rb
-    j["ratio_se"] = j["ratio"].abs() * np.hypot(j["rmse_se_better"] / ra, j["rmse_se_worse"] / rb)
-    j["holds"] = pd.array([_verdict(*v) for v in zip(ra, rb, j["diverged_better"],
-                                                     j["diverged_worse"], strict=True)],
-                          dtype="boolean")
-    j.insert(0, "claim", f"{better} RMSE < {worse} RMSE")
-    j["better"], j["worse"] = better, worse
-    return j
+def claim_pairs(spec: dict) -> list[tuple[str, str]]:
+    """The claims an estimation table judges: the config's ``claims`` (the thesis' headline),
+    then every filter against the raw measurement."""
+    pairs = [(c["better"], c["worse"]) for c in spec["claims"]]
+    pairs += [(e["label"], MEASUREMENT) for e in spec["estimators"]
+              if (e["label"], MEASUREMENT) not in pairs]
+    return pairs
 
 
-def _verdict(better: float, worse: float, diverged_better: int, diverged_worse: int):
-    if diverged_better > 0:
-        return False
-    if diverged_worse > 0:
-        return True
-    if np.isfinite(better) and np.isfinite(worse):
-        return bool(better < worse)
-    return pd.NA
+def claims_table(spec: dict, rmse: pd.DataFrame, losses: list[dict],
+                 keys: tuple[str, ...]) -> pd.DataFrame:
+    """The claims of :func:`claim_pairs` judged by :mod:`core.claims` in every cell; a cell
+    is named by the ``keys`` of its rows in ``rmse`` (its first row per cell, in order)."""
+    firsts = rmse[rmse["estimator"] == MEASUREMENT]
+    cells = [(claims.cell(**{k: row[k] for k in keys}), cell_losses)
+             for (_, row), cell_losses in zip(firsts.iterrows(), losses, strict=True)]
+    return claims.table(cells, claim_pairs(spec), "RMSE")
 
 
 def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = None) -> Result:
@@ -581,20 +590,20 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
             wanted.setdefault(match.index, []).append(key)
     tasks = [(exp, p, p.index in wanted) for p in points]
     done = map_tasks(_run_point_args, tasks, jobs, on_done)
-    rows = [row for part, _ in done for row in part]
-    known = {key: done[index][1] for index, keys in wanted.items() for key in keys}
+    rows = [row for part, _, _ in done for row in part]
+    known = {key: done[index][2] for index, keys in wanted.items() for key in keys}
     out = Result(tables={})
     filters_only = [row for row in rows if row["estimator"] != MEASUREMENT]
-    for metric, table_id in exp.spec["tables"].items():
-        if table_id is not None:
-            out.tables[metric] = result_table(rows if metric == "rmse" else filters_only,
-                                              metric, table_id)
     table_id = exp.spec["tables"]["rmse"] or exp.spec["tables"]["residual"]
+    rmse = result_table(rows, "rmse", table_id)
+    for metric, table_id_ in exp.spec["tables"].items():
+        if table_id_ is not None:
+            out.tables[metric] = (result_table(rows, metric, table_id_) if metric == "rmse"
+                                  else result_table(filters_only, metric, table_id_))
     out.tables["health"] = result_table(filters_only, "health", table_id)
-    if exp.spec["claims"]:
-        out.tables["claims"] = pd.concat(
-            [claims(out.tables["rmse"], c["better"], c["worse"]) for c in exp.spec["claims"]],
-            ignore_index=True)[TABLES["claims"].columns]
+    out.tables["claims"] = claims_table(exp.spec, rmse, [losses for _, losses, _ in done],
+                                        ("s_no", "measurement", "noise_reading", "noise_param",
+                                         "frequency_hz"))
     out.figures = figures(exp, known)
     if on_done:
         on_done()

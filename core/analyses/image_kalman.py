@@ -8,9 +8,10 @@ parameters identified globally from the noisy image (noise-corrected Yule-Walker
 (:func:`core.images.kalman2d.restore_adaptive`); the strip Kalman filter of the second
 paper (``shared/seeds/002_…``, :func:`core.images.strip.restore`), its model identified from
 the noisy strips (all columns, or on line from the columns so far) and, as the paper
-assumes, from the clean ones; ``scipy.signal.wiener`` and
-scikit-image's
-BayesShrink wavelet denoising told the same noise variance; and the noisy image itself.
+assumes, from the clean ones; ``scipy.signal.wiener`` told the noise variance, and left to
+estimate it (its ``noise=None``: the mean of the local variances); scikit-image's
+BayesShrink wavelet denoising told the noise variance; and the noisy image itself. Every
+claim (:data:`CLAIMS`) is judged by :mod:`core.claims` on the per-run mean squared errors.
 
 SNR is variance based: ``10 log10(var(u) / mean((u - u_hat)^2))`` with ``u`` the clean
 image (the paper's definition is not given); improvement in SNR is it minus the input's;
@@ -24,7 +25,7 @@ from collections.abc import Callable
 import numpy as np
 import pandas as pd
 
-from core import metrics, plots
+from core import claims, metrics, plots
 from core.analyses.base import Result, TableSpec, map_tasks
 from core.images import kalman2d, nshp, strip
 from core.schema import (
@@ -43,9 +44,17 @@ IMAGES = ("camera", "moon", "brick", "grass", "gravel", "coins", "text", "page",
 NOISY, NON_ADAPTIVE, ADAPTIVE = "noisy (input)", "NSHP Kalman", "NSHP Kalman, adaptive"
 STRIP, STRIP_ORACLE = "strip Kalman", "strip Kalman, model from clean image"
 STRIP_ONLINE = "strip Kalman, online model (eq 15)"
-WIENER, WAVELET = "Wiener", "wavelet (BayesShrink)"
+WIENER, WIENER_ESTIMATED = "Wiener, noise given", "Wiener, noise estimated"
+WAVELET = "wavelet (BayesShrink)"
 ESTIMATORS = (NOISY, NON_ADAPTIVE, ADAPTIVE, STRIP, STRIP_ONLINE, STRIP_ORACLE, WIENER,
-              WAVELET)
+              WIENER_ESTIMATED, WAVELET)
+CLAIMS = ((ADAPTIVE, NON_ADAPTIVE), (NON_ADAPTIVE, WIENER), (ADAPTIVE, WIENER),
+          (NON_ADAPTIVE, WIENER_ESTIMATED), (STRIP, NON_ADAPTIVE),
+          *((est, NOISY) for est in ESTIMATORS if est != NOISY))
+"""The paper's claim (adaptation improves the restoration), the NSHP filters against the
+Wiener filter (told the noise variance, or left to estimate it) and the strip filter
+against the NSHP filter, and every restoration against the noisy image itself; the loss is
+each run's mean squared error."""
 
 SCHEMA: dict = {
     "images": (list_of(text(set(IMAGES)), unique=True, max_length=len(IMAGES)), REQUIRED),
@@ -92,6 +101,7 @@ TABLES = {
                      ("snr_db", "snr_db_se", "isnr_db", "psnr_db", "psnr_db_se", "ssim",
                       "ssim_se", "runs", "diverged", "unstable_strips", "paper_snr_db"),
                      title="SNR, improvement in SNR, PSNR and SSIM of the restored images"),
+    "claims": claims.TABLE,
     "parameters": TableSpec("parameters.csv", ("image", "parameter"),
                             ("global_mean", "global_se", "adaptive_row_mean",
                              "adaptive_row_min", "adaptive_row_max"),
@@ -140,9 +150,10 @@ def _quality(clean: np.ndarray, est: np.ndarray) -> dict:
     from skimage.metrics import peak_signal_noise_ratio, structural_similarity
 
     if not np.all(np.isfinite(est)):
-        return {"snr_db": -np.inf, "psnr_db": -np.inf, "ssim": np.nan, "finite": False}
+        return {"snr_db": -np.inf, "psnr_db": -np.inf, "ssim": np.nan, "finite": False,
+                "mse": np.inf}
     mse = float(np.mean((clean - est) ** 2))
-    return {"snr_db": 10 * np.log10(np.var(clean) / mse),
+    return {"mse": mse, "snr_db": 10 * np.log10(np.var(clean) / mse),
             "psnr_db": peak_signal_noise_ratio(clean, est, data_range=255.0),
             "ssim": structural_similarity(clean, est, data_range=255.0), "finite": True}
 
@@ -175,14 +186,17 @@ def run_unit(exp: Experiment, image: str, run: int) -> dict:
                            sc["eigenvalue_floor"], online=True)
     oracle = strip.restore(y, sc["width"], sc["order"], sigma_v2, unbiased,
                            model_from=clean - clean.mean())
-    wiener = signal.wiener(noisy, (spec["baselines"]["wiener_size"],) * 2, noise=sigma_v2)
+    size = (spec["baselines"]["wiener_size"],) * 2
+    wiener = signal.wiener(noisy, size, noise=sigma_v2)
+    wiener_estimated = signal.wiener(noisy, size)
     wavelet = denoise_wavelet(noisy, sigma=np.sqrt(sigma_v2), method="BayesShrink",
                               mode="soft", rescale_sigma=True)
     restored = {NOISY: noisy, NON_ADAPTIVE: plain["image"] + noisy.mean(),
                 ADAPTIVE: adaptive["image"] + noisy.mean(),
                 STRIP: strips["image"] + noisy.mean(),
                 STRIP_ONLINE: online["image"] + noisy.mean(),
-                STRIP_ORACLE: oracle["image"] + noisy.mean(), WIENER: wiener, WAVELET: wavelet}
+                STRIP_ORACLE: oracle["image"] + noisy.mean(), WIENER: wiener,
+                WIENER_ESTIMATED: wiener_estimated, WAVELET: wavelet}
     out = {"quality": {k: _quality(clean, v) for k, v in restored.items()}, "a": a,
            "trace": adaptive["trace"],
            "unstable": {STRIP: strips["unstable_strips"],
@@ -211,10 +225,13 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     runs = spec["monte_carlo"]["runs"]
     tasks = [(exp, image, r) for image in spec["images"] for r in range(runs)]
     done = map_tasks(_run_unit_args, tasks, jobs, on_done)
-    rows, params, figures = [], [], {}
+    rows, params, figures, cells = [], [], {}, []
     names = nshp.names(spec["nshp"]["order"])
     for i, image in enumerate(spec["images"]):
         units = done[i * runs:(i + 1) * runs]
+        cells.append((claims.cell(image=image, input_snr_db=spec["input_snr_db"]),
+                      {est: claims.Losses(np.array([u["quality"][est]["mse"] for u in units]))
+                       for est in ESTIMATORS}))
         snr_in = np.array([u["quality"][NOISY]["snr_db"] for u in units])
         for est in ESTIMATORS:
             q = [u["quality"][est] for u in units]
@@ -257,6 +274,7 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
             figures[fs["parameters"]] = plots.pixel_series(
                 pixels, traces, "parameter", f"Adaptive parameters: {where}")
     tables = {"snr": pd.DataFrame(rows)[TABLES["snr"].columns],
+              "claims": claims.table(cells, CLAIMS, "MSE"),
               "parameters": pd.DataFrame(params)[TABLES["parameters"].columns]}
     return Result(tables=tables, figures=figures)
 

@@ -13,8 +13,8 @@ import numpy as np
 import pandas as pd
 from scipy import linalg
 
+from core import claims, metrics, plots
 from core import kalman_differentiator as kd
-from core import metrics, plots
 from core.analyses.base import Result, TableSpec, map_tasks
 from core.schema import REQUIRED, Experiment, file_name, integer, list_of, number
 
@@ -40,7 +40,12 @@ TABLES = {
                              "p22_monte_carlo", "p22_monte_carlo_se", "runs"),
                             title="derivative error variance P22: closed form, Riccati, "
                                   "discrete, Monte Carlo"),
+    "claims": claims.TABLE,
 }
+KALMAN, DIFFERENCE = "Kalman differentiator", "difference of the measurements"
+CLAIMS = ((KALMAN, DIFFERENCE),)
+"""The differentiator against the raw measurement's own derivative (its first difference),
+on the per-run mean squared derivative error after ``settle_s``."""
 
 F = np.array([[0.0, 1.0], [0.0, 0.0]])
 H = np.array([[1.0], [0.0]])
@@ -67,7 +72,8 @@ def tiny(spec: dict) -> dict:
     return spec
 
 
-def run_case(exp: Experiment, index: int) -> dict:
+def run_case(exp: Experiment, index: int) -> tuple[tuple, dict]:
+    """One case's claims cell and its ``derivative.csv`` row."""
     spec = exp.spec
     case = spec["cases"][index]
     q, r, dt = case["q"], case["r"], case["dt"]
@@ -93,8 +99,12 @@ def run_case(exp: Experiment, index: int) -> dict:
     out = kd.differentiate(z, F, G, H, r, dt)
     start = int(round(spec["settle_s"] / dt))
     per_run = np.mean((out["derivative"][:, start:, 0] - xs[:, start:, 1]) ** 2, axis=1)
+    raw = np.diff(z[..., 0], axis=1, prepend=0.0) / dt
+    raw_per_run = np.mean((raw[:, start:] - xs[:, start:, 1]) ** 2, axis=1)
     mean, se = metrics.mean_and_se(per_run)
-    return {"q": q, "r": r, "dt": dt, "w0": closed["w0"], "p22_closed_form": closed["P22"],
+    losses = (claims.cell(q=q, r=r, dt=dt), {KALMAN: claims.Losses(per_run),
+                                             DIFFERENCE: claims.Losses(raw_per_run)})
+    return losses, {"q": q, "r": r, "dt": dt, "w0": closed["w0"], "p22_closed_form": closed["P22"],
             "p22_riccati": float(P[1, 1]), "p22_discrete": float(P_post[1, 1]),
             "p22_monte_carlo": mean, "p22_monte_carlo_se": se, "runs": runs}
 
@@ -104,8 +114,9 @@ def _run_case_args(args):
 
 
 def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = None) -> Result:
-    rows = map_tasks(_run_case_args, [(exp, i) for i in range(len(exp.spec["cases"]))],
+    done = map_tasks(_run_case_args, [(exp, i) for i in range(len(exp.spec["cases"]))],
                      jobs, on_done)
+    rows = [row for _, row in done]
     f = np.linspace(0.05, exp.spec["figures"]["max_hz"], 400)
     curves = {}
     for case in exp.spec["cases"]:
@@ -113,7 +124,9 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
         _, K = kd.steady_state(F, G, H, case["r"])
         curves[f"q = {case['q']:g}, r = {case['r']:g}"] = kd.frequency_response(F, H, K, f)
     figure = plots.differentiator_response(f, curves)
-    return Result(tables={"derivative": pd.DataFrame(rows)[TABLES["derivative"].columns]},
+    return Result(tables={"derivative": pd.DataFrame(rows)[TABLES["derivative"].columns],
+                          "claims": claims.table([c for c, _ in done], CLAIMS,
+                                                 "mean squared derivative error")},
                   figures={exp.spec["figures"]["name"]: figure})
 
 

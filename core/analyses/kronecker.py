@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from core import metrics, plots, registry, signals
+from core import claims, plots, registry, signals
 from core.analyses import estimation
 from core.analyses.base import Result, TableSpec, map_tasks
 from core.errors import ConfigError
@@ -121,23 +121,16 @@ MEASUREMENT = estimation.MEASUREMENT
 
 TABLES = {
     "rmse": TableSpec("rmse.csv", _KEYS,
-                      ("rmse", "rmse_se", "runs", "diverged", "rmse_all", "rmse_all_se",
-                       "rmse_all_median", "kept_fraction", "lms_ls_gap"),
+                      (*estimation.RMSE_VALUES, "kept_fraction", "lms_ls_gap"),
                       reference=("rmse",),
                       join=(("s_no", ("s_no",)), ("estimator", ("estimator",)),
                             ("w_um", ("w_um",)), ("l_um", ("l_um",))),
                       optional_join=("w_um", "l_um"),
                       title="RMSE of the output (eqs 3.42, 4.60)",
                       reference_ids=("4.1", "4.2")),
-    "health": TableSpec("health.csv", _KEYS[:-1],
-                        ("runs", "broken", "diverged", "nees_mean", "nees_in_band", "nis_mean",
-                         "nis_in_band", "white_fraction", "whiteness_lag"),
-                        title="filter health: consistency, whiteness, divergence"),
-    "claims": TableSpec("claims.csv",
-                        ("claim", "s_no", "noise_reading", "noise_param", "frequency_hz",
-                         "w_um", "l_um", "better", "worse"),
-                        estimation.TABLES["claims"].values,
-                        title="headline claim, row by row"),
+    "health": TableSpec("health.csv", _KEYS[:-1], estimation.HEALTH_VALUES,
+                        title="filter health: divergence, consistency, whiteness"),
+    "claims": claims.TABLE,
 }
 
 
@@ -300,8 +293,10 @@ def simulate_point(exp: Experiment, column: Column, point: SweepPoint, runs: int
             "z": measured[..., out:out + 1]}
 
 
-def run_point(exp: Experiment, index: int, point: SweepPoint, traces: bool) -> tuple[list, dict]:
-    """Rows (measurement baseline, then each estimator) for one column and sweep point."""
+def run_point(exp: Experiment, index: int, point: SweepPoint,
+              traces: bool) -> tuple[list, dict, dict]:
+    """Rows (measurement baseline, then each estimator) for one column and sweep point, the
+    per-run losses for the claims, and with ``traces`` the figure's traces of run 1."""
     column = exp.plan[index]
     data = simulate_point(exp, column, point, exp.spec["monte_carlo"]["runs"])
     common = {"data_source": exp.spec["truth"]["data_source"], "noise_reading": point.reading,
@@ -309,40 +304,28 @@ def run_point(exp: Experiment, index: int, point: SweepPoint, traces: bool) -> t
               "frequency_hz": point.frequency_hz, "w_um": column.w_um, "l_um": column.l_um,
               "area_scaled_caps": bool(exp.spec["geometry"]["area_scaled_caps"]),
               "kept_fraction": float("nan"), "lms_ls_gap": float("nan")}
-    raw = metrics.rmse_per_run(data["actual"], data["z"])
-    mean, se = metrics.mean_and_se(raw)
     out_name = column.truth.state_names[int(np.argmax(np.abs(np.asarray(
         column.truth.h_jacobian(column.x0)).reshape(-1))))]
-    rows = [{**common, "estimator": MEASUREMENT, "measures": out_name, "rmse": mean,
-             "rmse_se": se, "runs": len(raw), "diverged": 0, "rmse_all": mean,
-             "rmse_all_se": se, "rmse_all_median": float(np.median(raw))}]
-    estimates = {}
-    for label, est, model, seen in column.filters:
+    estimates = []
+    for _, est, model, seen in column.filters:
         z = data["z"] if seen is None else data["measured"][..., seen]
         u = model.source_to_input(data["clean"][None], data["dt"])[0]
-        result = est.run(model, z, u, data["dt"], x0=data["x0"])
-        estimates[label] = result
-        verdict = estimation.judge(exp, data, result, model)
-        ok = ~verdict["diverged"]
-        rmse, rmse_se = metrics.mean_and_se(metrics.rmse_per_run(data["actual"][ok],
-                                                                 result.y_hat[ok]))
-        rmse_all, rmse_all_se, median = estimation._rmse_all(data["actual"], result.y_hat)
-        extra = {key: float(np.nanmedian(result.diagnostics[key]))
-                 for key in ("kept_fraction", "lms_ls_gap") if key in result.diagnostics}
-        names = out_name if seen is None else " ".join(model.state_names[i] for i in seen)
-        rows.append({**common, **extra, **{k: v for k, v in verdict.items()
-                                           if k not in ("diverged", "broken")},
-                     "estimator": label, "measures": names, "rmse": rmse, "rmse_se": rmse_se,
-                     "rmse_all": rmse_all, "rmse_all_se": rmse_all_se,
-                     "rmse_all_median": median, "runs": int(ok.sum()),
-                     "diverged": int((~ok).sum()), "broken": int(verdict["broken"].sum())})
+        estimates.append(est.run(model, z, u, data["dt"], x0=data["x0"]))
+    rows, losses, _ = estimation.score(exp, data, column.filters, estimates, common, out_name)
+    for row, (_, _, model, seen), result in zip(rows[1:], column.filters, estimates,
+                                                strict=True):
+        row["measures"] = out_name if seen is None else " ".join(model.state_names[i]
+                                                                 for i in seen)
+        row.update({key: float(np.nanmedian(result.diagnostics[key]))
+                    for key in ("kept_fraction", "lms_ls_gap") if key in result.diagnostics})
     trace = {}
     if traces:
         trace = {"t": data["t"], "source": data["source"][0, 1:, 0],
                  "clean": data["clean"][1:, 0], "actual": data["actual"][0, :, 0],
                  "z": data["z"][0, :, 0],
-                 "y_hat": {lab: e.y_hat[0, :, 0] for lab, e in estimates.items()}}
-    return rows, trace
+                 "y_hat": {lab: e.y_hat[0, :, 0]
+                           for (lab, *_), e in zip(column.filters, estimates, strict=True)}}
+    return rows, losses, trace
 
 
 def _run_point_args(args):
@@ -366,7 +349,7 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     tasks = [(exp, i, p, p == shown and (c.w_um, c.l_um) in named)
              for i, c in enumerate(exp.plan) for p in points]
     done = map_tasks(_run_point_args, tasks, jobs, on_done)
-    rows = [row for part, _ in done for row in part]
+    rows = [row for part, _, _ in done for row in part]
     table_id = exp.spec["tables"]["rmse"]
     df = pd.DataFrame(rows)
     df.insert(0, "table_id", table_id or "")
@@ -374,12 +357,10 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     out = Result(tables={"rmse": df[TABLES["rmse"].columns].reset_index(drop=True)})
     filters = df[df["estimator"] != MEASUREMENT]
     out.tables["health"] = filters[TABLES["health"].columns].reset_index(drop=True)
-    if exp.spec["claims"]:
-        keys = ["noise_reading", "noise_param", "frequency_hz", "w_um", "l_um"]
-        parts = [estimation.claims(out.tables["rmse"], c["better"], c["worse"], keys=keys)
-                 for c in exp.spec["claims"]]
-        out.tables["claims"] = pd.concat(parts, ignore_index=True)[TABLES["claims"].columns]
-    for (_, i, p, wanted), (_, trace) in zip(tasks, done, strict=True):
+    out.tables["claims"] = estimation.claims_table(
+        exp.spec, out.tables["rmse"], [losses for _, losses, _ in done],
+        ("s_no", "noise_reading", "noise_param", "frequency_hz", "w_um", "l_um"))
+    for (_, i, p, wanted), (_, _, trace) in zip(tasks, done, strict=True):
         if wanted:
             c = exp.plan[i]
             title = (f"W = {c.w_um:g} um, L = {c.l_um:g} um, {p.frequency_hz:g} Hz, "

@@ -22,7 +22,7 @@ from collections.abc import Callable
 import numpy as np
 import pandas as pd
 
-from core import metrics, plots, registry, signals
+from core import claims, metrics, plots, registry, signals
 from core.analyses.base import Result, TableSpec, map_tasks
 from core.errors import ConfigError, SimulationError
 from core.expansion import Response, check_expansion, expand, respond
@@ -82,7 +82,13 @@ TABLES = {
     "gain": TableSpec("distortion.csv", _KEYS, ("gain_db",), reference=("gain_db",),
                       join=_JOIN, title="gain of the full circuit",
                       reference_ids=("2.1", "2.2", "2.3", "2.4")),
+    "claims": claims.TABLE,
 }
+FIRST, LINEAR = "x0 + x1", "x0"
+CLAIMS = ((FIRST, LINEAR),)
+"""Chapter 2's premise: the first-order expansion is closer to the full nonlinear circuit
+than the linear response alone (the RMS output error of each against the full circuit over
+the analysis window). Deterministic: judged exactly."""
 
 
 def prepare(spec: dict, source: str) -> dict:
@@ -229,7 +235,13 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     results = map_tasks(_evaluate, [(exp, row) for row in exp.spec["rows"]], jobs, on_done)
     df = pd.DataFrame([summary_row for summary_row, _ in results])
     df.insert(0, "table_id", exp.spec["tables"]["distortion"])
-    out = Result(tables={"distortion": df[TABLES["distortion"].columns].reset_index(drop=True)})
+    cells = [(claims.cell(s_no=int(row["s_no"]), amplitude_v=row["amplitude_v"],
+                          frequency_hz=row["frequency_hz"], params=row["row_params"] or None),
+              {FIRST: claims.Losses([row["err_first_order_rms"]]),
+               LINEAR: claims.Losses([row["err_linear_rms"]])}) for _, row in df.iterrows()]
+    out = Result(tables={"distortion": df[TABLES["distortion"].columns].reset_index(drop=True),
+                         "claims": claims.table(cells, CLAIMS, "RMS error against the full "
+                                                "circuit")})
     data = figure_data(exp, {s["s_no"]: r for s, r in results})
     row = data["row"]
     what = f"amplitude {row['amplitude_v']:g} V"

@@ -1,0 +1,102 @@
+"""The claims engine (core.claims): one rule for every table (docs/claims.md)."""
+
+import numpy as np
+import pytest
+
+from core import claims
+from core.claims import Losses
+
+
+def paired(shift_in_se: float, runs: int = 30, seed: int = 0):
+    """Losses of two estimators on the same draws whose paired difference has a sample mean
+    of exactly ``shift_in_se`` of its own standard errors."""
+    rng = np.random.default_rng(seed)
+    worse = 1.0 + 0.1 * rng.standard_normal(runs)
+    d = rng.standard_normal(runs)
+    d = (d - d.mean()) / (d.std(ddof=1) / np.sqrt(runs))     # mean 0, SE 1
+    better = worse + (d + shift_in_se) * 1e-3
+    return Losses(better), Losses(worse)
+
+
+def test_identical_errors_are_undecided():
+    w = np.random.default_rng(1).uniform(0.5, 1.5, 30)
+    out = claims.judge(Losses(w), Losses(w.copy()))
+    assert out["verdict"] == "undecided" and out["method"] == "t"
+    assert out["difference"] == 0 and out["ratio"] == 1
+
+
+@pytest.mark.parametrize("shift, verdict", [(-3.0, "holds"), (3.0, "fails"), (0.5, "undecided"),
+                                            (-0.5, "undecided")])
+def test_a_difference_of_k_standard_errors(shift, verdict):
+    better, worse = paired(shift)
+    out = claims.judge(better, worse)
+    assert out["method"] == "t"
+    assert out["difference"] / out["difference_se"] == pytest.approx(shift)
+    assert out["verdict"] == verdict
+    assert out["difference_low"] < out["difference"] < out["difference_high"]
+
+
+def test_the_t_interval_has_the_stated_coverage():
+    """Over many pairs of draws with no true difference, the 95 % interval contains zero
+    about 95 % of the time (so 'undecided' about 95 %)."""
+    rng = np.random.default_rng(2)
+    undecided = 0
+    trials = 2000
+    for _ in range(trials):
+        w = rng.uniform(0.5, 1.5, 30)
+        b = w + 0.05 * rng.standard_normal(30)
+        undecided += claims.judge(Losses(b), Losses(w))["verdict"] == "undecided"
+    assert 0.93 <= undecided / trials <= 0.97        # 95 % +- 4 binomial SD
+
+
+def test_a_diverged_run_is_a_loss_for_its_filter_and_switches_to_the_sign_test():
+    rng = np.random.default_rng(3)
+    worse = Losses(1.0 + 0.1 * rng.standard_normal(30))
+    better = Losses(worse.values - 0.2 + 0.01 * rng.standard_normal(30))   # better every run
+    flags = np.zeros(30, bool)
+    flags[:3] = True                                 # 3 of 30 runs of 'better' diverged
+    out = claims.judge(Losses(better.values, flags), worse)
+    assert out["method"] == "sign" and out["diverged_better"] == 3
+    assert out["difference_high"] < 0 and out["verdict"] == "holds"   # 27 of 30 still better
+    flags[:15] = True                                # half diverged: the median is a loss
+    out = claims.judge(Losses(better.values, flags), worse)
+    assert out["verdict"] != "holds"
+    out = claims.judge(better, Losses(worse.values, np.ones(30, bool)))
+    assert out["verdict"] == "holds" and out["ratio"] == 0
+
+
+def test_a_broken_run_needs_no_flag_and_infinities_do_not_break_the_interval():
+    b = np.full(30, 0.5)
+    b[4] = np.inf
+    out = claims.judge(Losses(b), Losses(np.full(30, 1.0)))
+    assert out["method"] == "sign" and out["diverged_better"] == 1
+    assert out["loss_better"] == np.inf and out["verdict"] == "holds"
+    assert np.isfinite(out["difference_low"]) and np.isfinite(out["difference_high"])
+
+
+def test_too_few_runs_with_a_divergence_are_undecided():
+    out = claims.judge(Losses([0.1, 0.1, 0.1], [True, False, False]), Losses([1.0, 1.0, 1.0]))
+    assert out["method"] == "sign" and out["verdict"] == "undecided"
+    assert claims.sign_interval_rank(5) == 0 and claims.sign_interval_rank(6) == 1
+
+
+def test_one_deterministic_run_is_judged_exactly_with_a_rounding_tie():
+    assert claims.judge(Losses([1.0]), Losses([2.0]))["verdict"] == "holds"
+    assert claims.judge(Losses([2.0]), Losses([1.0]))["verdict"] == "fails"
+    tie = claims.judge(Losses([1.0]), Losses([1.0 + 1e-12]))
+    assert tie["method"] == "exact" and tie["verdict"] == "undecided"
+    assert claims.judge(Losses([2.0]), Losses([np.inf]))["verdict"] == "holds"
+
+
+def test_table_judges_every_pair_in_every_cell_that_has_both():
+    better, worse = paired(-3.0)
+    cells = [("a=1", {"EKF": better, "RLS": worse}), ("a=2", {"EKF": better})]
+    df = claims.table(cells, [("EKF", "RLS")], "RMSE")
+    assert list(df.columns) == claims.TABLE.columns
+    assert df["cell"].tolist() == ["a=1"] and df["claim"].iloc[0] == "EKF RMSE < RLS RMSE"
+    counted = claims.counts(df)
+    assert counted.iloc[0][["holds", "fails", "undecided", "cells"]].tolist() == [1, 0, 0, 1]
+
+
+def test_cell_names_its_keys_and_leaves_out_missing_ones():
+    assert claims.cell(s_no=3, f=1000.0, x=None, y=float("nan")) == "s_no=3, f=1000"
