@@ -8,9 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
-import csv
 import hashlib
-import json
 import stat
 import sys
 import tempfile
@@ -38,6 +36,7 @@ from core.config import (
     spec_hash,
 )
 from core.errors import ConfigError, ReferenceJoinError, UsageError
+from core.io import read_manifest, read_table
 from core.schema import Experiment
 
 MAX_CONFIG_BYTES = 1 << 20
@@ -175,55 +174,6 @@ def progress_lines(name: str, total: int, prefix: str = ""):
         click.echo(f"{prefix}{name}: {min(done[0], total)}/{total} done, {elapsed:.0f} s "
                    f"elapsed, about {left:.0f} s left", err=True)
     return on_done
-
-
-def read_table(path: Path, spec=None) -> pd.DataFrame:
-    """A stored result table, with an empty ``table_id`` kept as an empty string.
-
-    Raises :class:`UsageError` naming the file when it cannot be read as a table: empty,
-    not CSV, ragged rows, missing columns of ``spec``, or text in one of its value columns.
-    """
-    try:
-        with path.open(newline="") as fh:
-            rows = list(csv.reader(fh))
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise UsageError(f"{path}: cannot read ({exc})") from None
-    if not rows or not rows[0]:
-        raise UsageError(f"{path}: empty, not a table")
-    width = len(rows[0])
-    for number, row in enumerate(rows[1:], start=2):
-        if len(row) != width:
-            raise UsageError(f"{path}: line {number} has {len(row)} fields, the header {width}")
-    try:
-        df = pd.read_csv(path, dtype={"table_id": str}, keep_default_na=False,
-                         na_values=["", "NaN", "nan", "<NA>"])
-    except (ValueError, pd.errors.ParserError) as exc:
-        raise UsageError(f"{path}: not a table ({str(exc).splitlines()[0]})") from None
-    if "table_id" in df:
-        df["table_id"] = df["table_id"].fillna("")
-    if spec is not None:
-        missing = [c for c in spec.columns if c not in df.columns]
-        if missing:
-            raise UsageError(f"{path}: no column {missing[0]!r}")
-        for column in (c for c in spec.values if c not in spec.text):
-            if not pd.api.types.is_numeric_dtype(df[column]):
-                for i, cell in enumerate(df[column]):
-                    if pd.isna(cell) or str(cell) in ("True", "False"):
-                        continue
-                    try:
-                        float(cell)
-                    except ValueError:
-                        raise UsageError(f"{path}: line {i + 2}, column {column}: "
-                                         f"{str(cell)[:40]!r} is not a number") from None
-    return df
-
-
-def read_manifest(folder: Path) -> dict | None:
-    try:
-        manifest = json.loads((folder / "manifest.json").read_text())
-    except (OSError, ValueError):
-        return None
-    return manifest if isinstance(manifest, dict) else None
 
 
 def report(exp: Experiment, out: Path, result: runner.Result, quiet: bool) -> None:
@@ -732,6 +682,45 @@ def report_page(results, out) -> None:
     page = html_report.page("estim: stored results", sections)
     io.atomic_write_bytes(out, page.encode("utf-8"))
     click.echo(f"report: {len(sections)} experiments -> {out}")
+
+
+@main.command()
+@click.option("--results", type=click.Path(file_okay=False, path_type=Path),
+              help="Folder of stored results [default: the project's results/].")
+@click.option("--readme", type=click.Path(dir_okay=False, path_type=Path),
+              help="Re-generate the summary blocks (<!-- summary: NAME --> ... "
+                   "<!-- /summary -->) of this Markdown file in place.")
+@click.option("--check", "check_only", is_flag=True,
+              help="With --readme: write nothing; exit 1 naming the blocks that do not "
+                   "match the stored tables.")
+def summary(results, readme, check_only) -> None:
+    """Print each stored experiment's claims (holds / fails / undecided out of its cells,
+    with the range of the ratio) and the ranges of the quantities its analysis quotes."""
+    from core import summary as summaries
+
+    results = results or project.locate().results
+    if readme is None:
+        found = summaries.everything(results, ANALYSES)
+        if not found:
+            fail(f"no stored results under {results}/ (run 'estim reproduce')")
+        click.echo("\n\n".join("\n".join(lines) for lines in found.values()))
+        return
+    try:
+        text = readme.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UsageError(f"{readme}: cannot read ({exc})") from None
+    new, stale = summaries.refresh(text, results, ANALYSES)
+    if check_only:
+        if stale:
+            click.echo(f"{readme}: stale summary blocks: {', '.join(stale)} (re-generate with "
+                       f"'estim summary --readme {readme}')")
+            sys.exit(1)
+        click.echo(f"{readme}: every summary block matches {results}/")
+        return
+    if stale:
+        io.atomic_write_bytes(readme, new.encode())
+    click.echo(f"{readme}: {len(stale)} block(s) re-generated" + (
+        f" ({', '.join(stale)})" if stale else ""))
 
 
 @main.command(name="list")

@@ -135,10 +135,10 @@ def judge(better: Losses, worse: Losses, level: float = LEVEL) -> dict:
         se = float(np.std(d, ddof=1) / np.sqrt(n))
         q = float(stats.t.ppf(0.5 + level / 2, n - 1))
         low, high = mean - q * se, mean + q * se
-        mw = float(np.mean(w))
+        mw = np.mean(w)
         with np.errstate(divide="ignore", invalid="ignore"):
-            ratio = float(np.mean(b)) / mw
-            ratio_se = float(np.std(b - ratio * w, ddof=1) / np.sqrt(n) / abs(mw))
+            ratio = float(np.mean(b) / mw)
+            ratio_se = float(np.std(b - ratio * w, ddof=1) / np.sqrt(n) / np.abs(mw))
         out.update(difference=mean, difference_se=se, difference_low=low, difference_high=high,
                    ratio=ratio, ratio_low=ratio - q * ratio_se, ratio_high=ratio + q * ratio_se)
         verdict = UNDECIDED if se == 0 and mean == 0 else _verdict(low, high)
@@ -159,8 +159,11 @@ def judge(better: Losses, worse: Losses, level: float = LEVEL) -> dict:
     return out
 
 
+CELL_SEPARATOR = "; "
+
+
 def cell(**keys) -> str:
-    """A table cell named by its key values: ``"s_no=3, frequency_hz=1000"`` (floats as
+    """A table cell named by its key values: ``"s_no=3; frequency_hz=1000"`` (floats as
     ``%g``, missing values left out)."""
     parts = []
     for key, value in keys.items():
@@ -169,7 +172,12 @@ def cell(**keys) -> str:
         if isinstance(value, (float, np.floating)):
             value = f"{float(value):g}"
         parts.append(f"{key}={value}")
-    return ", ".join(parts)
+    return CELL_SEPARATOR.join(parts)
+
+
+def cell_keys(text: str) -> dict[str, str]:
+    """The key values of a cell named by :func:`cell`."""
+    return dict(part.split("=", 1) for part in text.split(CELL_SEPARATOR) if "=" in part)
 
 
 def table(cells: Iterable[tuple[str, Mapping[str, Losses]]], pairs: Sequence[tuple[str, str]],

@@ -5,6 +5,7 @@ These functions take paths from their caller (the CLI); nothing here picks a loc
 
 from __future__ import annotations
 
+import csv
 import ctypes
 import errno
 import fcntl
@@ -391,3 +392,52 @@ def code_fingerprint() -> str:
             digest.update(path.read_bytes())
         _FINGERPRINT.append(digest.hexdigest())
     return _FINGERPRINT[0]
+
+
+def read_table(path: Path, spec=None) -> pd.DataFrame:
+    """A stored result table, with an empty ``table_id`` kept as an empty string.
+
+    Raises :class:`UsageError` naming the file when it cannot be read as a table: empty,
+    not CSV, ragged rows, missing columns of ``spec``, or text in one of its value columns.
+    """
+    try:
+        with path.open(newline="") as fh:
+            rows = list(csv.reader(fh))
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise UsageError(f"{path}: cannot read ({exc})") from None
+    if not rows or not rows[0]:
+        raise UsageError(f"{path}: empty, not a table")
+    width = len(rows[0])
+    for number, row in enumerate(rows[1:], start=2):
+        if len(row) != width:
+            raise UsageError(f"{path}: line {number} has {len(row)} fields, the header {width}")
+    try:
+        df = pd.read_csv(path, dtype={"table_id": str}, keep_default_na=False,
+                         na_values=["", "NaN", "nan", "<NA>"])
+    except (ValueError, pd.errors.ParserError) as exc:
+        raise UsageError(f"{path}: not a table ({str(exc).splitlines()[0]})") from None
+    if "table_id" in df:
+        df["table_id"] = df["table_id"].fillna("")
+    if spec is not None:
+        missing = [c for c in spec.columns if c not in df.columns]
+        if missing:
+            raise UsageError(f"{path}: no column {missing[0]!r}")
+        for column in (c for c in spec.values if c not in spec.text):
+            if not pd.api.types.is_numeric_dtype(df[column]):
+                for i, cell in enumerate(df[column]):
+                    if pd.isna(cell) or str(cell) in ("True", "False"):
+                        continue
+                    try:
+                        float(cell)
+                    except ValueError:
+                        raise UsageError(f"{path}: line {i + 2}, column {column}: "
+                                         f"{str(cell)[:40]!r} is not a number") from None
+    return df
+
+
+def read_manifest(folder: Path) -> dict | None:
+    try:
+        manifest = json.loads((folder / "manifest.json").read_text())
+    except (OSError, ValueError):
+        return None
+    return manifest if isinstance(manifest, dict) else None

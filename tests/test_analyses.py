@@ -110,8 +110,8 @@ def test_inputs_perturbed_at_1e_12_stay_within_the_check_tolerances(tmp_path, pa
 
 @pytest.mark.parametrize("path", CONFIGS, ids=lambda p: p.stem)
 def test_stored_results_join_every_thesis_row(path):
-    from cli.main import read_table
     from core import tables
+    from core.io import read_table
     exp = parse_data(yaml.safe_load(path.read_text()), str(path), path.stem)
     if not any(spec.join for spec in ANALYSES[exp.analysis].TABLES.values()):
         pytest.skip(f"{exp.analysis}: the paper prints no numbers to join")

@@ -99,4 +99,12 @@ def test_table_judges_every_pair_in_every_cell_that_has_both():
 
 
 def test_cell_names_its_keys_and_leaves_out_missing_ones():
-    assert claims.cell(s_no=3, f=1000.0, x=None, y=float("nan")) == "s_no=3, f=1000"
+    text = claims.cell(s_no=3, f=1000.0, x=None, y=float("nan"), reading="a, b")
+    assert text == "s_no=3; f=1000; reading=a, b"
+    assert claims.cell_keys(text) == {"s_no": "3", "f": "1000", "reading": "a, b"}
+
+
+def test_a_perfect_baseline_gives_an_infinite_ratio_not_an_error():
+    """A noise-free measurement has zero error: no filter beats it, and the ratio is inf."""
+    out = claims.judge(Losses(np.full(5, 0.1) + np.arange(5) * 1e-3), Losses(np.zeros(5)))
+    assert out["verdict"] == "fails" and out["ratio"] == np.inf

@@ -56,7 +56,8 @@ def test_literal_circuit_drain_is_the_input_high_passed():
     assert np.abs(model.drain_current(states[0])[0]).max() < 1e-15
 
 
-@pytest.mark.parametrize("V_IN, mode", [(0.435, "saturation"), (0.47, "conduction")])
+@pytest.mark.parametrize("V_IN, mode", [(0.35, "saturation"), (0.435, "saturation"),
+                                        (0.47, "conduction")])
 def test_completed_circuit_works_in_weak_inversion_in_the_stated_mode(V_IN, mode):
     model = MosfetEKV(V_IN=V_IN)
     p = model.params
@@ -134,3 +135,24 @@ def test_filter_inputs_the_difference_the_analytic_derivative_and_the_kalman_one
     errors = {how: np.sqrt(np.mean((estimation.filter_input(exp, data, how, 2.0) - circuit)
                                    [:, 10:] ** 2)) for how in ("difference", "kalman")}
     assert errors["kalman"] < 0.5 * errors["difference"], errors
+
+
+def test_regimes_use_the_conventional_ekv_boundaries():
+    """Weak inversion is i_f < 0.1 and saturation v_DS >= U_T (2 sqrt(i_f) + 4): a point at
+    i_f = 0.3 (v_P > v_S would have called it weak before, the test read i_f < 0.48) is not
+    weak; at i_f = 0.05 it is, saturated only past the EKV saturation voltage."""
+    m = MosfetEKV()
+    p = m.params
+
+    def state(i_f, v_ds):
+        # ln(1 + e^(a/2)) = sqrt(i_f), a = (v_P - v_S)/U_T; bulk at 0, v_S = 0.1
+        a = 2 * np.log(np.expm1(np.sqrt(i_f)))
+        v_s = 0.1
+        v_g = p.eta * (v_s + a * p.U_T) + p.V_T0
+        return np.array([v_g, 0.0, v_s, v_s + v_ds])
+
+    assert not m.in_regime("weak_inversion", state(0.3, 0.5), None)
+    assert m.in_regime("weak_inversion", state(0.05, 0.5), None)
+    v_sat = p.U_T * (2 * np.sqrt(0.05) + 4)
+    assert m.in_regime("weak_inversion_saturation", state(0.05, v_sat * 1.01), None)
+    assert m.in_regime("weak_inversion_conduction", state(0.05, v_sat * 0.99), None)

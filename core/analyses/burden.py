@@ -47,6 +47,7 @@ from core.schema import (
     number,
     text,
 )
+from core.summary import Quote
 
 SCHEMA: dict = {
     "model": model_block(registry.MODELS),
@@ -93,6 +94,14 @@ CLAIMS = ((EKF, WAVELET),)
 """The thesis' comparison of the two burdens (Tables 4.3-4.4: the EKF O(n_x^3), the wavelet
 method O(n_x^5)): multiplications per sample, counted on our code (the EKF per step, the
 wavelet method per sample of a block, its transform included). Deterministic: exact."""
+QUOTES = (
+    Quote("Table 4.3, printed / as written (1: the printed count is exact)", "burden_ekf",
+          "printed / as_written", by="row_label_printed", where="as_written == as_written"),
+    Quote("Table 4.3, printed / counted on our code", "burden_ekf", "printed / counted",
+          by="row_label_printed", where="printed == printed"),
+    Quote("Table 4.4, printed / counted on our code", "burden_wt", "printed / counted",
+          by="row_label_printed", where="printed == printed"),
+)
 
 AS_WRITTEN = {
     # thesis row -> multiplications of the equation as the thesis writes it

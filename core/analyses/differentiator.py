@@ -26,6 +26,7 @@ from core import claims, plots
 from core import differentiators as fd
 from core.analyses.base import Result, TableSpec
 from core.schema import Experiment, file_name, integer, list_of, number, text
+from core.summary import Quote
 
 SCHEMA: dict = {
     "bands": (list_of(number(minimum=0.01, maximum=0.999), max_length=50),
@@ -57,6 +58,11 @@ CLAIMS = ((ML, FULL), (ML, BAND))
 the full-band minimax design needs taps), and the same against a minimax design of the
 mixed structure over the band only (D63). Deterministic: judged exactly; a design that
 meets no bound within the search is an infinite loss."""
+QUOTES = (
+    Quote("N2, maximally linear order", "orders", "n2"),
+    Quote("N1, full-band minimax taps (inf: none up to max_taps)", "orders", "n1"),
+    Quote("band minimax order", "orders", "n_band_minimax"),
+)
 
 
 def prepare(spec: dict, source: str) -> None:

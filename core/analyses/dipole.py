@@ -43,6 +43,7 @@ from core.estimators.kf import KalmanFilter
 from core.estimators.rls import RecursiveLeastSquares
 from core.fields.dipole import Dipole
 from core.schema import REQUIRED, Experiment, check_interval, integer, list_of, number, text
+from core.summary import Quote
 
 _READING = text({"sigma", "variance"})
 COMPONENTS = ("E_r", "E_theta", "H_phi")
@@ -105,6 +106,8 @@ TABLES = {
 CLAIMS = ((KF, RLS), (KF, "measurement"), (RLS, "measurement"))
 """The thesis' headline (KF below RLS in every cell), and each filter against the fields
 of the raw measured potentials."""
+QUOTES = (Quote("relative RMSE (RMSE / field RMS)", "rmse", "rmse / field_rms",
+                by="estimator"),)
 
 
 @dataclass(frozen=True)

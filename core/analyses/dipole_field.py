@@ -45,6 +45,7 @@ from core.fields import etkf, wave
 from core.fields.dipole import Dipole
 from core.fields.fdtd import Grid, Simulation, fields_from, spherical
 from core.schema import REQUIRED, Experiment, check_interval, integer, list_of, number, text
+from core.summary import Quote
 
 _READING = text({"sigma", "variance"})
 KF, RLS, PLAIN = "KF", "RLS", "plain simulation"
@@ -120,6 +121,7 @@ CLAIMS = ((KF, RLS), (KF, PLAIN), (KF, "measurement"), (RLS, "measurement"))
 """The thesis' headline (the filter below RLS), the filter against the plain simulation
 (the open loop: with the true source, the grid's floor) and each filter against the raw
 nearest sensor."""
+QUOTES = (Quote("relative RMSE (RMSE / field RMS)", "rmse", "relative", by="estimator"),)
 
 
 def prepare(spec: dict, source: str) -> dict:

@@ -33,7 +33,17 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from core import claims, health, kalman_differentiator, metrics, plots, registry, signals, tables, tuning
+from core import (
+    claims,
+    health,
+    kalman_differentiator,
+    metrics,
+    plots,
+    registry,
+    signals,
+    tables,
+    tuning,
+)
 from core.analyses.base import Result, TableSpec, map_tasks
 from core.errors import ConfigError, UsageError
 from core.estimators.base import as_matrix
@@ -57,6 +67,7 @@ from core.schema import (
     validate,
 )
 from core.simulate import SOLVERS
+from core.summary import Quote
 
 FIGURE_KINDS = ("noiseless", "noisy", "rmse", "residual")
 DERIVATIVE_METHODS = {"difference", "analytic", "kalman"}
@@ -163,6 +174,19 @@ TABLES = {
                           reference_ids=("3.3", "3.4")),
     "claims": claims.TABLE,
 }
+
+QUOTES = (
+    Quote("RMSE over all runs", "rmse", "rmse", by="estimator"),
+    Quote("RMSE over the runs that did not diverge", "rmse", "rmse_kept", by="estimator",
+          where="diverged > 0"),
+    Quote("fraction of actual samples in the named regime", "rmse", "regime_fraction",
+          where="estimator == 'measurement'"),
+    Quote("diverged runs", "health", "diverged", by="estimator", total="runs"),
+    Quote("inconsistent runs (time-averaged NIS or NEES outside its 95 % band)", "health",
+          "inconsistent", by="estimator", total="runs", where="inconsistent == inconsistent"),
+    Quote("residual mean", "residual", "residual_mean", by="estimator"),
+)
+"""What ``estim summary`` quotes of an estimation experiment (:mod:`core.summary`)."""
 
 
 @dataclass(frozen=True)
@@ -443,10 +467,10 @@ def rmse_columns(actual: np.ndarray, y_hat: np.ndarray, diverged: np.ndarray) ->
 def score(exp: Experiment, data: dict, filters: tuple, estimates: list, common: dict,
           measured: str = "") -> tuple[list[dict], dict, list]:
     """Rows of every table for one batch: the raw measurement's row, then one per filter
-    (``filters``: ``(label, estimator, model, ...)``, with their ``estimates``), each with its RMSE, health and
-    residual columns; the per-run losses of every row for the claims; and each filter's
-    per-run divergence flags. ``measured`` names what the measurement row measures, when the
-    table says."""
+    (``filters``: ``(label, estimator, model, ...)``, with their ``estimates``), each with
+    its RMSE, health and residual columns; the per-run losses of every row for the claims;
+    and each filter's per-run divergence flags. ``measured`` names what the measurement row
+    measures, when the table says."""
     raw = metrics.rmse_per_run(data["actual"], data["z"])
     none = np.zeros(raw.size, bool)
     columns, _ = rmse_columns(data["actual"], data["z"], none)
@@ -553,6 +577,8 @@ def thesis_row_numbers(rows: pd.DataFrame, table_id: str | None) -> pd.Series:
 def result_table(rows: list[dict], metric: str, table_id: str | None) -> pd.DataFrame:
     """The ``metric`` table from the sweep's rows, with thesis table id and row number."""
     df = pd.DataFrame(rows)
+    if "inconsistent" in df:
+        df["inconsistent"] = pd.array(df["inconsistent"], dtype="Float64").astype("Int64")
     df.insert(0, "table_id", table_id if table_id and table_id != tables.OWN_TABLE else "")
     df.insert(1, "s_no", thesis_row_numbers(df, table_id))
     return df[TABLES[metric].columns].reset_index(drop=True)

@@ -37,6 +37,7 @@ from core.schema import (
     number,
     text,
 )
+from core.summary import Quote
 
 IMAGES = ("camera", "moon", "brick", "grass", "gravel", "coins", "text", "page", "astronaut")
 """scikit-image's images that ship inside its wheel (no download at run time)."""
@@ -55,6 +56,7 @@ CLAIMS = ((ADAPTIVE, NON_ADAPTIVE), (NON_ADAPTIVE, WIENER), (ADAPTIVE, WIENER),
 Wiener filter (told the noise variance, or left to estimate it) and the strip filter
 against the NSHP filter, and every restoration against the noisy image itself; the loss is
 each run's mean squared error."""
+QUOTES = (Quote("SNR (dB) over the images", "snr", "snr_db", by="estimator"),)
 
 SCHEMA: dict = {
     "images": (list_of(text(set(IMAGES)), unique=True, max_length=len(IMAGES)), REQUIRED),

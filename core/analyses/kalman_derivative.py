@@ -17,6 +17,7 @@ from core import claims, metrics, plots
 from core import kalman_differentiator as kd
 from core.analyses.base import Result, TableSpec, map_tasks
 from core.schema import REQUIRED, Experiment, file_name, integer, list_of, number
+from core.summary import Quote
 
 SCHEMA: dict = {
     "cases": (list_of({
@@ -46,6 +47,12 @@ KALMAN, DIFFERENCE = "Kalman differentiator", "difference of the measurements"
 CLAIMS = ((KALMAN, DIFFERENCE),)
 """The differentiator against the raw measurement's own derivative (its first difference),
 on the per-run mean squared derivative error after ``settle_s``."""
+QUOTES = (
+    Quote("P22 closed form", "derivative", "p22_closed_form", by="r"),
+    Quote("P22 discrete Riccati", "derivative", "p22_discrete", by="r"),
+    Quote("P22 Monte Carlo", "derivative", "p22_monte_carlo", by="r"),
+    Quote("P22 Monte Carlo standard error", "derivative", "p22_monte_carlo_se", by="r"),
+)
 
 F = np.array([[0.0, 1.0], [0.0, 0.0]])
 H = np.array([[1.0], [0.0]])

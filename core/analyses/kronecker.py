@@ -54,6 +54,7 @@ from core.schema import (
     text,
 )
 from core.simulate import SOLVERS
+from core.summary import Quote
 
 _READING = text({"sigma", "variance"})
 CAPACITANCES = ("C_S", "C_D", "C_B", "C_BS", "C_BD")
@@ -132,6 +133,14 @@ TABLES = {
                         title="filter health: divergence, consistency, whiteness"),
     "claims": claims.TABLE,
 }
+QUOTES = (
+    Quote("RMSE over all runs", "rmse", "rmse", by="estimator"),
+    Quote("RMSE over the runs that did not diverge", "rmse", "rmse_kept", by="estimator",
+          where="diverged > 0"),
+    Quote("diverged runs", "health", "diverged", by="estimator", total="runs"),
+    Quote("inconsistent runs (time-averaged NIS or NEES outside its 95 % band)", "health",
+          "inconsistent", by="estimator", total="runs", where="inconsistent == inconsistent"),
+)
 
 
 @dataclass(frozen=True)
@@ -352,6 +361,7 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     rows = [row for part, _, _ in done for row in part]
     table_id = exp.spec["tables"]["rmse"]
     df = pd.DataFrame(rows)
+    df["inconsistent"] = pd.array(df["inconsistent"], dtype="Float64").astype("Int64")
     df.insert(0, "table_id", table_id or "")
     df.insert(1, "s_no", estimation.thesis_row_numbers(df, table_id))
     out = Result(tables={"rmse": df[TABLES["rmse"].columns].reset_index(drop=True)})

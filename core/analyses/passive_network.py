@@ -18,6 +18,7 @@ from core import claims, metrics, plots
 from core import passive_network as pn
 from core.analyses.base import Result, TableSpec
 from core.schema import REQUIRED, Experiment, file_name, integer, list_of, number, text
+from core.summary import Quote
 
 SCHEMA: dict = {
     "signals": (list_of({
@@ -55,6 +56,12 @@ CLAIMS = (("eq 22", "eq 19"), ("eq 22", "Kalman filter"), ("eq 19", MEASUREMENT)
           ("eq 22", MEASUREMENT), ("Kalman filter", MEASUREMENT))
 """The paper's claims (eq 22 better than eq 19 for A > 1, and than the Kalman filter) and
 each estimator against the raw record."""
+QUOTES = (
+    Quote("mean |error| at A = 1, over the readings", "errors", "mean_abs_error",
+          by="estimator", where="A == 1"),
+    Quote("mean |error| at A = 100, over the readings", "errors", "mean_abs_error",
+          by="estimator", where="A == 100"),
+)
 TABLES = {
     "errors": TableSpec("errors.csv", ("reading", "A", "sigma", "estimator"),
                         ("mean_abs_error", "mean_abs_error_se", "max_abs_error",

@@ -42,6 +42,7 @@ from core.schema import (
     simulation_block,
     text,
 )
+from core.summary import Quote
 
 SCHEMA: dict = {
     "model": model_block(registry.MODELS),
@@ -89,6 +90,13 @@ CLAIMS = ((FIRST, LINEAR),)
 """Chapter 2's premise: the first-order expansion is closer to the full nonlinear circuit
 than the linear response alone (the RMS output error of each against the full circuit over
 the analysis window). Deterministic: judged exactly."""
+QUOTES = (
+    Quote("percent distortion (eq 2.43, RMS ratio)", "distortion", "percent_distortion"),
+    Quote("THD of the full output (%)", "distortion", "thd_percent"),
+    Quote("gain (dB)", "distortion", "gain_db"),
+    Quote("error order of x0 (A against A/2)", "distortion", "order_linear"),
+    Quote("error order of x0 + x1", "distortion", "order_first_order"),
+)
 
 
 def prepare(spec: dict, source: str) -> dict:

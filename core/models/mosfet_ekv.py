@@ -37,6 +37,9 @@ import numpy as np
 from core import kernels
 from core.models.base import Model, check_params, param
 
+WEAK_INVERSION = 0.1
+"""Upper bound of the forward inversion coefficient in weak inversion (EKV convention)."""
+
 DRAIN_CURRENT_LAWS = (
     "ekv",
     "weak_inversion",
@@ -206,23 +209,26 @@ class MosfetEKV(Model):
     regimes = ("weak_inversion", "weak_inversion_conduction", "weak_inversion_saturation")
 
     def in_regime(self, regime: str, x: np.ndarray, source: np.ndarray) -> np.ndarray:
-        """EKV regions (Enz, Krummenacher and Vittoz 1995), source-referred.
+        """EKV regions with the conventional boundaries (Enz, Krummenacher and Vittoz 1995;
+        Enz and Vittoz 2006), from the forward inversion coefficient
+        ``i_f = ln^2(1 + exp((v_P - v_S)/(2 U_T)))``, ``v_P = (v_G - V_T0)/eta``, all
+        voltages bulk-referred.
 
-        ``weak_inversion``: the forward argument of the EKV law is negative,
-        ``(v_G - v_B - V_T0)/eta < v_S - v_B`` (for eta = 1: ``v_GS < V_T0``), the region
-        where eqs 3.6 and 3.12 hold. ``..._saturation`` adds ``v_DS >= 4 U_T`` (the reverse
-        current below e^-4 = 1.8 % of the forward current: eq 3.12 holds to that accuracy);
-        ``..._conduction`` is the rest of weak inversion (``v_DS < 4 U_T``: the drain term of
-        eq 3.6 matters).
+        ``weak_inversion``: ``i_f < 0.1`` (the exponential law of eqs 3.6 and 3.12 holds to a
+        few per cent). ``..._saturation`` adds ``v_DS >= U_T (2 sqrt(i_f) + 4)``, the EKV
+        saturation voltage (in weak inversion about ``4 U_T``: the reverse current below
+        e^-4 = 1.8 % of the forward one); ``..._conduction`` is the rest of weak inversion.
         """
         if regime not in self.regimes:
             raise ValueError(f"unknown regime {regime!r}; expected one of {list(self.regimes)}")
         p = self.params
         vG, vB, vS, vD = np.moveaxis(np.asarray(x, float), -1, 0)
-        weak = (vG - vB - p.V_T0) / p.eta < vS - vB
+        v_p = (vG - vB - p.V_T0) / p.eta
+        i_f = np.logaddexp(0.0, (v_p - (vS - vB)) / (2 * p.U_T)) ** 2
+        weak = i_f < WEAK_INVERSION
         if regime == "weak_inversion":
             return weak
-        saturated = vD - vS >= 4 * p.U_T
+        saturated = vD - vS >= p.U_T * (2 * np.sqrt(i_f) + 4)
         return weak & (saturated if regime == "weak_inversion_saturation" else ~saturated)
 
     def output_range(self) -> tuple[float, float]:
