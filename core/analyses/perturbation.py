@@ -2,9 +2,11 @@
 
 For each configured row (one per thesis row, in thesis order) the circuit is built with the
 row's parameters, driven with the row's amplitude ``A`` and, for a check of the expansion,
-with ``A/2``; :func:`core.perturbation.respond` gives the zeroth-order output ``y0``, the
+with ``A/2``; :func:`core.expansion.respond` gives the zeroth-order output ``y0``, the
 first-order output ``y1`` and the full nonlinear output over one period of the periodic
-steady state (a sine) or over the row's window after a step. The row of ``distortion.csv``:
+steady state (a sine sampled at ``samples_per_period`` points and fed as each model's
+``source_to_input`` maps it: a staircase for the amplifiers, piecewise linear for the MOSFET,
+docs/deviations.md D29) or over the row's window after a step. The row of ``distortion.csv``:
 
 ``percent_distortion``  eq 2.43 as an RMS ratio, ``100 rms(y1) / rms(y0 + y1)``
 ``thd_percent``         total harmonic distortion of the full output (harmonics 2-10)
