@@ -1,5 +1,5 @@
 """Chapter 2: the zeroth- and first-order systems integrated (the old algorithm) against
-their exact propagation (:func:`core.expansion.propagate_expanded`), in one process.
+their exact propagation (:func:`estim.expansion.propagate_expanded`), in one process.
 
 Run on demand (not part of the tests):  python bench/bench_expansion.py
 
@@ -18,11 +18,10 @@ from pathlib import Path
 
 import numpy as np
 import yaml
-
-from core.analyses import perturbation
-from core.config import parse_data
-from core.expansion import EXACT_STIFFNESS_LIMIT, ExpandedSystem, expand, propagate_expanded
-from core.simulate import simulate
+from estim.analyses import perturbation
+from estim.config import parse_data
+from estim.expansion import EXACT_STIFFNESS_LIMIT, ExpandedSystem, expand, propagate_expanded
+from estim.simulate import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 

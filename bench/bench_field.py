@@ -14,11 +14,10 @@ from __future__ import annotations
 import time
 
 import numpy as np
-
-from core.analyses.dipole_field import _observe, sensor_operators
-from core.fields import etkf
-from core.fields.dipole import Dipole
-from core.fields.fdtd import Grid, Simulation
+from estim.analyses.dipole_field import _observe, sensor_operators
+from estim.fields import etkf
+from estim.fields.dipole import Dipole
+from estim.fields.fdtd import Grid, Simulation
 
 
 def timed(fn, repeats: int = 5) -> float:

@@ -1,5 +1,5 @@
 """One Chapter 3 row's "actual" signal: the numpy Radau integrator (the old path), the
-compiled one (core.compiled, the default) and scipy's solve_ivp, in one process.
+compiled one (estim.compiled, the default) and scipy's solve_ivp, in one process.
 
 Run on demand (not part of the tests):  python bench/bench_simulate.py [--runs 30]
 
@@ -19,10 +19,9 @@ from pathlib import Path
 import numpy as np
 import yaml
 from bench_filters import timed
-
-from core.analyses import estimation
-from core.config import parse_data
-from core.simulate import simulate, simulate_scipy
+from estim.analyses import estimation
+from estim.config import parse_data
+from estim.simulate import simulate, simulate_scipy
 
 ROOT = Path(__file__).resolve().parents[1]
 

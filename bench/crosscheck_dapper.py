@@ -55,7 +55,7 @@ def _largest_relative(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def check_single_analyses() -> list[tuple[str, float, float]]:
-    from core.fields import etkf
+    from estim.fields import etkf
 
     rng = np.random.default_rng(20191)
     out = []
@@ -88,10 +88,9 @@ def _reduced(spec: dict) -> dict:
 def check_cycle(full: bool) -> list[tuple[str, float, float]]:
     import pandas as pd
     import yaml
-
-    from core.analyses import dipole_field
-    from core.config import parse_data
-    from core.fields import etkf
+    from estim.analyses import dipole_field
+    from estim.config import parse_data
+    from estim.fields import etkf
 
     root = Path(__file__).resolve().parents[1]
     spec = yaml.safe_load((root / "configs" / "dipole_field.yaml").read_text())

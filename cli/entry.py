@@ -1,6 +1,6 @@
 """The ``estim`` entry point. It lists the commands without importing them, so ``estim
 --help``, ``estim -V`` and shell completion of command names answer at once; the commands
-(:mod:`cli.main`, which loads numpy, scipy, pandas and matplotlib) load only to run one.
+(:mod:`estim.cli.main`, which loads numpy, scipy, pandas and matplotlib) load only to run one.
 
 Shell completion (bash; zsh and fish alike with ``zsh_source``/``fish_source``)::
 
@@ -12,9 +12,8 @@ from __future__ import annotations
 import importlib
 
 import click
-
-import core
-from cli.group import Group
+import estim
+from estim.cli.group import Group
 
 SHORT_HELP = {
     "check": "Re-run configs and compare every cell with the stored tables.",
@@ -28,11 +27,11 @@ SHORT_HELP = {
     "tune": "Fit the Q (and R) of one estimator of CONFIG by maximum likelihood.",
     "validate": "Check CONFIGS without running them.",
 }
-"""One line per command of :mod:`cli.main` (a test keeps the two in step)."""
+"""One line per command of :mod:`estim.cli.main` (a test keeps the two in step)."""
 
 
 class LazyGroup(Group):
-    """A group whose commands live in :mod:`cli.main` and load on first use."""
+    """A group whose commands live in :mod:`estim.cli.main` and load on first use."""
 
     def list_commands(self, ctx: click.Context) -> list[str]:
         return sorted(SHORT_HELP)
@@ -40,7 +39,7 @@ class LazyGroup(Group):
     def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
         if name not in SHORT_HELP:
             return None
-        return importlib.import_module("cli.main").main.commands.get(name)
+        return importlib.import_module("estim.cli.main").main.commands.get(name)
 
     def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
         with formatter.section("Commands"):
@@ -55,7 +54,7 @@ class LazyGroup(Group):
 
 
 @click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
-@click.version_option(core.__version__, "-V", "--version", prog_name="estim")
+@click.version_option(estim.__version__, "-V", "--version", prog_name="estim")
 def main() -> None:
     """Reproduce the result tables of Bansal (2019), state estimation in ODE/PDE models.
 

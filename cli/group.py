@@ -7,8 +7,7 @@ import sys
 import warnings
 
 import click
-
-from core.errors import ConfigError, UsageError
+from estim.errors import ConfigError, UsageError
 
 
 def fail(message: str) -> None:

@@ -16,17 +16,16 @@ import time
 from pathlib import Path
 
 import click
+import estim
 import matplotlib.pyplot as plt
 import pandas as pd
 import yaml
-
-import core
-from cli import project
-from cli.group import Group, fail
-from core import io, runner, tables
-from core.analyses import ANALYSES
-from core.analyses.base import ShardDone, execution
-from core.config import (
+from estim import io, runner, tables
+from estim.analyses import ANALYSES
+from estim.analyses.base import ShardDone, execution
+from estim.cli import project
+from estim.cli.group import Group, fail
+from estim.config import (
     MAX_WORK,
     OVERRIDE_KEY,
     apply_overrides,
@@ -35,9 +34,9 @@ from core.config import (
     parse_override,
     spec_hash,
 )
-from core.errors import ConfigError, ReferenceJoinError, UsageError
-from core.io import read_manifest, read_table
-from core.schema import Experiment
+from estim.errors import ConfigError, ReferenceJoinError, UsageError
+from estim.io import read_manifest, read_table
+from estim.schema import Experiment
 
 MAX_CONFIG_BYTES = 1 << 20
 
@@ -120,14 +119,14 @@ def cell_store(exp: Experiment, out: Path) -> io.CellStore:
 def run_one(exp: Experiment, out: Path, jobs: int, quiet: bool,
             overrides: dict | None = None, on_done=None, executor=None,
             resume: bool = True, figure_format: str = "png") -> runner.Result:
-    """Run ``exp`` and write ``out/<name>/`` as a unit: all old or all new (core.io); the
+    """Run ``exp`` and write ``out/<name>/`` as a unit: all old or all new (estim.io); the
     result's tables and the names of the figures written (each written and closed as its
     sweep cell finishes).
 
     Each finished work unit is kept in ``out/.<name>.cells-<hash>/`` (of the config and of
     estim's source) until the run
     is written, so a run stopped by a crash or Ctrl-C resumes with the cells it has (unless
-    not ``resume``); ``executor`` runs the units elsewhere (core.executors)."""
+    not ``resume``); ``executor`` runs the units elsewhere (estim.executors)."""
     start = time.perf_counter()
     total = runner.work_units(exp)
     store = cell_store(exp, out)
@@ -200,7 +199,7 @@ def config_differences(stored: dict, current: dict, path: str = "") -> list[str]
 
 
 @click.group(cls=Group, context_settings={"help_option_names": ["-h", "--help"]})
-@click.version_option(core.__version__, "-V", "--version", prog_name="estim")
+@click.version_option(estim.__version__, "-V", "--version", prog_name="estim")
 def main() -> None:
     """Reproduce the result tables of Bansal (2019), state estimation in ODE/PDE models.
 
@@ -371,7 +370,7 @@ def _executor(kind: str, scheduler: str | None, jobs: int):
         from distributed import Client, LocalCluster
     except ImportError:
         fail("--executor dask needs Dask distributed: pip install 'estim[dask]'")
-    from core.executors import dask_executor
+    from estim.executors import dask_executor
 
     cluster = None if scheduler else LocalCluster(n_workers=jobs, threads_per_worker=1,
                                                   processes=True, dashboard_address=None)
@@ -643,7 +642,7 @@ def report_page(results, out) -> None:
     """Write one self-contained HTML page of the stored results: tables beside the printed
     values (failing claims in red), every figure, the deviations each config cites, seeds
     and versions."""
-    from core import report as html_report
+    from estim import report as html_report
 
     where = project.locate()
     results = results or where.results
@@ -696,7 +695,7 @@ def report_page(results, out) -> None:
 def summary(results, readme, check_only) -> None:
     """Print each stored experiment's claims (holds / fails / undecided out of its cells,
     with the range of the ratio) and the ranges of the quantities its analysis quotes."""
-    from core import summary as summaries
+    from estim import summary as summaries
 
     results = results or project.locate().results
     if readme is None:

@@ -64,10 +64,10 @@ class Where:
 
 
 def shipped_configs() -> Path:
-    """The configs inside the installed package (``cli.configs``); in an editable install,
+    """The configs inside the installed package (``estim.cli.configs``); in an editable install,
     which maps no such package, the ``configs/`` of the source tree beside ``cli/``."""
     try:
-        spec = importlib.util.find_spec("cli.configs")
+        spec = importlib.util.find_spec("estim.cli.configs")
     except ModuleNotFoundError:
         spec = None
     if spec is not None and spec.submodule_search_locations:

@@ -30,9 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+from estim.tablespec import TableSpec
 from scipy import stats
-
-from core.tablespec import TableSpec
 
 LEVEL = 0.95
 """Two-sided coverage of every claim's interval."""

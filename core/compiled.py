@@ -1,4 +1,4 @@
-"""The batched Radau IIA integrator of :mod:`core.simulate`, compiled with numba.
+"""The batched Radau IIA integrator of :mod:`estim.simulate`, compiled with numba.
 
 The same algorithm, step for step: 3-stage Radau IIA collocation solved by full Newton
 iterations, the embedded error estimate, per-run step control with the ``err^(-1/4)`` rule
@@ -7,17 +7,16 @@ calls on small arrays (whose call overhead was 90 % of the time) to compiled loo
 at a time; results agree with the numpy path to rounding (``tests/test_compiled.py``).
 
 A model opts in with ``Model.kernel()``, which returns the number of its compiled kernel in
-:mod:`core.kernels` (writing the drift into ``f`` and its Jacobian into ``J``) and the
+:mod:`estim.kernels` (writing the drift into ``f`` and its Jacobian into ``J``) and the
 parameter vector ``P`` it reads. Without numba installed, or for a model without a kernel,
-:func:`core.simulate.simulate` keeps the numpy path.
+:func:`estim.simulate.simulate` keeps the numpy path.
 """
 
 from __future__ import annotations
 
 import numpy as np
-
-from core import kernels
-from core.kernels import evaluate, jit
+from estim import kernels
+from estim.kernels import evaluate, jit
 
 AVAILABLE = kernels.AVAILABLE
 

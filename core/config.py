@@ -1,6 +1,6 @@
 """YAML text -> common keys -> the analysis' own schema and checks -> a frozen Experiment.
 
-Every error is a :class:`core.errors.ConfigError` naming the file, the key path and what was
+Every error is a :class:`estim.errors.ConfigError` naming the file, the key path and what was
 expected, raised before any work starts. The common keys are declared here; everything else
 belongs to the analysis (``ANALYSES[name].SCHEMA`` and ``.prepare``).
 """
@@ -16,11 +16,10 @@ import re
 from typing import Any
 
 import yaml
-
-from core import registry, tables
-from core.analyses import ANALYSES
-from core.errors import ConfigError, UsageError
-from core.schema import Experiment, integer, list_of, mapping, model_block, number, text, validate
+from estim import registry, tables
+from estim.analyses import ANALYSES
+from estim.errors import ConfigError, UsageError
+from estim.schema import Experiment, integer, list_of, mapping, model_block, number, text, validate
 
 TOLERANCE: dict = {
     "rtol": (number(minimum=0.0, maximum=1.0), 0.0),
@@ -31,7 +30,7 @@ TOLERANCE: dict = {
     "trials": (list_of(text(max_length=100), max_length=4), None),
     "skip": (text(), None),
 }
-"""How ``estim check`` compares one column (see :func:`core.io.compare_tables`)."""
+"""How ``estim check`` compares one column (see :func:`estim.io.compare_tables`)."""
 
 COMMON: dict = {
     "name": (text(max_length=100), None),
@@ -253,7 +252,7 @@ def _check_sweep(sweep: Any, data: dict, source: str, default_name: str, max_wor
 
 def _check_table_ids(spec: dict, module, source: str) -> None:
     """Each ``tables.<metric>`` names a shipped reference table this metric may join, or is
-    :data:`core.tables.OWN_TABLE`."""
+    :data:`estim.tables.OWN_TABLE`."""
     for metric, table_id in (spec.get("tables") or {}).items():
         table = module.TABLES.get(metric)
         if table_id is None or table is None or table_id == tables.OWN_TABLE:

@@ -11,7 +11,7 @@ the state at the end of the interval and the state-transition Jacobian ``F_k``:
                  linear models (so the EKF equals the KF with ``A = exp(F T)``), stable for
                  any stiffness; one batched ``expm`` of the augmented matrix per substep.
 ``radau``        the continuous-discrete EKF: the state is carried over the interval by the
-                 stiff integrator of :mod:`core.simulate` (accurate for strongly nonlinear
+                 stiff integrator of :mod:`estim.simulate` (accurate for strongly nonlinear
                  models, where one linearised step overshoots), ``F = exp(T J(x))`` at the
                  interval's start (eq A.12). A run the integrator cannot carry becomes NaN.
 """
@@ -19,9 +19,8 @@ the state at the end of the interval and the state-transition Jacobian ``F_k``:
 from __future__ import annotations
 
 import numpy as np
-
-from core import linalg
-from core.simulate import simulate
+from estim import linalg
+from estim.simulate import simulate
 
 METHODS = ("euler", "rosenbrock", "exponential", "radau")
 

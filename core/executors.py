@@ -1,7 +1,7 @@
 """Where the work units of a run go besides this machine's processes: Dask distributed
 (``pip install 'estim[dask]'``). An executor is a callable ``executor(fn, tasks) -> iterator
 of (index, result)`` for ``tasks = {index: task}``, yielding in completion order
-(:func:`core.analyses.base.execution`).
+(:func:`estim.analyses.base.execution`).
 
 Each work unit draws from its own ``SeedSequence`` key, so a cell computes the same on any
 worker: a Dask run writes the same tables, byte for byte, as ``--jobs 1``.

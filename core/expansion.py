@@ -29,11 +29,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from estim import kernels
+from estim.errors import SimulationError
+from estim.simulate import SOLVERS
 from scipy import linalg
-
-from core import kernels
-from core.errors import SimulationError
-from core.simulate import SOLVERS
 
 
 @dataclass(frozen=True)
@@ -155,7 +154,7 @@ class ExpandedSystem:
         return f, J
 
     def kernel(self):
-        """The compiled drift for :mod:`core.compiled`:
+        """The compiled drift for :mod:`estim.compiled`:
         ``P = [n, p, A (n*n), B (n*p), H (n*m*m)]``, ``m = n + p``."""
         e = self.expansion
         n, p = e.B.shape

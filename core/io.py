@@ -21,8 +21,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-
-from core.errors import UsageError
+from estim.errors import UsageError
 
 _UMASK = os.umask(0)
 os.umask(_UMASK)
@@ -205,7 +204,7 @@ def versions() -> dict[str, str]:
 def ensure_writable(folder: Path) -> None:
     """Create ``folder`` and prove a file can be written in it, before any work starts.
 
-    Raises :class:`core.errors.UsageError` naming the folder and the reason.
+    Raises :class:`estim.errors.UsageError` naming the folder and the reason.
     """
     try:
         folder.mkdir(parents=True, exist_ok=True)

@@ -10,7 +10,7 @@ estimate ``y'^ = (H^' + H'F) x^`` (eq 11); ``H`` is constant here, so ``H^' = 0`
 Sampled at ``dt``, the model is discretised exactly: ``Phi = e^{F dt}`` and the process
 covariance ``Qd = int_0^dt e^{F s} G G' e^{F' s} ds`` (Van Loan's block exponential); the
 measurement noise of density ``R`` sampled at ``dt`` has variance ``R / dt``. The discrete
-filter is the project's :class:`~core.estimators.kf.KalmanFilter`.
+filter is the project's :class:`~estim.estimators.kf.KalmanFilter`.
 
 The double integrator ``F = [[0, 1], [0, 0]]``, ``G = [0, sqrt(q)]'``, ``H' = [1, 0]`` has a
 closed form (:func:`double_integrator`): ``w0 = (q/r)^(1/4)``, ``K = [sqrt(2) w0, w0^2]``,
@@ -21,9 +21,8 @@ derivative error variance ``P22 = sqrt(2) q^(3/4) r^(1/4)``, and the differentia
 from __future__ import annotations
 
 import numpy as np
+from estim.estimators.kf import KalmanFilter
 from scipy import linalg
-
-from core.estimators.kf import KalmanFilter
 
 
 def check_differentiable(G: np.ndarray, H: np.ndarray) -> None:

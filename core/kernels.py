@@ -2,7 +2,7 @@
 
 A kernel ``k(x, u, P, f, J)`` writes the drift ``f(x, u)`` into ``f`` and its Jacobian into
 ``J``, reading the model's parameters from the vector ``P`` (each model's ``kernel()`` method
-builds it). The integrator in :mod:`core.compiled` calls :func:`evaluate` with the kernel's
+builds it). The integrator in :mod:`estim.compiled` calls :func:`evaluate` with the kernel's
 number, so every compiled function is a module-level function that numba can cache on disk:
 a kernel passed as a function argument was compiled anew in every process (10 s each).
 Adding a kernel is one function here, one number and one branch in :func:`evaluate`.
@@ -29,7 +29,7 @@ MOSFET, DIFFAMP, EXPANDED = 0, 1, 2
 
 
 def _mosfet(x, u, P, f, J):
-    """The EKV MOSFET (``core.models.mosfet_ekv``): ``MosfetEKV.f_and_jacobian`` with the
+    """The EKV MOSFET (``estim.models.mosfet_ekv``): ``MosfetEKV.f_and_jacobian`` with the
     laws ``ekv``, ``weak_inversion`` and ``weak_saturation``, in scalar form.
 
     ``P = [law, I_s, eta, U_T, V_T0, C^-1 (16, row-major), -g (4), i0 (4), b (4)]``."""
@@ -72,7 +72,7 @@ def _mosfet(x, u, P, f, J):
 
 
 def _diffamp(x, u, P, f, J):
-    """The differential amplifier (``core.models.diffamp_em``, ``diffamp_exp``):
+    """The differential amplifier (``estim.models.diffamp_em``, ``diffamp_exp``):
     ``DiffAmpEbersMoll.f_and_jacobian`` and the plain-exponential pair's, in scalar form.
     ``P = [kind (0 Ebers-Moll, 1 exponential), I_ES,
     I_CS, alpha_F, alpha_R, V_T, V_EE, V_CC, R_E, R_L, C_L, R_C1, R_C2, C_par, beta I_0,
@@ -123,7 +123,7 @@ def _diffamp(x, u, P, f, J):
 
 
 def _expanded(x, u, P, f, J):
-    """:meth:`core.expansion.ExpandedSystem.f_and_jacobian` in scalar form (compiled)."""
+    """:meth:`estim.expansion.ExpandedSystem.f_and_jacobian` in scalar form (compiled)."""
     n, p = int(P[0]), int(P[1])
     m = n + p
     oA, oB, oH = 2, 2 + n * n, 2 + n * n + n * p

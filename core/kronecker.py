@@ -6,7 +6,7 @@ About an expansion point ``(x*, u*)`` with deviations ``d = x - x*``, ``w = u - 
 
 with ``A1 = df/dx``, ``A2 = 1/2 H_xx`` reshaped ``n x n^2`` (so ``(d (x) d)[n i + j] =
 d_i d_j``, eq 4.40), ``B = df/du`` and ``A5 = H_xu`` reshaped ``n x n p``: the second-order
-expansion the Chapter 2 engine already computes (:func:`core.expansion.expand`), nothing
+expansion the Chapter 2 engine already computes (:func:`estim.expansion.expand`), nothing
 typed in by hand. The thesis' ``A3 u1 + A4 u2`` is ``B w`` plus the constant ``f0`` here;
 its noise terms ``A6 dbeta + A7 (x (x) dbeta)`` belong to the filter's ``Q``.
 
@@ -27,9 +27,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from estim.expansion import expand
 from scipy import linalg
-
-from core.expansion import expand
 
 
 @dataclass(frozen=True)

@@ -19,8 +19,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 
 import numpy as np
-
-from core import linalg
+from estim import linalg
 
 _tally: list[dict] = []
 
@@ -63,7 +62,7 @@ def mul(a: np.ndarray, b: np.ndarray, label: str = "other") -> np.ndarray:
 
 
 def solve(S: np.ndarray, B: np.ndarray, label: str = "other") -> np.ndarray:
-    """``S^-1 B`` (batched, :func:`core.linalg.solve`); counts ``m^3/3 + m^2 k`` per system."""
+    """``S^-1 B`` (batched, :func:`estim.linalg.solve`); counts ``m^3/3 + m^2 k`` per system."""
     out = linalg.solve(S, B)
     if _tally:
         m, k = S.shape[-1], B.shape[-1]

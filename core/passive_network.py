@@ -21,8 +21,7 @@ suggest. The signal is ``x(t) = A e^{-t} + N`` (eqs 25-26), fed to the estimator
 from __future__ import annotations
 
 import numpy as np
-
-from core.estimators.kf import KalmanFilter
+from estim.estimators.kf import KalmanFilter
 
 
 def estimator(z: np.ndarray, dt: float, u: float, x0: float, v0: float, kind: str,

@@ -1,22 +1,22 @@
 """Names used in configs -> implementations. Adding a model or filter is one line here.
 
-Analyses register in :data:`core.analyses.ANALYSES` the same way.
+Analyses register in :data:`estim.analyses.ANALYSES` the same way.
 """
 
 from __future__ import annotations
 
-from core.estimators.ekf import ExtendedKalmanFilter
-from core.estimators.kf import KalmanFilter
-from core.estimators.kronecker_ekf import KroneckerEKF
-from core.estimators.rls import RecursiveLeastSquares
-from core.estimators.ukf import UnscentedKalmanFilter
-from core.estimators.wavelet_lms import WaveletLMS
-from core.models.cco import CrossCoupledOscillator
-from core.models.diffamp_em import DiffAmpEbersMoll
-from core.models.diffamp_exp import DiffAmpExponential
-from core.models.mosfet_darlington import MosfetDarlington
-from core.models.mosfet_ekv import MosfetEKV
-from core.models.mosfet_printed import MosfetPrinted
+from estim.estimators.ekf import ExtendedKalmanFilter
+from estim.estimators.kf import KalmanFilter
+from estim.estimators.kronecker_ekf import KroneckerEKF
+from estim.estimators.rls import RecursiveLeastSquares
+from estim.estimators.ukf import UnscentedKalmanFilter
+from estim.estimators.wavelet_lms import WaveletLMS
+from estim.models.cco import CrossCoupledOscillator
+from estim.models.diffamp_em import DiffAmpEbersMoll
+from estim.models.diffamp_exp import DiffAmpExponential
+from estim.models.mosfet_darlington import MosfetDarlington
+from estim.models.mosfet_ekv import MosfetEKV
+from estim.models.mosfet_printed import MosfetPrinted
 
 MODELS = {
     "cco": CrossCoupledOscillator,

@@ -12,8 +12,7 @@ import re
 from dataclasses import dataclass, field
 
 import pandas as pd
-
-from core import tables
+from estim import tables
 
 STYLE = """
 body { font-family: sans-serif; margin: 2em; max-width: 110em; color: #222; }

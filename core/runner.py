@@ -6,12 +6,11 @@ import itertools
 from collections.abc import Callable
 
 import pandas as pd
-
-from core.analyses import ANALYSES
-from core.analyses.base import Result, ShardDone, sweep_cell
-from core.config import apply_overrides, parse_data
-from core.schema import Experiment
-from core.tables import SWEEP_PREFIX
+from estim.analyses import ANALYSES
+from estim.analyses.base import Result, ShardDone, sweep_cell
+from estim.config import apply_overrides, parse_data
+from estim.schema import Experiment
+from estim.tables import SWEEP_PREFIX
 
 
 def sweep_cells(exp: Experiment) -> list[tuple[dict, Experiment]]:

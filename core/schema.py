@@ -16,8 +16,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-
-from core.errors import ConfigError, ConfigErrors, ParameterError
+from estim.errors import ConfigError, ConfigErrors, ParameterError
 
 REQUIRED = object()
 
@@ -121,7 +120,7 @@ def validate(value: Any, spec: Any, source: str, path: str) -> Any:
     """``value`` checked against ``spec``, with every default of a nested schema filled in.
 
     Every problem is found before raising: one ``ConfigError`` for one, a
-    :class:`~core.errors.ConfigErrors` listing all of them (one per line) for several."""
+    :class:`~estim.errors.ConfigErrors` listing all of them (one per line) for several."""
     errors: list[ConfigError] = []
     out = _validate(value, spec, source, path, errors)
     if len(errors) == 1:

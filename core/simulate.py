@@ -14,10 +14,9 @@ together in one vectorised loop. ``tests/test_mosfet.py`` checks the result agai
 from __future__ import annotations
 
 import numpy as np
+from estim import compiled, linalg
+from estim.errors import SimulationError
 from scipy.integrate import solve_ivp
-
-from core import compiled, linalg
-from core.errors import SimulationError
 
 # The Radau IIA tableau and its embedded error estimate (Hairer & Wanner, Solving ODEs II,
 # IV.8; as scipy), shared with the compiled integrator.
@@ -83,7 +82,7 @@ def simulate(model, x0: np.ndarray, u: np.ndarray, dt: float, rtol: float = 1e-6
     u : ``(runs, steps, p)`` input, constant on each interval ``[t_k, t_{k+1})``.
     on_failure : ``"raise"`` a :class:`SimulationError` when a run's step size underflows,
         or ``"nan"``: that run's states become NaN from there on and the others go on.
-    engine : ``"compiled"`` (:mod:`core.compiled`, the same algorithm compiled with numba;
+    engine : ``"compiled"`` (:mod:`estim.compiled`, the same algorithm compiled with numba;
         needs numba and a model with a ``kernel``), ``"numpy"``, or ``"auto"``: compiled
         where it can be.
 

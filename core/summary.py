@@ -1,7 +1,7 @@
 """Results prose generated from the stored tables (``estim summary``).
 
 For every stored experiment: each claim's verdict counts (holds / fails / undecided out of
-the cells it was judged in, :mod:`core.claims`) with the range of the ratio of the losses,
+the cells it was judged in, :mod:`estim.claims`) with the range of the ratio of the losses,
 and the ranges of the quantities its analysis quotes (:class:`Quote`, declared in the
 analysis module as ``QUOTES``). The README's results sections embed these blocks between
 markers (:func:`refresh`), and a test fails when one of them no longer matches the stored
@@ -16,9 +16,8 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-
-from core import claims
-from core.io import read_manifest, read_table
+from estim import claims
+from estim.io import read_manifest, read_table
 
 
 @dataclass(frozen=True)

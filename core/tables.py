@@ -10,9 +10,8 @@ from importlib import resources
 
 import numpy as np
 import pandas as pd
-
-from core.analyses.base import TableSpec
-from core.errors import ReferenceJoinError
+from estim.analyses.base import TableSpec
+from estim.errors import ReferenceJoinError
 
 OWN_TABLE = "ours"
 """``tables.<metric>: ours`` in a config writes the table without naming a thesis table (a
@@ -24,12 +23,12 @@ def _reference_name(table_id: str) -> str:
 
 
 def has_reference_table(table_id: str) -> bool:
-    return resources.files("core.reference").joinpath(_reference_name(table_id)).is_file()
+    return resources.files("estim.reference").joinpath(_reference_name(table_id)).is_file()
 
 
 def reference_table(table_id: str) -> pd.DataFrame:
-    """A reference (thesis) table as printed, shipped in :mod:`core.reference`."""
-    with resources.files("core.reference").joinpath(_reference_name(table_id)).open("r") as fh:
+    """A reference (thesis) table as printed, shipped in :mod:`estim.reference`."""
+    with resources.files("estim.reference").joinpath(_reference_name(table_id)).open("r") as fh:
         return pd.read_csv(fh, dtype={"noise_param_value": float, "table_id": str})
 
 

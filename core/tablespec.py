@@ -14,7 +14,7 @@ class TableSpec:
     ``reference`` names the value columns the reference table prints under the same name;
     ``join`` pairs each of our key columns with the reference column (or the first present of
     several accepted names) it matches. Each of our rows must match at most one reference
-    row, and every reference row must be matched (:func:`core.tables.with_reference`).
+    row, and every reference row must be matched (:func:`estim.tables.with_reference`).
     """
 
     file: str

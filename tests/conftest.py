@@ -1,8 +1,7 @@
 import numpy as np
 import pytest
+from estim.models.base import Model
 from scipy import linalg
-
-from core.models.base import Model
 
 
 class LinearModel(Model):

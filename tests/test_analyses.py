@@ -6,11 +6,10 @@ import pandas as pd
 import pytest
 import yaml
 from click.testing import CliRunner
-
-from cli.main import main
-from core import claims, io
-from core.analyses import ANALYSES
-from core.config import parse_data
+from estim import claims, io
+from estim.analyses import ANALYSES
+from estim.cli.main import main
+from estim.config import parse_data
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = sorted((ROOT / "configs").glob("*.yaml"))
@@ -110,8 +109,8 @@ def test_inputs_perturbed_at_1e_12_stay_within_the_check_tolerances(tmp_path, pa
 
 @pytest.mark.parametrize("path", CONFIGS, ids=lambda p: p.stem)
 def test_stored_results_join_every_thesis_row(path):
-    from core import tables
-    from core.io import read_table
+    from estim import tables
+    from estim.io import read_table
     exp = parse_data(yaml.safe_load(path.read_text()), str(path), path.stem)
     if not any(spec.join for spec in ANALYSES[exp.analysis].TABLES.values()):
         pytest.skip(f"{exp.analysis}: the paper prints no numbers to join")

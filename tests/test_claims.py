@@ -1,10 +1,9 @@
-"""The claims engine (core.claims): one rule for every table (docs/claims.md)."""
+"""The claims engine (estim.claims): one rule for every table (docs/claims.md)."""
 
 import numpy as np
 import pytest
-
-from core import claims
-from core.claims import Losses
+from estim import claims
+from estim.claims import Losses
 
 
 def paired(shift_in_se: float, runs: int = 30, seed: int = 0):

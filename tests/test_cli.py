@@ -6,9 +6,8 @@ import pandas as pd
 import pytest
 import yaml
 from click.testing import CliRunner
-
-from cli.main import main
-from core.config import parse_override
+from estim.cli.main import main
+from estim.config import parse_override
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -117,8 +116,8 @@ def test_config_errors_exit_2_naming_file_and_key(tmp_path, changes, key, expect
 
 
 def test_paired_sweep_follows_the_thesis_rows():
-    from core.analyses.estimation import sweep
-    from core.config import parse
+    from estim.analyses.estimation import sweep
+    from estim.config import parse
 
     text = (ROOT / "configs" / "diffamp_ekf.yaml").read_text()
     points = sweep(parse(text, "diffamp_ekf.yaml", "diffamp_ekf"))
@@ -383,12 +382,13 @@ def test_every_package_of_the_tree_is_shipped():
     import tomllib
 
     root = Path(__file__).resolve().parents[1]
-    listed = set(tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]
-                 ["packages"])
-    for top in ("core", "cli"):
-        for init in (root / top).rglob("__init__.py"):
-            name = ".".join(init.parent.relative_to(root).parts)
+    setuptools = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]
+    listed = set(setuptools["packages"])
+    for package, folder in setuptools["package-dir"].items():
+        for init in (root / folder).rglob("__init__.py"):
+            name = ".".join((package, *init.parent.relative_to(root / folder).parts))
             assert name in listed, f"{name} is not in pyproject.toml's packages"
+    assert not {name.split(".")[0] for name in listed} - {"estim"}, "one import package"
 
 
 def test_table_with_thesis_on_a_table_without_printed_values_prints_it_plainly():
@@ -471,7 +471,7 @@ def test_every_config_mistake_at_once_with_suggestions(tmp_path):
 def test_every_shipped_config_has_a_valid_quick_profile(path):
     """``estim run CONFIG --quick`` validates the shrunk config again: it must pass (a config
     without ``reproduces`` used to fail here)."""
-    from cli.main import load
+    from estim.cli.main import load
 
     exp = load(path, quick=True)
     assert exp.name == path.stem
@@ -483,12 +483,12 @@ def test_entry_point_lists_commands_without_loading_them():
     import subprocess
     import sys
 
-    from cli import entry
+    from estim.cli import entry
 
     assert set(entry.SHORT_HELP) == set(main.commands)
     code = ("import sys; from click.testing import CliRunner; from cli.entry import main; "
             "r = CliRunner().invoke(main, ['--help']); assert r.exit_code == 0, r.output; "
-            "print(sorted(m for m in ('pandas', 'matplotlib', 'scipy', 'cli.main') "
+            "print(sorted(m for m in ('pandas', 'matplotlib', 'scipy', 'estim.cli.main') "
             "if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          cwd=ROOT, check=True).stdout.strip()
@@ -561,7 +561,7 @@ def test_a_dask_run_writes_the_same_bytes_as_jobs_1(tmp_path):
 
 
 def test_an_interrupted_run_resumes_with_its_finished_cells(tmp_path, monkeypatch):
-    from core.analyses import estimation
+    from estim.analyses import estimation
 
     path = write(tmp_path, tiny_config(**{"input.frequencies_hz": [100, 1000, 10000]}))
     runner = CliRunner()
@@ -665,7 +665,7 @@ def test_vector_figures_are_deterministic(tmp_path, fmt, magic):
 
 
 def test_table_help_lists_every_metric_with_its_analyses():
-    from core import runner
+    from estim import runner
 
     text = CliRunner().invoke(main, ["table", "--help"]).output
     for metric, specs in runner.table_specs().items():
@@ -779,8 +779,8 @@ def test_exponent_floats_read_as_numbers_in_files_and_nested_overrides(tmp_path)
 
 def test_sweep_work_counts_what_each_value_costs(tmp_path):
     """A swept ``monte_carlo.runs`` scales the grid's work: the --max-work bound sees it."""
-    from core.analyses import ANALYSES
-    from core.config import parse_data
+    from estim.analyses import ANALYSES
+    from estim.config import parse_data
 
     spec = tiny_config()
     work = ANALYSES["estimation"].work_size(parse_data(spec, "t", "tiny").spec)
@@ -819,8 +819,8 @@ def test_quick_ignores_the_size_of_the_grid_it_does_not_run(tmp_path):
     spec["sweep"] = {"monte_carlo.runs": [3, 4, 5]}
     path = write(tmp_path, spec)
     runner = CliRunner()
-    from core.analyses import ANALYSES
-    from core.config import parse_data
+    from estim.analyses import ANALYSES
+    from estim.config import parse_data
 
     work = ANALYSES["estimation"].work_size(parse_data(tiny_config(), "t", "tiny").spec)
     limit = str(2 * work)                       # one cell fits, the grid of three does not
@@ -844,8 +844,7 @@ def test_gain_table_skips_a_swept_experiment_without_gain_values(tmp_path):
 
 def test_a_sweep_holds_one_cells_figures_at_a_time(tmp_path, monkeypatch):
     import matplotlib.pyplot as plt
-
-    from core import io as estim_io
+    from estim import io as estim_io
 
     spec = tiny_config()
     spec["sweep"] = {"noise.measurement_sigma": [0.05, 0.1, 0.15, 0.2]}

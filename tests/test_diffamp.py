@@ -1,8 +1,7 @@
 import numpy as np
 import pytest
-
-from core.models.diffamp_em import DiffAmpEbersMoll
-from core.simulate import simulate
+from estim.models.diffamp_em import DiffAmpEbersMoll
+from estim.simulate import simulate
 
 
 def test_jacobian_matches_finite_differences():
@@ -57,8 +56,8 @@ def test_printed_q_in_volts_keeps_the_output_gain_below_one():
     model's charge state q_L (C^2) it is 1e8 V^2 on the load capacitor: the first update's
     gain on the output is 1 and the EKF returns the measurement. Mapped by the model's
     state scales (C_L for q_L) the gain stays well below 1."""
-    from core import discretize
-    from core.estimators.ekf import ExtendedKalmanFilter
+    from estim import discretize
+    from estim.estimators.ekf import ExtendedKalmanFilter
 
     model = DiffAmpEbersMoll()
     u = np.array([1.0, 1.0])

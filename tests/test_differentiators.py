@@ -4,9 +4,8 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
-
-from core import differentiators as fd
-from core import tables
+from estim import differentiators as fd
+from estim import tables
 
 
 def test_n2_coefficients():

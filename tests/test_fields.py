@@ -4,8 +4,7 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
-
-from core.fields import operators as ops
+from estim.fields import operators as ops
 
 
 def _grid(n, length=1.0):
@@ -46,7 +45,7 @@ def _highest_mode(n):
 def _growth(method, courant, n=12):
     """Spectral radius of one step on the highest mode: the 2 x 2 map the stepper applies
     to (mode amplitude, its rate), read off the real stepper."""
-    from core.fields import wave
+    from estim.fields import wave
 
     h, mode = _highest_mode(n)
     L = ops.laplacian(n, h)
@@ -69,7 +68,7 @@ def test_forward_euler_grows_at_every_step_size(courant):
 
 
 def test_dipole_fields_follow_from_its_potentials():
-    from core.fields.dipole import Dipole
+    from estim.fields.dipole import Dipole
 
     d = Dipole()
     r, th, h = np.array([0.11, 0.4, 2.3]), np.array([0.7, 1.2, 2.0]), 1e-6
@@ -87,7 +86,7 @@ def test_dipole_fields_follow_from_its_potentials():
 
 
 def _literal_batch(series=4, steps=60, seed=0):
-    from core.fields.dipole import Dipole
+    from estim.fields.dipole import Dipole
 
     d = Dipole()
     dt = 1 / 50
@@ -104,7 +103,7 @@ def _literal_batch(series=4, steps=60, seed=0):
 
 
 def test_literal_unmeasured_points_are_the_open_loop():
-    from core.analyses.dipole import kf_per_point
+    from estim.analyses.dipole import kf_per_point
 
     truth, z, dt, spec = _literal_batch()
     measured = np.array([True, False, True, False])
@@ -117,7 +116,7 @@ def test_literal_unmeasured_points_are_the_open_loop():
 
 
 def test_literal_kf_smooths_the_measured_potentials():
-    from core.analyses.dipole import kf_per_point
+    from estim.analyses.dipole import kf_per_point
 
     truth, z, dt, spec = _literal_batch(series=8, steps=200)
     out = kf_per_point(truth, z, dt, spec)
@@ -129,8 +128,8 @@ def test_literal_kf_smooths_the_measured_potentials():
 def _plain_floor(n, boundary="mur", length=4.0, periods=5):
     """Relative RMS error of the plain simulation's E against the analytic dipole over its
     last period, in a near shell (0.25-0.45 wavelengths) and a far one (1.2-1.8)."""
-    from core.fields.dipole import Dipole
-    from core.fields.fdtd import Grid, Simulation, fields_from, spherical
+    from estim.fields.dipole import Dipole
+    from estim.fields.fdtd import Grid, Simulation, fields_from, spherical
 
     g = Grid(n, length / n)
     d = Dipole(dl=g.spacing)
@@ -167,7 +166,7 @@ def test_plain_simulation_error_shrinks_with_the_grid_and_mur_beats_a_dirichlet_
 
 
 def test_etkf_equals_the_kalman_filter_on_a_linear_model_with_an_exact_ensemble():
-    from core.fields import etkf
+    from estim.fields import etkf
 
     rng = np.random.default_rng(7)
     n, p, m = 12, 5, 6                       # rank of P0: m - 1 = 5 directions
@@ -195,8 +194,8 @@ def test_etkf_equals_the_kalman_filter_on_a_linear_model_with_an_exact_ensemble(
 
 
 def test_with_the_wrong_source_the_field_filter_cuts_the_open_loop_error():
-    from core.analyses import dipole_field
-    from core.config import parse_data
+    from estim.analyses import dipole_field
+    from estim.config import parse_data
 
     spec = yaml.safe_load(open("configs/dipole_field.yaml"))
     spec.pop("check", None)
@@ -222,10 +221,10 @@ def test_field_etkf_equals_a_dense_kalman_filter_on_an_8_cube():
     members differ only in their source amplitude, so the covariance has rank 2 and the
     ensemble represents it exactly; a dense KF on the same linear model, started from the
     ensemble's mean and covariance, must give the same analysis mean."""
-    from core.analyses.dipole_field import _observe, sensor_operators
-    from core.fields import etkf
-    from core.fields.dipole import Dipole
-    from core.fields.fdtd import Grid, Simulation
+    from estim.analyses.dipole_field import _observe, sensor_operators
+    from estim.fields import etkf
+    from estim.fields.dipole import Dipole
+    from estim.fields.fdtd import Grid, Simulation
 
     g = Grid(8, 0.25)
     d = Dipole(dl=g.spacing)

@@ -1,14 +1,13 @@
 import numpy as np
 import pytest
+from estim import discretize, registry
+from estim.estimators.base import Estimate
+from estim.estimators.ekf import ExtendedKalmanFilter
+from estim.estimators.kf import KalmanFilter
+from estim.estimators.rls import RecursiveLeastSquares
+from estim.estimators.ukf import UnscentedKalmanFilter
+from estim.models.mosfet_ekv import MosfetEKV
 from scipy import linalg
-
-from core import discretize, registry
-from core.estimators.base import Estimate
-from core.estimators.ekf import ExtendedKalmanFilter
-from core.estimators.kf import KalmanFilter
-from core.estimators.rls import RecursiveLeastSquares
-from core.estimators.ukf import UnscentedKalmanFilter
-from core.models.mosfet_ekv import MosfetEKV
 
 
 def test_kf_reaches_closed_form_steady_state_scalar():

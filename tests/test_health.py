@@ -1,13 +1,12 @@
-"""Filter health (core.health) and the RLS settings the audit of issue 11 named."""
+"""Filter health (estim.health) and the RLS settings the audit of issue 11 named."""
 
 import numpy as np
 import pytest
+from estim import health
+from estim.estimators.base import Estimate
+from estim.estimators.kf import KalmanFilter
+from estim.estimators.rls import RecursiveLeastSquares
 from scipy import stats
-
-from core import health
-from core.estimators.base import Estimate
-from core.estimators.kf import KalmanFilter
-from core.estimators.rls import RecursiveLeastSquares
 
 A = np.array([[0.95, 0.1], [-0.1, 0.95]])
 C = np.array([[1.0, 0.0]])

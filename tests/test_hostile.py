@@ -16,12 +16,11 @@ import pandas as pd
 import pytest
 import yaml
 from click.testing import CliRunner
-
-from cli.main import main
-from core import io
-from core.analyses import ANALYSES
-from core.config import apply_overrides, parse_data
-from core.errors import ConfigError
+from estim import io
+from estim.analyses import ANALYSES
+from estim.cli.main import main
+from estim.config import apply_overrides, parse_data
+from estim.errors import ConfigError
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = {p.stem: yaml.safe_load(p.read_text()) for p in sorted((ROOT / "configs").glob("*.yaml"))}
@@ -471,7 +470,7 @@ def test_read_only_folder_is_found_before_any_work(tmp_path):
 
 
 def estim(*args, cwd):
-    return subprocess.Popen([sys.executable, "-m", "cli.main", *args], cwd=cwd,
+    return subprocess.Popen([sys.executable, "-m", "estim.cli.main", *args], cwd=cwd,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 

@@ -2,8 +2,7 @@
 
 import numpy as np
 import pytest
-
-from core.images import kalman2d, nshp
+from estim.images import kalman2d, nshp
 
 A_TRUE = np.array([0.6, 0.3, 0.5, -0.45])        # M = 1: (0,1), (1,-1), (1,0), (1,1)
 
@@ -156,7 +155,7 @@ def test_table_i_sensitivities_are_the_derivatives_of_the_restored_image():
 
 
 def test_vector_yule_walker_recovers_a_vector_ar_1():
-    from core.images import strip
+    from estim.images import strip
 
     rng = np.random.default_rng(4)
     W = 4
@@ -174,7 +173,7 @@ def test_eqs_36_equal_a_standard_kalman_filter_on_the_synchronised_model():
     """The composite model of eq 22 with a blur state, filtered by eqs 36a-f, gives the same
     image estimates as an ordinary Kalman filter on [x1(k); x2(k)], the synchronised model
     the paper says would not give "true filtered" estimates."""
-    from core.images import strip
+    from estim.images import strip
 
     rng = np.random.default_rng(8)
     W, P, n2 = 3, 2, 2
@@ -209,9 +208,8 @@ def test_eqs_36_equal_a_standard_kalman_filter_on_the_synchronised_model():
 
 
 def test_strip_filter_with_noise_taken_off_improves_camera_at_5_db():
+    from estim.images import strip
     from skimage import data
-
-    from core.images import strip
 
     img = data.camera().astype(float)[:128, :256]
     u = img - img.mean()
@@ -225,7 +223,7 @@ def test_strip_filter_with_noise_taken_off_improves_camera_at_5_db():
 def test_online_identification_is_the_batch_solution_of_the_columns_so_far():
     """Eq 15's recursion of the covariances is exact: the model used at the last column is
     the batch vector Yule-Walker solution of all the columns before it."""
-    from core.images import strip
+    from estim.images import strip
 
     rng = np.random.default_rng(2)
     Z = rng.standard_normal((3, 4, 60)).cumsum(axis=-1) * 0.1 + rng.standard_normal((3, 4, 60))
@@ -238,7 +236,7 @@ def test_online_identification_is_the_batch_solution_of_the_columns_so_far():
 def test_eq_17_is_only_first_order():
     """Eq 17 is the first-order Neumann term, not the (exact) inversion lemma: its error
     falls as the square of the update, quartering when the update halves."""
-    from core.images import strip
+    from estim.images import strip
 
     rng = np.random.default_rng(6)
     A = rng.standard_normal((6, 6))

@@ -1,7 +1,6 @@
 import pandas as pd
 import pytest
-
-from core import io
+from estim import io
 
 
 def test_atomic_write_leaves_old_file_when_interrupted(tmp_path, monkeypatch):

@@ -5,16 +5,15 @@ import copy
 import numpy as np
 import pytest
 import yaml
-
-from core import kronecker, opcount, signals
-from core.analyses import kronecker as analysis
-from core.config import parse_data
-from core.estimators.kf import KalmanFilter
-from core.estimators.kronecker_ekf import KroneckerEKF
-from core.estimators.wavelet_lms import WaveletLMS, regressors
-from core.models.mosfet_darlington import MosfetDarlington
-from core.models.mosfet_ekv import MosfetEKV
-from core.models.mosfet_printed import MosfetPrinted
+from estim import kronecker, opcount, signals
+from estim.analyses import kronecker as analysis
+from estim.config import parse_data
+from estim.estimators.kf import KalmanFilter
+from estim.estimators.kronecker_ekf import KroneckerEKF
+from estim.estimators.wavelet_lms import WaveletLMS, regressors
+from estim.models.mosfet_darlington import MosfetDarlington
+from estim.models.mosfet_ekv import MosfetEKV
+from estim.models.mosfet_printed import MosfetPrinted
 
 CIRCUIT = {"W_L": 1.0, "R_D": 1e9, "V_IN": 0.5}
 
@@ -38,7 +37,7 @@ def test_kronecker_model_error_is_third_order_and_linear_second_order():
 
 @pytest.mark.parametrize("name", ["cco", "mosfet_darlington"])
 def test_kronecker_form_of_other_registered_models_is_third_order(name):
-    from core import registry
+    from estim import registry
 
     m = registry.MODELS[name]()
     x, u = m.operating_point(), np.zeros(m.n_inputs)
@@ -209,7 +208,7 @@ def test_without_area_scaled_caps_equal_w_over_l_gives_equal_columns():
 
 
 def test_burden_counts_equal_the_closed_forms_of_what_the_code_does():
-    from core.analyses import burden
+    from estim.analyses import burden
 
     spec = yaml.safe_load(open("configs/kronecker_burden.yaml"))
     spec = burden.tiny(copy.deepcopy(spec))

@@ -1,9 +1,8 @@
 import numpy as np
 import pytest
+from estim.linalg import expm
+from estim.models.mosfet_ekv import MosfetEKV
 from scipy import linalg as sl
-
-from core.linalg import expm
-from core.models.mosfet_ekv import MosfetEKV
 
 
 @pytest.mark.parametrize("scale", [1e-3, 1.0, 30.0])

@@ -5,10 +5,9 @@ import copy
 import numpy as np
 import pandas as pd
 import yaml
-
-from core import passive_network as pn
-from core.analyses import passive_network as analysis
-from core.config import parse_data
+from estim import passive_network as pn
+from estim.analyses import passive_network as analysis
+from estim.config import parse_data
 
 
 def test_eq19_with_u_equal_q_is_the_kalman_bucy_filter():

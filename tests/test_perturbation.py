@@ -6,13 +6,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-
-from core import config, metrics
-from core.analyses import perturbation as analysis
-from core.errors import SimulationError
-from core.expansion import expand, respond
-from core.models.base import Model
-from core.models.diffamp_em import DiffAmpEbersMoll
+from estim import config, metrics
+from estim.analyses import perturbation as analysis
+from estim.errors import SimulationError
+from estim.expansion import expand, respond
+from estim.models.base import Model
+from estim.models.diffamp_em import DiffAmpEbersMoll
 
 ROOT = Path(__file__).resolve().parents[1]
 

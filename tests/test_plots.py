@@ -2,8 +2,7 @@
 readable windows, units in titles."""
 
 import numpy as np
-
-from core import plots
+from estim import plots
 
 
 def _trace(n=400, f=1000.0, dt=1e-4):

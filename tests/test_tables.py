@@ -1,11 +1,10 @@
 import numpy as np
 import pandas as pd
 import pytest
-
-from core import tables
-from core.analyses import estimation
-from core.analyses.base import TableSpec
-from core.errors import ReferenceJoinError
+from estim import tables
+from estim.analyses import estimation
+from estim.analyses.base import TableSpec
+from estim.errors import ReferenceJoinError
 
 RMSE = estimation.TABLES["rmse"]
 
@@ -61,8 +60,7 @@ def test_thesis_tables_ship_with_the_package():
 
 def test_render_latex_markdown_and_text_are_fit_for_a_paper():
     import pandas as pd
-
-    from core import tables
+    from estim import tables
 
     df = pd.DataFrame({"frequency_hz": [100.0, 10000.0], "noise_param": [0.25, 1e-7],
                        "estimator": ["EKF (fitted Q)", "x_1 & 50%"],

@@ -1,9 +1,8 @@
-"""Maximum-likelihood noise fitting (core.tuning)."""
+"""Maximum-likelihood noise fitting (estim.tuning)."""
 
 import numpy as np
-
-from core import tuning
-from core.estimators.ekf import ExtendedKalmanFilter
+from estim import tuning
+from estim.estimators.ekf import ExtendedKalmanFilter
 
 
 def simulate(model, q, r, runs, steps, dt, seed):

@@ -1,8 +1,8 @@
-"""The registered analyses: one line each (see :mod:`core.analyses.base` for the protocol)."""
+"""The registered analyses: one line each (see :mod:`estim.analyses.base` for the protocol)."""
 
 from __future__ import annotations
 
-from core.analyses import (
+from estim.analyses import (
     burden,
     differentiator,
     dipole,

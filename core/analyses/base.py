@@ -1,9 +1,9 @@
 """What every analysis module provides, and what the runner, the CLI and ``estim check`` use.
 
-An analysis is a module registered by one line in :data:`core.analyses.ANALYSES`. It owns:
+An analysis is a module registered by one line in :data:`estim.analyses.ANALYSES`. It owns:
 
-``SCHEMA``      its config keys beyond the common ones of :mod:`core.config` (a schema of
-                :mod:`core.schema`; it may re-declare a common key, e.g. make ``model``
+``SCHEMA``      its config keys beyond the common ones of :mod:`estim.config` (a schema of
+                :mod:`estim.schema`; it may re-declare a common key, e.g. make ``model``
                 required)
 ``TABLES``      ``{metric: TableSpec}``: every table it writes, its columns and the key that
                 joins a row to the reference (thesis or paper) table
@@ -28,8 +28,7 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import pandas as pd
-
-from core.tablespec import TableSpec
+from estim.tablespec import TableSpec
 
 __all__ = ["TableSpec"]
 
@@ -66,9 +65,9 @@ def _ignore_interrupts() -> None:
 class Execution:
     """How :func:`map_tasks` runs inside :func:`execution`: ``executor`` (``None``: this
     machine, ``jobs`` processes) is a callable ``executor(fn, tasks) -> iterator of (index,
-    result)`` in any order (:func:`core.executors.dask_executor`); ``store`` keeps finished
+    result)`` in any order (:func:`estim.executors.dask_executor`); ``store`` keeps finished
     cells, ``store.get(key) -> (found, value)`` and ``store.put(key, value)``
-    (:class:`core.io.CellStore`), keyed by the sweep cell, the map call's number within it
+    (:class:`estim.io.CellStore`), keyed by the sweep cell, the map call's number within it
     and the task's index. ``offsets`` counts the tasks of each map call number over the
     sweep cells so far (empty: the analysis made no map call, so a shard cannot share it
     out); ``computed`` counts the cells computed here."""

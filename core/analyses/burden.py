@@ -5,7 +5,7 @@ three numbers stand beside each printed row:
 
 ``printed``   the thesis' formula evaluated at ``n_x``, ``d`` (outputs) and ``p`` (inputs);
 ``counted``   the multiplications our code performs per step, read off its code path
-              (:mod:`core.opcount`), for the same equation;
+              (:mod:`estim.opcount`), for the same equation;
 ``ours_formula``  the closed form of what the code does (a test checks it equals the count);
               in Table 4.4's rows ``N`` is the block length, ``q`` the measured states,
               ``D = q + q(q+1)/2 + p + 1`` the regressors, ``K`` the kept wavelet
@@ -28,13 +28,12 @@ from collections.abc import Callable
 import numpy as np
 import pandas as pd
 import pywt
-
-from core import claims, opcount, plots, registry, tables
-from core.analyses.base import Result, TableSpec
-from core.errors import ConfigError
-from core.estimators.kronecker_ekf import KroneckerEKF
-from core.estimators.wavelet_lms import WaveletLMS
-from core.schema import (
+from estim import claims, opcount, plots, registry, tables
+from estim.analyses.base import Result, TableSpec
+from estim.errors import ConfigError
+from estim.estimators.kronecker_ekf import KroneckerEKF
+from estim.estimators.wavelet_lms import WaveletLMS
+from estim.schema import (
     REQUIRED,
     Experiment,
     build_estimator,
@@ -47,7 +46,7 @@ from core.schema import (
     number,
     text,
 )
-from core.summary import Quote
+from estim.summary import Quote
 
 SCHEMA: dict = {
     "model": model_block(registry.MODELS),

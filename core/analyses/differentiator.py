@@ -2,13 +2,13 @@
 in ``shared/seeds/002_a5009dd315ab9542.txt``: Table II and Fig 3).
 
 For every cell of Table II (band ``[omega_p pi, pi]`` x relative-error bound): the order
-``N2`` of the maximally linear design that meets it (:mod:`core.differentiators`, exact
+``N2`` of the maximally linear design that meets it (:mod:`estim.differentiators`, exact
 rational coefficients) and the number of taps ``N1`` of the full-band minimax
 relative-error design (``scipy.signal.remez``) that meets it, searched up to ``max_taps``;
 with the relative error each achieves. The paper's N1 designs cover the whole band
 ``[0, pi]`` (its remark 1), as ours do here: that is the paper's comparison. Beside it,
 ``n_band_minimax``: the minimax design of the proposed mixed structure over ``[omega_p pi,
-pi]`` only (linear programming, :func:`core.differentiators.minimax_band`), which the paper
+pi]`` only (linear programming, :func:`estim.differentiators.minimax_band`), which the paper
 does not compare with (docs/deviations.md D63).
 
 Fig 3: RE in dB against ``w / pi`` for ``n = 1, 2, 3, 5, 7, 10`` (RE -> -inf at pi: the
@@ -21,12 +21,11 @@ from collections.abc import Callable
 
 import numpy as np
 import pandas as pd
-
-from core import claims, plots
-from core import differentiators as fd
-from core.analyses.base import Result, TableSpec
-from core.schema import Experiment, file_name, integer, list_of, number, text
-from core.summary import Quote
+from estim import claims, plots
+from estim import differentiators as fd
+from estim.analyses.base import Result, TableSpec
+from estim.schema import Experiment, file_name, integer, list_of, number, text
+from estim.summary import Quote
 
 SCHEMA: dict = {
     "bands": (list_of(number(minimum=0.01, maximum=0.999), max_length=50),

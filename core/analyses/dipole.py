@@ -10,9 +10,9 @@ Variant ``literal`` (eqs 5.42-5.47). On a grid of points ``(r, theta)`` in each 
    (``B^(3)``; the thesis puts the current noise on ``A``, docs/deviations.md);
 2. ``A_r, A_theta, Phi`` are measured at every point with white noise ``sqrt(R_k)`` (eqs
    5.46-5.47);
-3. the KF (Appendix A.1, the project's :class:`~core.estimators.kf.KalmanFilter`) runs per
+3. the KF (Appendix A.1, the project's :class:`~estim.estimators.kf.KalmanFilter`) runs per
    point with the printed ``Q``, ``R``, ``P0`` from the analytic initial state; RLS (the
-   project's :class:`~core.estimators.rls.RecursiveLeastSquares`, fixed forgetting, its
+   project's :class:`~estim.estimators.rls.RecursiveLeastSquares`, fixed forgetting, its
    regressor the taps of ``cos(omega t)``: a sinusoid of the known frequency per point)
    smooths each measured potential, rates by a backward difference;
 4. ``E = -grad Phi - V`` (eq 5.25) and ``H = curl A / mu0`` (eq 5.27) by finite differences
@@ -34,16 +34,15 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-
-from core import claims, metrics, signals
-from core.analyses.base import Result, TableSpec, map_tasks
-from core.errors import ConfigError
-from core.estimators.base import as_matrix
-from core.estimators.kf import KalmanFilter
-from core.estimators.rls import RecursiveLeastSquares
-from core.fields.dipole import Dipole
-from core.schema import REQUIRED, Experiment, check_interval, integer, list_of, number, text
-from core.summary import Quote
+from estim import claims, metrics, signals
+from estim.analyses.base import Result, TableSpec, map_tasks
+from estim.errors import ConfigError
+from estim.estimators.base import as_matrix
+from estim.estimators.kf import KalmanFilter
+from estim.estimators.rls import RecursiveLeastSquares
+from estim.fields.dipole import Dipole
+from estim.schema import REQUIRED, Experiment, check_interval, integer, list_of, number, text
+from estim.summary import Quote
 
 _READING = text({"sigma", "variance"})
 COMPONENTS = ("E_r", "E_theta", "H_phi")

@@ -4,15 +4,15 @@ and the Remark, eqs 5.48-5.49) with sparse noisy measurements of E and H (eq 5.3
 
 Per scenario (the source the filter is told) and noise row:
 
-* truth: the analytic field of the dipole (``core.fields.dipole``) with the true current
+* truth: the analytic field of the dipole (``estim.fields.dipole``) with the true current
   ``I0 = 1``; the thesis' "noise at the driving source" (2.5e-4, 5e-4 of the current) is
   three orders below the grid's own error and does not enter it (docs/deviations.md);
 * sensors: a fixed random ``fraction`` of the grid points between ``sensor_r`` radii
   measure all six components of E and H every step, with white noise
   ``measurement_sigma``;
-* ``plain simulation``: the leapfrog/Mur simulation (``core.fields.fdtd``) driven by the
+* ``plain simulation``: the leapfrog/Mur simulation (``estim.fields.fdtd``) driven by the
   nominal source, no data: the open loop, and with the true source the grid's floor;
-* ``KF`` (the ensemble filter, ETKF of ``core.fields.etkf``): ``members`` simulations whose
+* ``KF`` (the ensemble filter, ETKF of ``estim.fields.etkf``): ``members`` simulations whose
   complex source amplitude is part of the state (drawn around the nominal one, spread
   ``amplitude_spread``), spun up for ``spinup_periods``, then analysed at every step; the
   observation error variance is ``measurement_sigma^2 + model_error^2`` (the grid's own
@@ -25,7 +25,7 @@ RMSE (eq 3.42) of E_r, E_theta, H_phi over the zone's points and the recorded pe
 against the analytic field, per run; the experiment is driven by the real part of the
 current; the ``imag`` experiment is the same one a quarter period later, and ``abs`` the
 magnitude formed from the two (:func:`_errors`). Normalised units as in
-:mod:`core.analyses.dipole`.
+:mod:`estim.analyses.dipole`.
 """
 
 from __future__ import annotations
@@ -34,18 +34,17 @@ from collections.abc import Callable
 
 import numpy as np
 import pandas as pd
+from estim import claims, metrics, plots
+from estim.analyses import dipole as literal
+from estim.analyses.base import Result, TableSpec, map_tasks
+from estim.analyses.dipole import COMPONENTS, TABLE_IDS, sinusoid_rls
+from estim.errors import ConfigError
+from estim.fields import etkf, wave
+from estim.fields.dipole import Dipole
+from estim.fields.fdtd import Grid, Simulation, fields_from, spherical
+from estim.schema import REQUIRED, Experiment, check_interval, integer, list_of, number, text
+from estim.summary import Quote
 from scipy.spatial import cKDTree
-
-from core import claims, metrics, plots
-from core.analyses import dipole as literal
-from core.analyses.base import Result, TableSpec, map_tasks
-from core.analyses.dipole import COMPONENTS, TABLE_IDS, sinusoid_rls
-from core.errors import ConfigError
-from core.fields import etkf, wave
-from core.fields.dipole import Dipole
-from core.fields.fdtd import Grid, Simulation, fields_from, spherical
-from core.schema import REQUIRED, Experiment, check_interval, integer, list_of, number, text
-from core.summary import Quote
 
 _READING = text({"sigma", "variance"})
 KF, RLS, PLAIN = "KF", "RLS", "plain simulation"
@@ -55,7 +54,7 @@ DIVERGED_RATIO = 1e3
 reports ``inf`` (the printed Euler run reaches 1e22; the digits of a blown-up number carry
 the rounding that seeded its growth and differ between machines)."""
 """The printed discretisation ``xi+ = (I + T F) xi``: forward Euler on (A, dA/dt), every
-mode grows (:func:`core.fields.wave.step`); run once per case to show it."""
+mode grows (:func:`estim.fields.wave.step`); run once per case to show it."""
 
 SCHEMA: dict = {
     "grid": ({

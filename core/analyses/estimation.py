@@ -5,7 +5,7 @@ For each sweep point (noise reading x noise level x input frequency, in thesis r
 1. the source is the nominal sine plus white Gaussian noise at every sample after ``t_0``
    (the "Gaussian noise at input source" of Tables 3.1-3.5), piecewise linear between
    samples;
-2. the actual circuit is integrated with a stiff solver (:mod:`core.simulate`; the batched
+2. the actual circuit is integrated with a stiff solver (:mod:`estim.simulate`; the batched
    Radau IIA by default, scipy's ``solve_ivp`` with ``simulation.solver: scipy``) from its DC
    operating point;
 3. measurements are the actual output plus white measurement noise;
@@ -13,7 +13,7 @@ For each sweep point (noise reading x noise level x input frequency, in thesis r
    ``noise.filters_see`` is ``noisy``, measured with ``noise.input_sensor_sigma`` of its
    own noise), fed to it as ``estimators[i].input_derivative`` says, and starts from the
    actual DC operating point;
-5. every filter's health is judged (:mod:`core.health`): NEES against the actual states,
+5. every filter's health is judged (:mod:`estim.health`): NEES against the actual states,
    NIS, whiteness of the innovations, and divergence by the stated criterion;
 6. RMSE (eq 3.42) is reported over the runs that did not diverge and over all runs
    (mean with its standard error, and median; a run the filter broke on counts as an
@@ -32,8 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-
-from core import (
+from estim import (
     claims,
     health,
     kalman_differentiator,
@@ -44,10 +43,10 @@ from core import (
     tables,
     tuning,
 )
-from core.analyses.base import Result, TableSpec, map_tasks
-from core.errors import ConfigError, UsageError
-from core.estimators.base import as_matrix
-from core.schema import (
+from estim.analyses.base import Result, TableSpec, map_tasks
+from estim.errors import ConfigError, UsageError
+from estim.estimators.base import as_matrix
+from estim.schema import (
     MAX_VOLTS,
     REQUIRED,
     Experiment,
@@ -66,15 +65,15 @@ from core.schema import (
     text,
     validate,
 )
-from core.simulate import SOLVERS
-from core.summary import Quote
+from estim.simulate import SOLVERS
+from estim.summary import Quote
 
 FIGURE_KINDS = ("noiseless", "noisy", "rmse", "residual")
 DERIVATIVE_METHODS = {"difference", "analytic", "kalman"}
 """How a filter gets ``dv_in/dt`` for a model whose input is the source's slope (eq 3.26):
 the difference of the samples it sees on each interval (the default), the nominal sine's
 derivative at the interval's midpoint, or the Kalman differentiator of the samples it sees
-(``derivative_bandwidth`` times the input frequency; :mod:`core.kalman_differentiator`)."""
+(``derivative_bandwidth`` times the input frequency; :mod:`estim.kalman_differentiator`)."""
 _READING = text({"sigma", "variance"})
 
 SCHEMA: dict = {
@@ -186,7 +185,7 @@ QUOTES = (
           "inconsistent", by="estimator", total="runs", where="inconsistent == inconsistent"),
     Quote("residual mean", "residual", "residual_mean", by="estimator"),
 )
-"""What ``estim summary`` quotes of an estimation experiment (:mod:`core.summary`)."""
+"""What ``estim summary`` quotes of an estimation experiment (:mod:`estim.summary`)."""
 
 
 @dataclass(frozen=True)
@@ -414,7 +413,7 @@ def estimate_point(exp: Experiment, data: dict) -> list:
 
 
 def judge(exp: Experiment, data: dict, est, model) -> dict:
-    """One estimator's health on one batch (:mod:`core.health`): per run ``diverged`` (the
+    """One estimator's health on one batch (:mod:`estim.health`): per run ``diverged`` (the
     estimate broke or ran away), ``broken`` and ``inconsistent`` (NIS or NEES outside its
     band; NaN-free only for filters with a noise model), and the batch summaries."""
     cfg = exp.spec["health"]
@@ -595,7 +594,7 @@ def claim_pairs(spec: dict) -> list[tuple[str, str]]:
 
 def claims_table(spec: dict, rmse: pd.DataFrame, losses: list[dict],
                  keys: tuple[str, ...]) -> pd.DataFrame:
-    """The claims of :func:`claim_pairs` judged by :mod:`core.claims` in every cell; a cell
+    """The claims of :func:`claim_pairs` judged by :mod:`estim.claims` in every cell; a cell
     is named by the ``keys`` of its rows in ``rmse`` (its first row per cell, in order)."""
     firsts = rmse[rmse["estimator"] == MEASUREMENT]
     cells = [(claims.cell(**{k: row[k] for k in keys}), cell_losses)
@@ -703,11 +702,11 @@ every table and figure batch."""
 
 
 def tune(exp: Experiment, label: str, runs: int, fit_r: bool = False) -> tuple[dict, object]:
-    """Maximum-likelihood ``Q`` (and ``R``) of estimator ``label`` (:mod:`core.tuning`) on
+    """Maximum-likelihood ``Q`` (and ``R``) of estimator ``label`` (:mod:`estim.tuning`) on
     training draws of ``runs`` runs at every sweep point, pooled: one setting for the table,
     as the thesis uses one (points with a noise-free measurement are left out when noisy
     ones exist: the likelihood assumes the measurement noise ``R`` describes). Returns the
-    estimator's config entry with the fitted diagonals and the :class:`core.tuning.Fit`."""
+    estimator's config entry with the fitted diagonals and the :class:`estim.tuning.Fit`."""
     found = [(i, est, model) for i, (lab, est, model) in enumerate(exp.plan.filters)
              if lab == label]
     if not found:

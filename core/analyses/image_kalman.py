@@ -3,15 +3,15 @@
 
 For each image and Monte Carlo run: white Gaussian noise at the input SNR; the NSHP model's
 parameters identified globally from the noisy image (noise-corrected Yule-Walker,
-:func:`core.images.nshp.yule_walker`); the non-adaptive filter of eqs 13a-e with them
-(:func:`core.images.kalman2d.restore`); the adaptive filter of Table I started from them
-(:func:`core.images.kalman2d.restore_adaptive`); the strip Kalman filter of the second
-paper (``shared/seeds/002_…``, :func:`core.images.strip.restore`), its model identified from
+:func:`estim.images.nshp.yule_walker`); the non-adaptive filter of eqs 13a-e with them
+(:func:`estim.images.kalman2d.restore`); the adaptive filter of Table I started from them
+(:func:`estim.images.kalman2d.restore_adaptive`); the strip Kalman filter of the second
+paper (``shared/seeds/002_…``, :func:`estim.images.strip.restore`), its model identified from
 the noisy strips (all columns, or on line from the columns so far) and, as the paper
 assumes, from the clean ones; ``scipy.signal.wiener`` told the noise variance, and left to
 estimate it (its ``noise=None``: the mean of the local variances); scikit-image's
 BayesShrink wavelet denoising told the noise variance; and the noisy image itself. Every
-claim (:data:`CLAIMS`) is judged by :mod:`core.claims` on the per-run mean squared errors.
+claim (:data:`CLAIMS`) is judged by :mod:`estim.claims` on the per-run mean squared errors.
 
 SNR is variance based: ``10 log10(var(u) / mean((u - u_hat)^2))`` with ``u`` the clean
 image (the paper's definition is not given); improvement in SNR is it minus the input's;
@@ -24,11 +24,10 @@ from collections.abc import Callable
 
 import numpy as np
 import pandas as pd
-
-from core import claims, metrics, plots
-from core.analyses.base import Result, TableSpec, map_tasks
-from core.images import kalman2d, nshp, strip
-from core.schema import (
+from estim import claims, metrics, plots
+from estim.analyses.base import Result, TableSpec, map_tasks
+from estim.images import kalman2d, nshp, strip
+from estim.schema import (
     REQUIRED,
     Experiment,
     file_name,
@@ -37,7 +36,7 @@ from core.schema import (
     number,
     text,
 )
-from core.summary import Quote
+from estim.summary import Quote
 
 IMAGES = ("camera", "moon", "brick", "grass", "gravel", "coins", "text", "page", "astronaut")
 """scikit-image's images that ship inside its wheel (no download at run time)."""
@@ -113,7 +112,7 @@ TABLES = {
 
 
 def prepare(spec: dict, source: str) -> None:
-    from core.errors import ConfigError
+    from estim.errors import ConfigError
 
     if spec["figures"]["image"] not in spec["images"]:
         raise ConfigError(source, "figures.image", f"expected one of the images "

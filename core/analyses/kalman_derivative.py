@@ -1,7 +1,7 @@
 """The optimum differentiator from Kalman theory on the double integrator (the paper in
 ``shared/seeds/001_01b49ce744343ce9.txt``, which prints no numbers): the derivative error
 variance in closed form, from the continuous Riccati equation, from the discrete one, and
-measured by Monte Carlo on the discrete filter (:mod:`core.kalman_differentiator`); and the
+measured by Monte Carlo on the discrete filter (:mod:`estim.kalman_differentiator`); and the
 differentiator's frequency response against the ideal ``s``.
 """
 
@@ -11,13 +11,12 @@ from collections.abc import Callable
 
 import numpy as np
 import pandas as pd
+from estim import claims, metrics, plots
+from estim import kalman_differentiator as kd
+from estim.analyses.base import Result, TableSpec, map_tasks
+from estim.schema import REQUIRED, Experiment, file_name, integer, list_of, number
+from estim.summary import Quote
 from scipy import linalg
-
-from core import claims, metrics, plots
-from core import kalman_differentiator as kd
-from core.analyses.base import Result, TableSpec, map_tasks
-from core.schema import REQUIRED, Experiment, file_name, integer, list_of, number
-from core.summary import Quote
 
 SCHEMA: dict = {
     "cases": (list_of({

@@ -6,7 +6,7 @@ within a column):
 
 1. the source is the nominal sine (``amplitude_v``) plus an Ornstein-Uhlenbeck process
    (eqs 4.8-4.9) with decay ``gamma`` and diffusion ``sigma`` read from the printed noise
-   number, sampled exactly (:func:`core.signals.ornstein_uhlenbeck`), piecewise linear
+   number, sampled exactly (:func:`estim.signals.ornstein_uhlenbeck`), piecewise linear
    between samples;
 2. the actual circuit with the column's W/L (and, with ``area_scaled_caps``, capacitances
    scaled by W L over ``reference_area_um2``) is integrated by the stiff solver from its DC
@@ -16,7 +16,7 @@ within a column):
    said to see (the Kronecker EKF the output, eq 4.49; the wavelet method its ``measures``,
    eq 4.16) and the nominal input;
 4. RMSE of the output (eq 4.60 on ``v_D``) over the runs that did not diverge and over all
-   runs, the raw measurement as a baseline row, filter health (:mod:`core.health`), and the
+   runs, the raw measurement as a baseline row, filter health (:mod:`estim.health`), and the
    headline claim row by row.
 
 The noise draws of a sweep point are shared by every W/L column (``spawn_key`` without the
@@ -30,12 +30,11 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-
-from core import claims, plots, registry, signals
-from core.analyses import estimation
-from core.analyses.base import Result, TableSpec, map_tasks
-from core.errors import ConfigError
-from core.schema import (
+from estim import claims, plots, registry, signals
+from estim.analyses import estimation
+from estim.analyses.base import Result, TableSpec, map_tasks
+from estim.errors import ConfigError
+from estim.schema import (
     MAX_VOLTS,
     REQUIRED,
     Experiment,
@@ -53,8 +52,8 @@ from core.schema import (
     simulation_block,
     text,
 )
-from core.simulate import SOLVERS
-from core.summary import Quote
+from estim.simulate import SOLVERS
+from estim.summary import Quote
 
 _READING = text({"sigma", "variance"})
 CAPACITANCES = ("C_S", "C_D", "C_B", "C_BS", "C_BD")

@@ -5,7 +5,7 @@ initial values, whether ``z`` or ``x`` is fed, whether the record starts at ``t 
 sample later): mean and maximum absolute error over the record, averaged over Monte Carlo
 runs, beside the raw record itself (``measurement``), and the paper's claims "eq 22 beats
 eq 19" and "eq 22 beats the Kalman filter", each estimator against the raw record, judged
-by :mod:`core.claims` on the per-run mean absolute errors."""
+by :mod:`estim.claims` on the per-run mean absolute errors."""
 
 from __future__ import annotations
 
@@ -13,12 +13,11 @@ from collections.abc import Callable
 
 import numpy as np
 import pandas as pd
-
-from core import claims, metrics, plots
-from core import passive_network as pn
-from core.analyses.base import Result, TableSpec
-from core.schema import REQUIRED, Experiment, file_name, integer, list_of, number, text
-from core.summary import Quote
+from estim import claims, metrics, plots
+from estim import passive_network as pn
+from estim.analyses.base import Result, TableSpec
+from estim.schema import REQUIRED, Experiment, file_name, integer, list_of, number, text
+from estim.summary import Quote
 
 SCHEMA: dict = {
     "signals": (list_of({
@@ -72,7 +71,7 @@ TABLES = {
 
 
 def prepare(spec: dict, source: str) -> None:
-    from core.errors import ConfigError
+    from estim.errors import ConfigError
 
     names = [r["name"] for r in spec["readings"]]
     for i, name in enumerate(names):

@@ -2,7 +2,7 @@
 
 For each configured row (one per thesis row, in thesis order) the circuit is built with the
 row's parameters, driven with the row's amplitude ``A`` and, for a check of the expansion,
-with ``A/2``; :func:`core.expansion.respond` gives the zeroth-order output ``y0``, the
+with ``A/2``; :func:`estim.expansion.respond` gives the zeroth-order output ``y0``, the
 first-order output ``y1`` and the full nonlinear output over one period of the periodic
 steady state (a sine sampled at ``samples_per_period`` points and fed as each model's
 ``source_to_input`` maps it: a staircase for the amplifiers, piecewise linear for the MOSFET,
@@ -23,12 +23,11 @@ from collections.abc import Callable
 
 import numpy as np
 import pandas as pd
-
-from core import claims, metrics, plots, registry, signals
-from core.analyses.base import Result, TableSpec, map_tasks
-from core.errors import ConfigError, SimulationError
-from core.expansion import Response, check_expansion, expand, respond
-from core.schema import (
+from estim import claims, metrics, plots, registry, signals
+from estim.analyses.base import Result, TableSpec, map_tasks
+from estim.errors import ConfigError, SimulationError
+from estim.expansion import Response, check_expansion, expand, respond
+from estim.schema import (
     MAX_VOLTS,
     REQUIRED,
     Experiment,
@@ -44,7 +43,7 @@ from core.schema import (
     simulation_block,
     text,
 )
-from core.summary import Quote
+from estim.summary import Quote
 
 SCHEMA: dict = {
     "model": model_block(registry.MODELS),

@@ -12,8 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-
-from core import linalg
+from estim import linalg
 
 
 @dataclass(frozen=True)
@@ -27,7 +26,7 @@ class Estimate:
     broken : ``(runs,)`` runs the filter could not carry on: the estimate became non-finite
         or left the filter's numerical bound. From that step on the run's outputs are NaN.
         Divergence in the statistical sense is judged from the outputs by
-        :func:`core.health.diverged`, not here.
+        :func:`estim.health.diverged`, not here.
     x_hat : ``(runs, steps, n)`` posterior state estimate, or ``None`` for output-only filters.
     P : ``(runs, steps, n, n)`` posterior state covariance, or ``None``.
     S : ``(runs, steps, m, m)`` innovation covariance the filter assumed, or ``None`` for a

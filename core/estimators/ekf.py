@@ -1,16 +1,15 @@
 """Extended Kalman filter (thesis Appendix A.2, eqs A.8-A.16), batched over Monte Carlo runs.
 
 The prediction integrates the model over one sample interval with the shared
-discretisation (:mod:`core.discretize`); ``F_k`` is the Jacobian of that step. The thesis
+discretisation (:mod:`estim.discretize`); ``F_k`` is the Jacobian of that step. The thesis
 uses forward Euler (eqs 3.18-3.19), available as ``discretization="euler"``.
 """
 
 from __future__ import annotations
 
 import numpy as np
-
-from core import discretize
-from core.estimators.base import (
+from estim import discretize
+from estim.estimators.base import (
     Estimate,
     as_matrix,
     batch_input,
@@ -18,7 +17,7 @@ from core.estimators.base import (
     joseph_update,
     run_batch,
 )
-from core.schema import REQUIRED, integer, list_of, matrix, number, text
+from estim.schema import REQUIRED, integer, list_of, matrix, number, text
 
 
 def thesis_to_state(M: np.ndarray, model) -> np.ndarray:
@@ -37,12 +36,12 @@ class ExtendedKalmanFilter:
     Q, R, P0 : scalar, diagonal list or full matrix.
     x0 : initial estimate; ``None`` takes the ``x0`` given to :meth:`run` (the analyses pass
         the actual circuit's DC operating point), else the model's own operating point.
-    discretization : one of :data:`core.discretize.METHODS`.
+    discretization : one of :data:`estim.discretize.METHODS`.
     substeps : discretisation substeps per sample interval.
     divergence_bound : a run whose prediction or estimate leaves ``|x| <= bound`` (or becomes
         non-finite) is marked broken and frozen (from that step on its estimates are NaN).
         This only catches numerical breakdown; divergence is judged by
-        :func:`core.health.diverged`.
+        :func:`estim.health.diverged`.
     noise_units : ``thesis`` (default): ``Q`` and ``P0`` are in the thesis' state units and
         mapped onto the model's states (:meth:`state_covariances`); ``state``: as given.
     """

@@ -3,9 +3,8 @@
 from __future__ import annotations
 
 import numpy as np
-
-from core.estimators.base import Estimate, as_matrix, batch_input, check_covariance, joseph_update
-from core.schema import REQUIRED, list_of, matrix, number
+from estim.estimators.base import Estimate, as_matrix, batch_input, check_covariance, joseph_update
+from estim.schema import REQUIRED, list_of, matrix, number
 
 
 class KalmanFilter:

@@ -1,8 +1,8 @@
 """EKF on the Kronecker-product model of a circuit (thesis Sec 4.3, eqs 4.34-4.53, A.12-A.16).
 
 The filter builds the Kronecker form of whatever model it is given
-(:func:`core.kronecker.from_model`, about the model's own DC operating point), discretises it
-once per sample time (:func:`core.kronecker.discretize`) and runs, batched over Monte Carlo
+(:func:`estim.kronecker.from_model`, about the model's own DC operating point), discretises it
+once per sample time (:func:`estim.kronecker.discretize`) and runs, batched over Monte Carlo
 runs,
 
     A.12  d_k|k-1 = F1 d + F2 (d (x) d) + G w + F5 (d (x) w) + Guu (w (x) w) + c
@@ -13,7 +13,7 @@ runs,
     A.15  x_k|k = x_k|k-1 + K (z - H x_k|k-1)
     A.16  P_k|k = (I - K H) P (I - K H)^T + K R K^T      (Joseph form, symmetrised)
 
-Its arithmetic goes through :mod:`core.opcount`, so Table 4.3's counts are read off this
+Its arithmetic goes through :mod:`estim.opcount`, so Table 4.3's counts are read off this
 code path. ``order: 1`` drops the quadratic terms (the filter is then the linear KF on the
 discretised linearisation). ``jacobian: printed`` uses ``F1`` alone as eq 4.38 does.
 """
@@ -21,16 +21,15 @@ discretised linearisation). ``jacobian: printed`` uses ``F1`` alone as eq 4.38 d
 from __future__ import annotations
 
 import numpy as np
-
-from core import kronecker, opcount
-from core.estimators.base import (
+from estim import kronecker, opcount
+from estim.estimators.base import (
     Estimate,
     as_matrix,
     batch_input,
     check_covariance,
     run_batch,
 )
-from core.schema import REQUIRED, integer, list_of, matrix, number, text
+from estim.schema import REQUIRED, integer, list_of, matrix, number, text
 
 
 class KroneckerEKF:

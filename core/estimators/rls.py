@@ -39,9 +39,8 @@ filled (rows ``k >= M``: the directions the input excites persistently) out of
 from __future__ import annotations
 
 import numpy as np
-
-from core.estimators.base import Estimate, batch_input
-from core.schema import boolean, integer, number, text
+from estim.estimators.base import Estimate, batch_input
+from estim.schema import boolean, integer, number, text
 
 
 class RecursiveLeastSquares:

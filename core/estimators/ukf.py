@@ -8,7 +8,7 @@ weight of the centre ``lambda/(n+lambda) + 1 - alpha^2 + beta``.
 Per step, for every run at once:
 
 * prediction: each sigma point is carried over the sample interval by the same
-  discretisation as the EKF (:mod:`core.discretize`), its Jacobian unused; the predicted
+  discretisation as the EKF (:mod:`estim.discretize`), its Jacobian unused; the predicted
   mean and covariance are the weighted sample moments plus ``Q`` (additive noise, as in the
   EKF of Appendix A.2);
 * update: sigma points are redrawn from the prediction and passed through ``h``; ``S`` and
@@ -23,11 +23,10 @@ Settings are the EKF's (``Q``, ``R`` and ``P0`` in the thesis' state units by de
 from __future__ import annotations
 
 import numpy as np
-
-from core import discretize, linalg
-from core.estimators.base import joseph_update
-from core.estimators.ekf import ExtendedKalmanFilter
-from core.schema import number
+from estim import discretize, linalg
+from estim.estimators.base import joseph_update
+from estim.estimators.ekf import ExtendedKalmanFilter
+from estim.schema import number
 
 
 def sqrt_psd(P: np.ndarray) -> np.ndarray:
@@ -96,7 +95,7 @@ class UnscentedKalmanFilter(ExtendedKalmanFilter):
     def cycle(self, model, x: np.ndarray, P: np.ndarray, z: np.ndarray, u: np.ndarray,
               dt: float, Q: np.ndarray, R: np.ndarray):
         """Unscented prediction and update (module docstring); the batch bookkeeping is the
-        EKF's :meth:`~core.estimators.ekf.ExtendedKalmanFilter.run`."""
+        EKF's :meth:`~estim.estimators.ekf.ExtendedKalmanFilter.run`."""
         runs, n = x.shape
         wm, wc = self.weights(n)
         points = 2 * n + 1

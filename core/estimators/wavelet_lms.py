@@ -27,10 +27,9 @@ from __future__ import annotations
 
 import numpy as np
 import pywt
-
-from core import opcount
-from core.estimators.base import Estimate, batch_input
-from core.schema import integer, list_of, number, text
+from estim import opcount
+from estim.estimators.base import Estimate, batch_input
+from estim.schema import integer, list_of, number, text
 
 STEP_BOUND = 2.0
 """Normalised LMS is mean-square stable only for a step in (0, 2)."""

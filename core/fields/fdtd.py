@@ -9,13 +9,13 @@ profile), so ``d rho/dt + div J = 0`` holds on the grid and the Lorenz gauge is 
 segment of length ``dl`` in z, scaled so its integral is ``dl``.
 
 Time stepping is the three-level leapfrog ``u+ = 2u - u- + T^2 (c^2 L u + s)`` (the same
-scheme as :func:`core.fields.wave.step`'s kick-drift-kick, stable up to ``c T / Delta =
+scheme as :func:`estim.fields.wave.step`'s kick-drift-kick, stable up to ``c T / Delta =
 0.577``), with Mur's first-order absorbing boundary on the six faces: a face value is
 advanced as a wave leaving the box, ``u0+ = u1 + (cT - Delta)/(cT + Delta) (u1+ - u0)``.
 A Dirichlet box instead reflects every outgoing wave back in (docs/deviations.md).
 
 Fields: ``E = -grad Phi - dA/dt`` (eq 5.25), ``H = curl A / mu0`` (eq 5.27) with the centred
-operators of :mod:`core.fields.operators`; ``dA/dt`` by the centred difference of the
+operators of :mod:`estim.fields.operators`; ``dA/dt`` by the centred difference of the
 leapfrog levels. Everything works on a leading batch axis (ensemble members).
 """
 
@@ -25,10 +25,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
+from estim.fields import operators as ops
+from estim.fields.dipole import Dipole
 from scipy.special import erf
-
-from core.fields import operators as ops
-from core.fields.dipole import Dipole
 
 
 @dataclass

@@ -1,5 +1,5 @@
 """The 2-D Kalman filter of eqs 13a-e (``shared/seeds/000_…``) on the NSHP state-space model
-of :mod:`core.images.nshp`, with additive white noise only (``C = e1``: no blur, eq 10).
+of :mod:`estim.images.nshp`, with additive white noise only (``C = e1``: no blur, eq 10).
 
 Pixel by pixel in raster order:
 
@@ -13,7 +13,7 @@ the filter is the paper's reduced one, not the optimal filter of the image, and 
 13e is taken in Joseph form and kept symmetric. Local states off the image are the image
 mean (zero after its removal) with covariance ``boundary_variance I``, except that the state
 left of each row carries the filtered pixels of the rows above that it holds
-(:func:`core.images.nshp.left_boundary`, their variances without cross terms). The restored pixel
+(:func:`estim.images.nshp.left_boundary`, their variances without cross terms). The restored pixel
 is the filtered ``X_a(m, n)[0]`` (no smoothing).
 
 The recursion is sequential in both directions, so it is compiled with numba (the project's
@@ -24,9 +24,8 @@ vectorised.
 from __future__ import annotations
 
 import numpy as np
+from estim.images import nshp
 from numba import njit
-
-from core.images import nshp
 
 
 @njit(cache=True)

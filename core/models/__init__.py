@@ -1,1 +1,1 @@
-"""Circuit and field models sharing the interface of :class:`core.models.base.Model`."""
+"""Circuit and field models sharing the interface of :class:`estim.models.base.Model`."""

@@ -14,10 +14,9 @@ import dataclasses
 from typing import Any
 
 import numpy as np
+from estim.errors import ParameterError, SimulationError
+from estim.simulate import simulate
 from scipy import optimize
-
-from core.errors import ParameterError, SimulationError
-from core.simulate import simulate
 
 
 def parameter_table(params_cls: type) -> dict[str, tuple[Any, str, str]]:
@@ -151,7 +150,7 @@ class Model:
 
     input_affine: bool = False
     """``f`` is affine in ``u`` (the input enters through a constant matrix): its second
-    derivatives involving ``u`` are exactly zero, and :func:`core.kronecker.from_model` sets
+    derivatives involving ``u`` are exactly zero, and :func:`estim.kronecker.from_model` sets
     them so instead of keeping the rounding of a numerical Hessian."""
 
     input_is_source_slope: bool = False
@@ -168,11 +167,11 @@ class Model:
 
     def output_range(self) -> tuple[float, float] | None:
         """The physical range of the measured output: an estimate outside it is no estimate of
-        this circuit (:func:`core.health.diverged`). ``None``: no range."""
+        this circuit (:func:`estim.health.diverged`). ``None``: no range."""
         return None
 
     def kernel(self):
-        """``(compiled_fn, P)`` for :mod:`core.compiled`, or ``None`` (the numpy path)."""
+        """``(compiled_fn, P)`` for :mod:`estim.compiled`, or ``None`` (the numpy path)."""
         return None
 
     def h(self, x: np.ndarray) -> np.ndarray:

@@ -31,9 +31,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
-from core.devices import ebers_moll
-from core.models.base import Model, check_params, param
+from estim.devices import ebers_moll
+from estim.models.base import Model, check_params, param
 
 NODES = ("C1", "C2", "B1", "B2", "E1", "E2")
 

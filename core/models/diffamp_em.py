@@ -30,10 +30,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
-from core import kernels
-from core.devices import ebers_moll
-from core.models.base import Model, check_params, param
+from estim import kernels
+from estim.devices import ebers_moll
+from estim.models.base import Model, check_params, param
 
 
 @dataclass(frozen=True)
@@ -129,7 +128,7 @@ class DiffAmpEbersMoll(Model):
         return [0.0, p.I_ES, p.I_CS, p.alpha_F, p.alpha_R, p.V_T, 0.0, 0.0]
 
     def kernel(self):
-        """The compiled drift for :mod:`core.compiled`."""
+        """The compiled drift for :mod:`estim.compiled`."""
         p = self.params
         head = self._kernel_params()
         P = np.array([*head[:6], p.V_EE, p.V_CC, p.R_E, p.R_L, p.C_L, p.R_C1, p.R_C2,

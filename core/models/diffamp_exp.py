@@ -1,6 +1,6 @@
 """BJT differential amplifier with the plain exponential transistor law (thesis §2.2).
 
-The circuit is the one of :mod:`core.models.diffamp_em` (eqs 2.44-2.47: tail resistor,
+The circuit is the one of :mod:`estim.models.diffamp_em` (eqs 2.44-2.47: tail resistor,
 collector resistors, R_L-C_L load between the collectors); only the transistor differs.
 Eqs 2.48-2.51 model each transistor by its base-emitter diode alone,
 
@@ -18,9 +18,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
-from core.models.base import param
-from core.models.diffamp_em import DiffAmpCircuit, DiffAmpEbersMoll
+from estim.models.base import param
+from estim.models.diffamp_em import DiffAmpCircuit, DiffAmpEbersMoll
 
 
 @dataclass(frozen=True)

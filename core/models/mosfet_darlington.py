@@ -1,6 +1,6 @@
 """MOS analogue of the Darlington pair (thesis Fig 4.2), and longer chains of the same stage.
 
-Each stage is the Chapter 3 circuit (:mod:`core.models.mosfet_ekv`, ``completed`` variant):
+Each stage is the Chapter 3 circuit (:mod:`estim.models.mosfet_ekv`, ``completed`` variant):
 the EKV transistor with its capacitor network, gate bias ``R_in`` to ``V_IN``, drain load
 ``R_D``, source and bulk returns ``R_S``, ``R_B``. Stage 1's gate is coupled to the source
 ``v_in`` through ``C_GX``; stage ``k > 1``'s gate is coupled through ``C_GX`` to the source
@@ -17,14 +17,13 @@ import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
-
-from core.models.base import Model, param
-from core.models.mosfet_ekv import MosfetEKV, MosfetParams
+from estim.models.base import Model, param
+from estim.models.mosfet_ekv import MosfetEKV, MosfetParams
 
 
 @dataclass(frozen=True)
 class ChainParams(MosfetParams):
-    """The stage's parameters (:class:`core.models.mosfet_ekv.MosfetParams`) with the
+    """The stage's parameters (:class:`estim.models.mosfet_ekv.MosfetParams`) with the
     Chapter 4 defaults, and the number of stages."""
 
     W_L: float = param(1.0, "-", "aspect ratio W/L of every stage")

@@ -33,9 +33,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
-from core import kernels
-from core.models.base import Model, check_params, param
+from estim import kernels
+from estim.models.base import Model, check_params, param
 
 WEAK_INVERSION = 0.1
 """Upper bound of the forward inversion coefficient in weak inversion (EKV convention)."""
@@ -198,7 +197,7 @@ class MosfetEKV(Model):
         return fx, self._Cinv @ (self._G + self._incidence[:, None] * grad[..., None, :])
 
     def kernel(self):
-        """The compiled drift for :mod:`core.compiled` (the device laws that have one)."""
+        """The compiled drift for :mod:`estim.compiled` (the device laws that have one)."""
         p = self.params
         if p.drain_current not in _LAWS:
             return None

@@ -4,12 +4,12 @@ States in the printed order ``[v_G, v_B, v_S, v_D]``, input ``u = v_in`` (the so
 itself: eq 4.15's ``A3 u1``, held over each sample interval), the gate bias ``V_IN`` as the
 constant input ``u2`` (``A4``), output ``v_D`` (eq 4.49, ``H = [0 0 0 1]``). The drift is the
 quadratic polynomial ``A1 x + A2 (x (x) x) + A3 v_in + A4 V_IN`` with the matrices of
-:func:`core.kronecker.printed_matrices`; its Jacobian and Hessian are exact.
+:func:`estim.kronecker.printed_matrices`; its Jacobian and Hessian are exact.
 
 This model carries the printed errors on purpose (docs/deviations.md D44-D47): its columns
 of ``A1``/``A2`` agree with eqs 4.11-4.13 only in the order ``[v_G, v_D, v_S, v_B]``, and
 its linear part has a positive eigenvalue, so it is unstable. It exists so that a table can
-show what the printed model does; the project's circuit is :mod:`core.models.mosfet_ekv`.
+show what the printed model does; the project's circuit is :mod:`estim.models.mosfet_ekv`.
 """
 
 from __future__ import annotations
@@ -17,15 +17,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
-from core.kronecker import printed_matrices, printed_s
-from core.models.base import Model, check_params, param
-from core.models.mosfet_ekv import DeviceParams
+from estim.kronecker import printed_matrices, printed_s
+from estim.models.base import Model, check_params, param
+from estim.models.mosfet_ekv import DeviceParams
 
 
 @dataclass(frozen=True)
 class PrintedParams(DeviceParams):
-    """The shared device values (:class:`core.models.mosfet_ekv.DeviceParams`) with
+    """The shared device values (:class:`estim.models.mosfet_ekv.DeviceParams`) with
     Chapter 4's printed ``W/L`` and ``C_GX``, and the O.U. input's decay rate."""
 
     W_L: float = param(1.0, "-", "aspect ratio W/L")

@@ -22,11 +22,10 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
-
-from core import config
-from core.analyses import estimation
-from core.schema import Experiment
-from core.simulate import simulate
+from estim import config
+from estim.analyses import estimation
+from estim.schema import Experiment
+from estim.simulate import simulate
 
 CONFIGS = ("mosfet_saturation", "mosfet_conduction", "mosfet_input_derivative")
 TIGHTER = (1e-12, 1e-15)

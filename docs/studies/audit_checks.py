@@ -20,9 +20,8 @@ import copy
 
 import numpy as np
 import yaml
-
-from core import config, health, metrics, tuning
-from core.analyses import estimation
+from estim import config, health, metrics, tuning
+from estim.analyses import estimation
 
 
 def load(name: str, labels: tuple[str, ...], **changes) -> object:

@@ -2,7 +2,7 @@
 reduced one (issue 15, D69): the identified phi then comes within 0.05 of the truth.
 
 Run from the project folder: ``python docs/studies/exact_filter_rpem.py`` (about a minute).
-:func:`core.images.kalman2d.restore_adaptive_exact`: Table I with its full gradient through
+:func:`estim.images.kalman2d.restore_adaptive_exact`: Table I with its full gradient through
 the wavefront Kalman filter (the last M N + M pixels in raster order, full covariance),
 once through the field without the paper's restart at every row (the rows here are 40
 pixels, too short to adapt in); lambda(0) = 0.95, v(0) = 1, H(0) = I.
@@ -16,8 +16,7 @@ against the exact filter that knows phi.
 from __future__ import annotations
 
 import numpy as np
-
-from core.images import kalman2d, nshp
+from estim.images import kalman2d, nshp
 
 PHI = np.array([0.6, 0.3, 0.5, -0.45])
 

@@ -16,10 +16,9 @@ import sys
 
 import numpy as np
 import yaml
-
-from core import config
-from core.analyses import estimation
-from core.errors import ConfigError
+from estim import config
+from estim.analyses import estimation
+from estim.errors import ConfigError
 
 
 def scan(path: str, regime: str, r_d: float, biases: list[float]) -> None:

@@ -12,9 +12,8 @@ import sys
 
 import numpy as np
 import yaml
-
-from core import config, metrics
-from core.analyses import estimation
+from estim import config, metrics
+from estim.analyses import estimation
 
 
 def experiment(v_in: float, filters_see: str):

@@ -52,10 +52,9 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-
-from core import config
-from core.analyses import perturbation
-from core.schema import Experiment
+from estim import config
+from estim.analyses import perturbation
+from estim.schema import Experiment
 
 COLUMNS = ("percent_distortion", "thd_percent", "gain_db")
 SHORT = {"percent_distortion": "PD", "thd_percent": "THD", "gain_db": "gain"}

@@ -4,9 +4,9 @@ unconverged LMS, or the quadratic terms.
 Run from the project folder: ``python docs/studies/wavelet_divergence_cause.py [epochs]``
 (default 2000). Every cell of ``configs/kronecker_table_4_2.yaml`` (W/L column x noise
 reading x level x frequency) is simulated with the analysis' own seeds
-(:func:`core.analyses.kronecker.simulate_point`), and its "LMS" and "LMS (least squares)"
-estimators are run on the inputs :func:`core.analyses.kronecker.run_point` gives them and
-judged by :func:`core.analyses.estimation.judge`; the per-cell divergence counts are checked
+(:func:`estim.analyses.kronecker.simulate_point`), and its "LMS" and "LMS (least squares)"
+estimators are run on the inputs :func:`estim.analyses.kronecker.run_point` gives them and
+judged by :func:`estim.analyses.estimation.judge`; the per-cell divergence counts are checked
 against the stored ``results/kronecker_table_4_2/health.csv``. Over all runs it counts:
 
 * the runs where "LMS" diverges, and of those the runs whose identified linear part
@@ -28,12 +28,11 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 import pandas as pd
-
-from core import config
-from core.analyses import estimation
-from core.analyses import kronecker as analysis
-from core.estimators.base import Estimate, batch_input
-from core.estimators.wavelet_lms import WaveletLMS, fundamental
+from estim import config
+from estim.analyses import estimation
+from estim.analyses import kronecker as analysis
+from estim.estimators.base import Estimate, batch_input
+from estim.estimators.wavelet_lms import WaveletLMS, fundamental
 
 CONFIG = "configs/kronecker_table_4_2.yaml"
 STORED = "results/kronecker_table_4_2/health.csv"
@@ -58,7 +57,8 @@ def radius(theta: np.ndarray) -> np.ndarray:
 
 def without_quadratic(theta: np.ndarray) -> np.ndarray:
     """``theta`` with the columns of the ``c_i c_j (i <= j)`` regressors set to zero:
-    ``phi = [c (q), c_i c_j (q(q+1)/2), u, 1]`` (:func:`core.estimators.wavelet_lms.regressors`)."""
+    ``phi = [c (q), c_i c_j (q(q+1)/2), u, 1]``
+    (:func:`estim.estimators.wavelet_lms.regressors`)."""
     q = theta.shape[1]
     out = theta.copy()
     out[:, :, q:q + q * (q + 1) // 2] = 0.0

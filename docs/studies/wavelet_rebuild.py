@@ -15,12 +15,11 @@ import sys
 
 import numpy as np
 import yaml
+from estim import kronecker
+from estim.analyses import kronecker as analysis
+from estim.config import parse_data
+from estim.estimators.wavelet_lms import WaveletLMS, fundamental
 from scipy import linalg
-
-from core import kronecker
-from core.analyses import kronecker as analysis
-from core.config import parse_data
-from core.estimators.wavelet_lms import WaveletLMS, fundamental
 
 
 def main(frequency_hz: float) -> None:
