@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+
 from estim.analyses import perturbation
 from estim.config import parse_data
 from estim.expansion import EXACT_STIFFNESS_LIMIT, ExpandedSystem, expand, propagate_expanded

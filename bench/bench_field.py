@@ -14,6 +14,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
+
 from estim.analyses.dipole_field import _observe, sensor_operators
 from estim.fields import etkf
 from estim.fields.dipole import Dipole

@@ -14,6 +14,7 @@ import argparse
 import time
 
 import numpy as np
+
 from estim import discretize
 from estim.estimators.ekf import ExtendedKalmanFilter
 from estim.estimators.rls import RecursiveLeastSquares

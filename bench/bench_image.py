@@ -14,10 +14,11 @@ from bench_field import timed
 
 
 def main() -> None:
-    from estim.images import kalman2d, nshp, strip
     from scipy import signal
     from skimage import data
     from skimage.restoration import denoise_wavelet
+
+    from estim.images import kalman2d, nshp, strip
 
     img = data.camera().astype(float)
     u = img - img.mean()

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 from bench_filters import timed
+
 from estim.analyses import estimation
 from estim.config import parse_data
 from estim.simulate import simulate, simulate_scipy

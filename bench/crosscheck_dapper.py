@@ -88,6 +88,7 @@ def _reduced(spec: dict) -> dict:
 def check_cycle(full: bool) -> list[tuple[str, float, float]]:
     import pandas as pd
     import yaml
+
     from estim.analyses import dipole_field
     from estim.config import parse_data
     from estim.fields import etkf

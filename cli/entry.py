@@ -12,6 +12,7 @@ from __future__ import annotations
 import importlib
 
 import click
+
 import estim
 from estim.cli.group import Group
 

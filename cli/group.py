@@ -7,6 +7,7 @@ import sys
 import warnings
 
 import click
+
 from estim.errors import ConfigError, UsageError
 
 

@@ -6,10 +6,11 @@ better) in one table cell. Both were run on the same noise draws, so the claim i
 the paired per-run differences ``d_i = loss_better_i - loss_worse_i``, at the level
 :data:`LEVEL`, by one of three methods chosen by the data alone:
 
-``exact``  one run (a deterministic computation): the difference itself; a tie when it is
-           within :data:`TIE_RTOL` of the larger loss (rounding), or when both diverged.
-``t``      two or more runs, every loss finite and no run diverged: the mean difference and
-           its Student-t interval (``n - 1`` degrees of freedom).
+``exact``  a deterministic computation (one "run" with no noise): the difference itself; a
+           tie when it is within :data:`TIE_RTOL` of the larger loss (rounding), or when
+           both diverged.
+``t``      every loss finite and no run diverged: the mean difference and its Student-t
+           interval (``n - 1`` degrees of freedom; a single random run has none: undecided).
 ``sign``   two or more runs, some run diverged or a loss is not finite: a diverged run is a
            loss for its filter larger than any finite one (``d = +inf`` where only
            ``better`` diverged, ``-inf`` where only ``worse`` did, ``0`` where both did), and
@@ -30,8 +31,9 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from estim.tablespec import TableSpec
 from scipy import stats
+
+from estim.tablespec import TableSpec
 
 LEVEL = 0.95
 """Two-sided coverage of every claim's interval."""
@@ -95,9 +97,10 @@ def _verdict(low: float, high: float) -> str:
     return UNDECIDED
 
 
-def judge(better: Losses, worse: Losses, level: float = LEVEL) -> dict:
+def judge(better: Losses, worse: Losses, level: float = LEVEL, exact: bool = False) -> dict:
     """The claim ``better`` < ``worse`` on paired per-run losses, by the rule of the module
-    docstring: the columns :data:`VALUES` of one row of the claims table."""
+    docstring: the columns :data:`VALUES` of one row of the claims table. ``exact``: the
+    losses come from a deterministic computation, one value each."""
     b = np.atleast_1d(np.asarray(better.values, float))
     w = np.atleast_1d(np.asarray(worse.values, float))
     if b.shape != w.shape or b.ndim != 1 or b.size == 0:
@@ -108,7 +111,9 @@ def judge(better: Losses, worse: Losses, level: float = LEVEL) -> dict:
     nan = float("nan")
     out = {"runs": n, "diverged_better": int(fb.sum()), "diverged_worse": int(fw.sum()),
            "loss_better": _mean(b), "loss_worse": _mean(w)}
-    if n == 1:
+    if exact:
+        if n != 1:
+            raise ValueError(f"an exact claim compares one value a side, got {n}")
         method = "exact"
         if fb[0] and fw[0]:
             d = 0.0
@@ -131,15 +136,20 @@ def judge(better: Losses, worse: Losses, level: float = LEVEL) -> dict:
         method = "t"
         d = b - w
         mean = float(np.mean(d))
-        se = float(np.std(d, ddof=1) / np.sqrt(n))
-        q = float(stats.t.ppf(0.5 + level / 2, n - 1))
+        se = float(np.std(d, ddof=1) / np.sqrt(n)) if n > 1 else float("nan")
+        q = float(stats.t.ppf(0.5 + level / 2, n - 1)) if n > 1 else float("inf")
         low, high = mean - q * se, mean + q * se
         mw = np.mean(w)
         with np.errstate(divide="ignore", invalid="ignore"):
             ratio = float(np.mean(b) / mw)
-            ratio_se = float(np.std(b - ratio * w, ddof=1) / np.sqrt(n) / np.abs(mw))
+            ratio_se = (float(np.std(b - ratio * w, ddof=1) / np.sqrt(n) / np.abs(mw))
+                        if n > 1 else float("nan"))
+        if n == 1:
+            low, high, r_low, r_high = -np.inf, np.inf, 0.0, np.inf
+        else:
+            r_low, r_high = ratio - q * ratio_se, ratio + q * ratio_se
         out.update(difference=mean, difference_se=se, difference_low=low, difference_high=high,
-                   ratio=ratio, ratio_low=ratio - q * ratio_se, ratio_high=ratio + q * ratio_se)
+                   ratio=ratio, ratio_low=r_low, ratio_high=r_high)
         verdict = UNDECIDED if se == 0 and mean == 0 else _verdict(low, high)
     else:
         method = "sign"
@@ -180,11 +190,12 @@ def cell_keys(text: str) -> dict[str, str]:
 
 
 def table(cells: Iterable[tuple[str, Mapping[str, Losses]]], pairs: Sequence[tuple[str, str]],
-          metric: str, claim: str | None = None) -> pd.DataFrame:
+          metric: str, claim: str | None = None, exact: bool = False) -> pd.DataFrame:
     """The claims table: every pair ``(better, worse)`` judged in every cell that has both.
 
     ``cells`` gives each cell's description (:func:`cell`) and its losses by estimator;
-    ``claim`` names the claim (default ``"<better> <metric> < <worse> <metric>"``)."""
+    ``claim`` names the claim (default ``"<better> <metric> < <worse> <metric>"``);
+    ``exact``: the losses are deterministic (one value each, judged exactly)."""
     rows = []
     cells = list(cells)
     for better, worse in pairs:
@@ -193,7 +204,7 @@ def table(cells: Iterable[tuple[str, Mapping[str, Losses]]], pairs: Sequence[tup
                 continue
             rows.append({"claim": claim or f"{better} {metric} < {worse} {metric}",
                          "cell": where, "better": better, "worse": worse, "metric": metric,
-                         **judge(losses[better], losses[worse])})
+                         **judge(losses[better], losses[worse], exact=exact)})
     return pd.DataFrame(rows, columns=TABLE.columns)
 
 

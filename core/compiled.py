@@ -15,6 +15,7 @@ parameter vector ``P`` it reads. Without numba installed, or for a model without
 from __future__ import annotations
 
 import numpy as np
+
 from estim import kernels
 from estim.kernels import evaluate, jit
 

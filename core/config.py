@@ -13,42 +13,74 @@ import itertools
 import json
 import math
 import re
+import stat
+from pathlib import Path
 from typing import Any
 
 import yaml
+
 from estim import registry, tables
 from estim.analyses import ANALYSES
 from estim.errors import ConfigError, UsageError
-from estim.schema import Experiment, integer, list_of, mapping, model_block, number, text, validate
+from estim.schema import (
+    Experiment,
+    list_of,
+    mapping,
+    number,
+    recording_models,
+    text,
+    validate,
+)
+from estim.settings import Settings, block, setting, settings_class
 
-TOLERANCE: dict = {
-    "rtol": (number(minimum=0.0, maximum=1.0), 0.0),
-    "atol": (number(minimum=0.0, maximum=1.0), 0.0),
-    "se": (number(positive=True, maximum=10.0), None),
-    "se_column": (text(max_length=100), None),
-    "binomial": (number(positive=True, maximum=10.0), None),
-    "trials": (list_of(text(max_length=100), max_length=4), None),
-    "skip": (text(), None),
-}
-"""How ``estim check`` compares one column (see :func:`estim.io.compare_tables`)."""
 
-COMMON: dict = {
-    "name": (text(max_length=100), None),
-    "title": (text(), ""),
-    "analysis": (text(ANALYSES), "estimation"),
-    "reproduces": (list_of(text(max_length=20), nonempty=False, max_length=50), []),
-    "model": (model_block(registry.MODELS)[0], None),
-    "monte_carlo": ({
-        "runs": (integer(1, 1_000_000), 1),
-        "seed": (integer(0, 2**63 - 1), 0),
-    }, None),
-    "check": ({
-        "tolerances": (mapping, {}),
-    }, {}),
-}
-"""Keys every config may have; an analysis' ``SCHEMA`` adds its own and may make a common
-key required (``model`` and ``monte_carlo`` are optional here: not every analysis has a
-circuit or draws random numbers)."""
+@settings_class
+class Tolerance(Settings):
+    """How ``estim check`` compares one column (:func:`estim.io.compare_tables`); a cell passes
+    when any criterion holds."""
+
+    rtol: float = setting(0.0, number(minimum=0.0, maximum=1.0), doc="relative tolerance")
+    atol: float = setting(0.0, number(minimum=0.0, maximum=1.0), doc="absolute tolerance")
+    se: float | None = setting(None, number(positive=True, maximum=10.0),
+                               doc="within this many combined standard errors")
+    se_column: str | None = setting(None, text(max_length=100),
+                                    doc="the standard errors' column (default <column>_se)")
+    binomial: float | None = setting(None, number(positive=True, maximum=10.0),
+                                     doc="a count within this many binomial standard "
+                                         "deviations")
+    trials: list | None = setting(None, list_of(text(max_length=100), max_length=4),
+                                  doc="the columns whose sum is the count's number of runs")
+    skip: str | None = setting(None, text(), doc="do not compare; the reason, printed by check")
+
+
+TOLERANCE: dict = Tolerance.schema()
+
+
+@settings_class
+class Check(Settings):
+    """What ``estim check`` allows per column (docs/checking.md)."""
+
+    tolerances: dict = setting({}, mapping, doc="column -> tolerance (rtol, atol, se, ...)")
+
+
+@settings_class
+class Common(Settings):
+    """Keys every config has, whatever its analysis."""
+
+    name: str | None = setting(None, text(max_length=100),
+                               doc="the results folder's name; none: the file's stem")
+    title: str = setting("", text(), doc="the figures' title")
+    analysis: str = setting("estimation", text(ANALYSES), doc="a registered analysis")
+    reproduces: list = setting([], list_of(text(max_length=20), nonempty=False, max_length=50),
+                               doc="the thesis tables it reproduces (estim list)")
+    plugins: list = setting([], list_of(text(max_length=4096), nonempty=False, max_length=20),
+                            doc="Python files (relative to the config) that register models "
+                                "and estimators of your own")
+    check: Check = block(Check, doc="estim check's tolerances")
+
+
+COMMON: dict = Common.schema()
+"""Keys every config may have; an analysis' ``SCHEMA`` adds its own."""
 
 
 def schema_of(analysis: str) -> dict:
@@ -167,6 +199,7 @@ def parse_data(data: dict, source: str, default_name: str,
     """Validate an already loaded config mapping; ``max_work`` bounds its work size."""
     data = copy.deepcopy(data)
     sweep = data.pop("sweep", None) if isinstance(data, dict) else None
+    load_plugins(data.get("plugins") if isinstance(data, dict) else None, source)
     analysis = data.get("analysis") or "estimation"
     validate(analysis, text(ANALYSES), source, "analysis")
     spec = validate(data, schema_of(analysis), source, "")
@@ -175,7 +208,7 @@ def parse_data(data: dict, source: str, default_name: str,
     if not re.fullmatch(r"[A-Za-z0-9_.-]+", spec["name"]) or spec["name"].strip(".") == "":
         raise ConfigError(source, "name", "expected letters, digits, '_', '-' or '.' only "
                           f"(it names the results folder), got {spec['name']!r}")
-    if spec["model"] is not None:
+    if spec.get("model") is not None:
         model_cls = registry.MODELS[spec["model"]["name"]]
         variant = spec["model"]["variant"]
         if model_cls.variants and variant is not None and variant not in model_cls.variants:
@@ -187,11 +220,47 @@ def parse_data(data: dict, source: str, default_name: str,
     if work > max_work:
         raise ConfigError(source, "", f"the experiment computes about {work:.3g} state-samples, "
                           f"more than the limit {max_work:.3g} (raise it with --max-work)")
-    plan = module.prepare(spec, source)
+    with recording_models() as models:
+        plan = module.prepare(spec, source)
     _check_tolerances(spec, module, source)
     if sweep is not None:
         spec["sweep"] = _check_sweep(sweep, data, source, default_name, max_work, work)
-    return Experiment(name=spec["name"], source=source, spec=spec, plan=plan)
+    return Experiment(name=spec["name"], source=source, spec=spec, plan=plan, models=models)
+
+
+MAX_PLUGIN_BYTES = 1 << 20
+
+
+def load_plugins(plugins: Any, source: str) -> None:
+    """Import the config's ``plugins`` (Python files, relative to the config's folder) so the
+    models and estimators they define register themselves before the config is validated. A
+    file that is missing, not a regular ``.py`` file of at most 1 MiB, or fails to import is
+    a ``ConfigError`` naming it."""
+    if plugins is None:
+        return
+    validate(plugins, COMMON["plugins"][0], source, "plugins")
+    base = Path(source).parent if source else Path.cwd()
+    paths = []
+    for i, name in enumerate(plugins):
+        path = (base / name).resolve()
+        where = f"plugins[{i}]"
+        try:
+            info = path.stat()
+        except OSError as exc:
+            raise ConfigError(source, where, f"cannot read {name!r} "
+                              f"({exc.strerror or exc})") from None
+        if path.suffix != ".py" or not stat.S_ISREG(info.st_mode):
+            raise ConfigError(source, where, f"expected a Python file (.py), got {name!r}")
+        if info.st_size > MAX_PLUGIN_BYTES:
+            raise ConfigError(source, where, f"{name!r} is larger than 1 MiB")
+        paths.append((where, path))
+    for where, path in paths:
+        try:
+            registry.load_plugins([path])
+        except Exception as exc:  # noqa: BLE001 - the user's code: any failure is theirs
+            first = (str(exc).strip().splitlines() or [type(exc).__name__])[0][:200]
+            raise ConfigError(source, where, f"importing {path.name} failed: "
+                              f"{type(exc).__name__}: {first}") from None
 
 
 MAX_SWEEP_CELLS = 10_000
@@ -358,3 +427,90 @@ def apply_overrides(data: dict, overrides: dict[str, Any], source: str = "") -> 
             else:
                 node = node.setdefault(key, {})
     return data
+
+
+MAX_CONFIG_BYTES = 1 << 20
+"""Largest config file read."""
+
+
+def load_file(path: Path, overrides: dict | None = None, max_work: int = MAX_WORK,
+              quick: bool = False) -> Experiment:
+    """Read and validate one config file (a regular file of at most 1 MiB of UTF-8) with
+    ``overrides`` (key path -> value) applied first; with ``quick``, shrunk to its analysis'
+    quick profile (``tiny``: the first cell of a sweep) and validated again."""
+    path = Path(path)
+    try:
+        info = path.stat()
+        if not stat.S_ISREG(info.st_mode):
+            raise ConfigError(str(path), "", "not a regular file")
+        if info.st_size > MAX_CONFIG_BYTES:
+            raise ConfigError(str(path), "", f"larger than {MAX_CONFIG_BYTES // 1024} KiB")
+        with path.open("rb") as fh:
+            raw = fh.read(MAX_CONFIG_BYTES + 1)
+    except FileNotFoundError:
+        raise ConfigError(str(path), "", "no such file") from None
+    except OSError as exc:
+        raise ConfigError(str(path), "", f"cannot read ({exc.strerror or exc})") from None
+    if len(raw) > MAX_CONFIG_BYTES:
+        raise ConfigError(str(path), "", f"larger than {MAX_CONFIG_BYTES // 1024} KiB")
+    try:
+        text_ = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        raise ConfigError(str(path), "", "not a UTF-8 text file") from None
+    return load_data(load_yaml(text_, str(path)), str(path), path.stem, overrides, max_work,
+                     quick)
+
+
+def load_data(data: dict, source: str, default_name: str, overrides: dict | None = None,
+              max_work: int = MAX_WORK, quick: bool = False) -> Experiment:
+    """:func:`load_file` for a config already read into a mapping."""
+    if overrides:
+        data = apply_overrides(data, overrides, source)
+    exp = parse_data(data, source, default_name, 2**62 if quick else max_work)
+    if quick:                          # the first cell of a sweep, shrunk: the grid's size is moot
+        spec = copy.deepcopy(exp.spec)
+        sweep = spec.pop("sweep", None)
+        if sweep:
+            spec = apply_overrides(spec, {k: v[0] for k, v in sweep.items()}, source)
+        small = ANALYSES[exp.analysis].tiny(spec)
+        exp = parse_data(small, f"{source} (--quick)", default_name, max_work)
+    return exp
+
+
+def load_files(paths, overrides: dict | None = None, max_work: int = MAX_WORK,
+               quick: bool = False) -> list[Experiment]:
+    """:func:`load_file` of every path; two configs of one name are a ``UsageError`` (they
+    would write one results folder)."""
+    exps = [load_file(Path(p), overrides, max_work, quick) for p in paths]
+    names = [e.name for e in exps]
+    dupes = sorted({n for n in names if names.count(n) > 1})
+    if dupes:
+        raise UsageError(f"two configs share the name {dupes[0]!r}")
+    return exps
+
+
+def split_arguments(args) -> tuple[list[Path], dict]:
+    """Config paths and ``key.path=value`` overrides, in any order on a command line; an
+    argument that names an existing file is a path even if it holds '='. A malformed
+    override is a ``UsageError``."""
+    paths, overrides = [], {}
+    for arg in args:
+        text_ = str(arg)
+        key = text_.partition("=")[0]
+        if "=" in text_ and not _exists(text_) and OVERRIDE_KEY.fullmatch(key.strip()):
+            k, v = parse_override(text_)
+            overrides[k] = v
+        elif "=" in text_ and not _exists(text_):
+            raise UsageError(f"{text_!r}: expected a config file or key.path=value (list "
+                             "items by index)")
+        else:
+            paths.append(Path(text_))
+    return paths, overrides
+
+
+def _exists(text_: str) -> bool:
+    """Whether ``text_`` names an existing file (a name too long to be a path does not)."""
+    try:
+        return Path(text_).exists()
+    except OSError:
+        return False

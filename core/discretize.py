@@ -19,6 +19,7 @@ the state at the end of the interval and the state-transition Jacobian ``F_k``:
 from __future__ import annotations
 
 import numpy as np
+
 from estim import linalg
 from estim.simulate import simulate
 

@@ -9,8 +9,11 @@ worker: a Dask run writes the same tables, byte for byte, as ``--jobs 1``.
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Callable, Iterator
 from typing import Any
+
+from estim.errors import UsageError
 
 
 def dask_executor(client: Any) -> Callable[[Callable, dict], Iterator[tuple[int, Any]]]:
@@ -27,3 +30,33 @@ def dask_executor(client: Any) -> Callable[[Callable, dict], Iterator[tuple[int,
             client.cancel(list(futures))
             raise
     return run
+
+
+@contextlib.contextmanager
+def executor(kind: str, scheduler: str | None, jobs: int) -> Iterator[Callable | None]:
+    """``None`` for this machine (``kind`` ``local``), or a Dask executor on ``scheduler`` (a
+    local cluster of ``jobs`` single-threaded workers without one), closed afterwards. A
+    missing Dask or an unreachable or malformed scheduler address is a ``UsageError``."""
+    if kind == "local":
+        yield None
+        return
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise UsageError("--executor dask needs Dask distributed: pip install "
+                         "'estim[dask]'") from None
+    cluster = None if scheduler else LocalCluster(n_workers=jobs, threads_per_worker=1,
+                                                  processes=True, dashboard_address=None)
+    try:
+        client = Client(scheduler) if scheduler else Client(cluster)
+    except (OSError, ValueError, TypeError) as exc:
+        if cluster is not None:
+            cluster.close()
+        first = (str(exc).strip().splitlines() or [type(exc).__name__])[0][:200]
+        raise UsageError(f"cannot reach the Dask scheduler {scheduler}: {first}") from None
+    try:
+        yield dask_executor(client)
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()

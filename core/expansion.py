@@ -29,10 +29,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import linalg
+
 from estim import kernels
 from estim.errors import SimulationError
 from estim.simulate import SOLVERS
-from scipy import linalg
 
 
 @dataclass(frozen=True)

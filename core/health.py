@@ -26,8 +26,9 @@ run-average falls in the band. The innovations of a consistent filter are also w
 from __future__ import annotations
 
 import numpy as np
-from estim.estimators.base import Estimate
 from scipy import stats
+
+from estim.estimators.base import Estimate
 
 DEFAULTS = {
     "band": 0.95,            # two-sided probability of the NEES/NIS band

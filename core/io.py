@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+
 from estim.errors import UsageError
 
 _UMASK = os.umask(0)
@@ -235,14 +236,17 @@ def git_commit() -> str | None:
 
 
 def write_manifest(folder: Path, spec: dict, config_sha256: str, wall_time_s: float,
-                   command: str = "", overrides: dict | None = None) -> None:
-    """``manifest.json``: resolved config and its hash, seed and runs, versions, wall time,
-    and the sha256 of every file written beside it."""
+                   command: str = "", overrides: dict | None = None,
+                   models: dict | None = None) -> None:
+    """``manifest.json``: resolved config (every default filled in) and its hash, every model
+    the config builds with every parameter, seed and runs, versions, wall time, and the sha256
+    of every file written beside it."""
     files = sorted(p for p in folder.rglob("*") if p.is_file() and p.name != "manifest.json")
     mc = spec.get("monte_carlo") or {}
     manifest = {
         "config": spec,
         "config_sha256": config_sha256,
+        "models": models or {},
         "seed": mc.get("seed"),
         "runs": mc.get("runs"),
         "command": command,
@@ -440,3 +444,17 @@ def read_manifest(folder: Path) -> dict | None:
     except (OSError, ValueError):
         return None
     return manifest if isinstance(manifest, dict) else None
+
+
+def stored_tables(results: Path, metric: str, analyses: dict):
+    """``(folder, TableSpec, path)`` of every stored experiment under ``results`` that has
+    the table ``metric``; a manifest that cannot be read is a ``UsageError`` naming it."""
+    for manifest_path in sorted(Path(results).glob("*/manifest.json")):
+        folder = manifest_path.parent
+        manifest = read_manifest(folder)
+        if manifest is None or not isinstance(manifest.get("config"), dict):
+            raise UsageError(f"{manifest_path}: not a readable estim manifest")
+        analysis = analyses.get(manifest["config"].get("analysis", "estimation"))
+        spec = analysis.TABLES.get(metric) if analysis else None
+        if spec is not None and (folder / spec.file).is_file():
+            yield folder, spec, folder / spec.file

@@ -21,8 +21,9 @@ derivative error variance ``P22 = sqrt(2) q^(3/4) r^(1/4)``, and the differentia
 from __future__ import annotations
 
 import numpy as np
-from estim.estimators.kf import KalmanFilter
 from scipy import linalg
+
+from estim.estimators.kf import KalmanFilter
 
 
 def check_differentiable(G: np.ndarray, H: np.ndarray) -> None:

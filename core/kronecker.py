@@ -27,8 +27,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from estim.expansion import expand
 from scipy import linalg
+
+from estim.expansion import expand
 
 
 @dataclass(frozen=True)

@@ -21,6 +21,7 @@ suggest. The signal is ``x(t) = A e^{-t} + N`` (eqs 25-26), fed to the estimator
 from __future__ import annotations
 
 import numpy as np
+
 from estim.estimators.kf import KalmanFilter
 
 

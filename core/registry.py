@@ -1,37 +1,90 @@
-"""Names used in configs -> implementations. Adding a model or filter is one line here.
+"""Names used in configs -> implementations, with no hand-kept list.
 
-Analyses register in :data:`estim.analyses.ANALYSES` the same way.
+A model or an estimator registers itself by the class keyword ``name``::
+
+    class DiodeRC(Model, name="diode_rc"): ...
+    class IteratedEKF(ExtendedKalmanFilter, name="iekf"): ...
+
+A class in estim's own packages lives in the module of its name (``estim/models/diode_rc.py``
+registers ``diode_rc``): the registry lists those names from the package's files and imports a
+module only when a config names it, so a command that does not use a model loads none. A
+module outside estim registers its classes when imported: a config's ``plugins:`` list does
+that (:func:`load_plugins`). Analyses register in :data:`estim.analyses.ANALYSES`.
 """
 
 from __future__ import annotations
 
-from estim.estimators.ekf import ExtendedKalmanFilter
-from estim.estimators.kf import KalmanFilter
-from estim.estimators.kronecker_ekf import KroneckerEKF
-from estim.estimators.rls import RecursiveLeastSquares
-from estim.estimators.ukf import UnscentedKalmanFilter
-from estim.estimators.wavelet_lms import WaveletLMS
-from estim.models.cco import CrossCoupledOscillator
-from estim.models.diffamp_em import DiffAmpEbersMoll
-from estim.models.diffamp_exp import DiffAmpExponential
-from estim.models.mosfet_darlington import MosfetDarlington
-from estim.models.mosfet_ekv import MosfetEKV
-from estim.models.mosfet_printed import MosfetPrinted
+import hashlib
+import importlib
+import importlib.util
+import pkgutil
+import sys
+from collections.abc import Iterator, Mapping
+from pathlib import Path
 
-MODELS = {
-    "cco": CrossCoupledOscillator,
-    "diffamp_em": DiffAmpEbersMoll,
-    "diffamp_exp": DiffAmpExponential,
-    "mosfet_darlington": MosfetDarlington,
-    "mosfet_ekv": MosfetEKV,
-    "mosfet_printed": MosfetPrinted,
-}
+NOT_REGISTERED = ("base",)
+"""Modules of the model and estimator packages that hold no registered class."""
 
-ESTIMATORS = {
-    "ekf": ExtendedKalmanFilter,
-    "kf": KalmanFilter,
-    "kronecker_ekf": KroneckerEKF,
-    "rls": RecursiveLeastSquares,
-    "ukf": UnscentedKalmanFilter,
-    "wavelet_lms": WaveletLMS,
-}
+
+class Registry(Mapping):
+    """``{name: class}`` of one kind (models or estimators), filled lazily from ``package``
+    and by the classes that register themselves."""
+
+    def __init__(self, package: str, kind: str) -> None:
+        self.package, self.kind = package, kind
+        self._classes: dict[str, type] = {}
+
+    def register(self, name: str, cls: type) -> None:
+        known = self._classes.get(name)
+        if known is not None and known is not cls and (
+                known.__module__, known.__qualname__) != (cls.__module__, cls.__qualname__):
+            raise ValueError(f"{self.kind} name {name!r} is taken by {known.__module__}."
+                             f"{known.__qualname__}")
+        self._classes[name] = cls
+
+    def _builtin(self) -> list[str]:
+        spec = importlib.util.find_spec(self.package)
+        paths = list(spec.submodule_search_locations or []) if spec else []
+        return [m.name for m in pkgutil.iter_modules(paths)
+                if not m.ispkg and not m.name.startswith("_") and m.name not in NOT_REGISTERED]
+
+    def __getitem__(self, name: str) -> type:
+        if name not in self._classes and isinstance(name, str) and name in self._builtin():
+            importlib.import_module(f"{self.package}.{name}")
+        try:
+            return self._classes[name]
+        except (KeyError, TypeError):
+            raise KeyError(name) from None
+
+    def __contains__(self, name: object) -> bool:
+        return isinstance(name, str) and (name in self._classes or name in self._builtin())
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(sorted(set(self._builtin()) | set(self._classes)))
+
+    def __len__(self) -> int:
+        return len(set(self._builtin()) | set(self._classes))
+
+
+MODELS = Registry("estim.models", "model")
+ESTIMATORS = Registry("estim.estimators", "estimator")
+
+
+def load_plugins(paths: list[Path]) -> None:
+    """Import each Python file of ``paths`` once (by its resolved path), so the models and
+    estimators it defines register themselves. Raises ``ImportError`` with the reason."""
+    for path in paths:
+        path = Path(path).resolve()
+        module = "estim_plugin_" + hashlib.sha256(str(path).encode()).hexdigest()[:16]
+        if module in sys.modules:
+            continue
+        spec = importlib.util.spec_from_file_location(module, path)
+        if spec is None or spec.loader is None:
+            raise ImportError(f"{path} is not a Python file")
+        code = importlib.util.module_from_spec(spec)
+        sys.modules[module] = code
+        try:
+            spec.loader.exec_module(code)
+        except BaseException:
+            del sys.modules[module]
+            raise

@@ -1,7 +1,8 @@
 """One self-contained HTML page of stored results (``estim report``): per experiment its
 tables (ours beside the printed values and their ratio where there are any; rows where a
 claim fails in red), every figure embedded as a data URI, the deviations its config cites,
-and the seeds and versions of its manifest. No file paths: the CLI reads the files.
+and the seeds and versions of its manifest. :func:`sections` reads a results folder;
+:func:`page` writes no file.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import re
 from dataclasses import dataclass, field
 
 import pandas as pd
+
 from estim import tables
 
 STYLE = """
@@ -129,3 +131,44 @@ def page(title: str, sections: list[Section]) -> str:
             f"<title>{html.escape(title)}</title><style>{STYLE}</style></head><body>"
             f"<h1>{html.escape(title)}</h1><nav>{nav}</nav>\n" + "\n".join(body)
             + "\n</body></html>\n")
+
+
+def sections(results, deviations_text: str, config_dir, analyses: dict) -> list[Section]:
+    """One :class:`Section` per experiment stored under ``results``: its tables (joined to
+    the printed values where there are any), figures, and the deviations (from the text of
+    docs/deviations.md) its config in ``config_dir`` cites. A manifest that cannot be read
+    is a ``UsageError`` naming it."""
+    from pathlib import Path
+
+    from estim.errors import ReferenceJoinError, UsageError
+    from estim.io import read_manifest, read_table
+
+    entries = deviation_entries(deviations_text) if deviations_text else {}
+    out = []
+    for manifest_path in sorted(Path(results).glob("*/manifest.json")):
+        folder = manifest_path.parent
+        manifest = read_manifest(folder)
+        if manifest is None or not isinstance(manifest.get("config"), dict):
+            raise UsageError(f"{manifest_path}: not a readable estim manifest")
+        config = manifest["config"]
+        analysis = analyses.get(config.get("analysis", "estimation"))
+        section = Section(folder.name, str(config.get("title") or ""), manifest)
+        for metric, spec in (analysis.TABLES.items() if analysis else []):
+            path = folder / spec.file
+            if not path.is_file():
+                continue
+            df = tables.view(read_table(path, spec), spec)
+            if spec.join and "table_id" in df and df["table_id"].astype(str).str.len().any():
+                try:
+                    df = tables.with_reference(df, spec, allow_unmatched=True)
+                except ReferenceJoinError:
+                    pass
+            section.tables.append((f"{metric}: {spec.title}", df))
+        for figure in sorted((folder / "figures").glob("*")):
+            if figure.suffix in (".png", ".svg", ".pdf"):
+                section.figures.append((figure.name, figure.read_bytes()))
+        source = Path(config_dir) / f"{folder.name}.yaml" if config_dir else None
+        text_ = source.read_text() if source is not None and source.is_file() else ""
+        section.deviations = [(d, entries[d]) for d in cited(text_) if d in entries]
+        out.append(section)
+    return out

@@ -2,13 +2,18 @@
 
 from __future__ import annotations
 
+import hashlib
 import itertools
+import time
 from collections.abc import Callable
+from pathlib import Path
 
 import pandas as pd
+
+from estim import io
 from estim.analyses import ANALYSES
-from estim.analyses.base import Result, ShardDone, sweep_cell
-from estim.config import apply_overrides, parse_data
+from estim.analyses.base import Result, ShardDone, execution, sweep_cell
+from estim.config import apply_overrides, parse_data, spec_hash
 from estim.schema import Experiment
 from estim.tables import SWEEP_PREFIX
 
@@ -93,3 +98,83 @@ def table_specs() -> dict[str, dict]:
         for metric, spec in module.TABLES.items():
             out.setdefault(metric, {})[name] = spec
     return out
+
+
+def cell_store(exp: Experiment, out: Path) -> io.CellStore:
+    """Where the finished cells of ``exp`` wait in ``out`` (keyed by config and source)."""
+    key = hashlib.sha256((spec_hash(exp.spec) + io.code_fingerprint()).encode()).hexdigest()
+    return io.CellStore(Path(out) / f".{exp.name}.cells-{key[:16]}")
+
+
+def run_to_folder(exp: Experiment, out: Path, jobs: int = 1,
+                  on_done: Callable[[], None] | None = None, executor: Callable | None = None,
+                  resume: bool = True, figure_format: str = "png", command: str = "",
+                  overrides: dict | None = None,
+                  on_start: Callable[[], None] | None = None) -> tuple[Result, int]:
+    """Run ``exp`` and write ``out/<name>/`` as a unit, all old or all new (:mod:`estim.io`):
+    its tables as CSV, its figures (each written and closed as its sweep cell finishes) and
+    ``manifest.json``. Returns the result (its tables, and the names of the figures written)
+    and how many finished cells of an earlier run it resumed with.
+
+    Each finished work unit is kept in ``out/.<name>.cells-<hash>/`` (of the config and of
+    estim's source) until the run is written, so a run stopped by a crash or Ctrl-C resumes
+    with the cells it has (unless not ``resume``); ``executor`` runs the units elsewhere
+    (:mod:`estim.executors`); ``on_start`` is called once the folder is open (its space and
+    lock checked), ``on_done`` once per finished work unit."""
+    import matplotlib.pyplot as plt
+
+    start = time.perf_counter()
+    store = cell_store(exp, out)
+    if not resume:
+        store.clear()
+    written: dict[str, None] = {}
+    with io.ResultFolder(Path(out), exp.name) as folder, execution(executor, store):
+        def write_figures(figures: dict) -> None:
+            for name, fig in figures.items():
+                io.write_figure(fig, folder.path / "figures" / f"{name}.{figure_format}")
+                plt.close(fig)
+                written[name] = None
+
+        if on_start is not None:
+            on_start()
+        result = execute(exp, jobs, on_done, write_figures)
+        for metric, df in result.tables.items():
+            io.write_csv(df, folder.path / f"{metric}.csv")
+        io.write_manifest(folder.path, exp.spec, spec_hash(exp.spec),
+                          time.perf_counter() - start, command=command,
+                          overrides=overrides or {}, models=exp.models)
+        folder.commit()
+    resumed = store.hits
+    store.clear()
+    return Result(tables=result.tables, figures=written), resumed
+
+
+def run_shard(exp: Experiment, out: Path, k: int, n: int, jobs: int = 1) -> tuple[int, bool]:
+    """Compute shard ``k`` of ``n`` of ``exp``'s work units (``K, K+N, ...``, counted over
+    its sweep cells) into its cell store in ``out``, for :func:`gather_cells` and a later run
+    to finish. Returns the cells computed, and whether the analysis splits into work units at
+    all (one that does not is left to the merge, whole)."""
+    store = cell_store(exp, out)
+    with execution(None, store, shard=(k, n)) as ctx:
+        try:
+            execute(exp, jobs)
+        except ShardDone:
+            pass
+    return ctx.computed, bool(ctx.offsets)
+
+
+def gather_cells(exp: Experiment, out: Path, sources: list[Path]) -> int:
+    """Copy the cells shards of ``exp`` left in ``sources`` into its cell store in ``out``:
+    the number of cells found. Only a regular file whose name is a cell's is taken."""
+    target = cell_store(exp, out)
+    found_cells = 0
+    for source in sources:
+        found = cell_store(exp, source).folder
+        for cell in sorted(found.glob("cell-*.pkl")) if found.is_dir() else []:
+            if not cell.is_file():
+                continue
+            if found != target.folder:
+                target.folder.mkdir(parents=True, exist_ok=True)
+                io.atomic_write_bytes(target.folder / cell.name, cell.read_bytes())
+            found_cells += 1
+    return found_cells

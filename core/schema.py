@@ -12,10 +12,14 @@ import dataclasses
 import difflib
 import math
 import re
-from dataclasses import dataclass
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+
 from estim.errors import ConfigError, ConfigErrors, ParameterError
 
 REQUIRED = object()
@@ -111,6 +115,19 @@ def matrix(v):
     return "a finite number, a list of finite numbers or a list of equal-length rows"
 
 
+def vector(max_length: int = 256):
+    """A number (every entry alike) or a list of at most ``max_length`` finite numbers."""
+    ok = number()
+
+    def check(v):
+        if ok(v) is None:
+            return None
+        if isinstance(v, list) and 0 < len(v) <= max_length and all(ok(x) is None for x in v):
+            return None
+        return f"a finite number or a list of at most {max_length} finite numbers"
+    return check
+
+
 def list_of(item, nonempty: bool = True, max_length: int = 100, unique: bool = False):
     """A list of ``item``; at most ``max_length`` entries; with ``unique``, no repeats."""
     return ("list", item, nonempty, max_length, unique)
@@ -184,27 +201,24 @@ def _check(value: Any, spec: Any, source: str, path: str, errors: list) -> Any:
     return value
 
 
-def simulation_block(rtol: float, atol: float) -> tuple[dict, dict]:
-    """The ``simulation`` schema (stiff solver for the actual signal) with an analysis'
-    default tolerances."""
-    return ({
-        "solver": (text({"batched_radau", "scipy"}), "batched_radau"),
-        "rtol": (number(minimum=1e-12, below=0.1), rtol),
-        "atol": (number(minimum=1e-15, maximum=1.0), atol),
-    }, {})
+_BUILT: ContextVar[dict | None] = ContextVar("estim_models_built", default=None)
 
 
-def model_block(models: dict) -> tuple[dict, Any]:
-    """The ``model`` schema: a registered model, its variant and parameter overrides."""
-    return ({
-        "name": (text(models), REQUIRED),
-        "variant": (text(), None),
-        "params": (mapping, {}),
-    }, REQUIRED)
+@contextmanager
+def recording_models() -> Iterator[dict]:
+    """Collect every model :func:`build_model` makes inside: ``{key path: {"name", "variant",
+    "params"}}`` with every parameter resolved (defaults and the variant's values), for the
+    manifest."""
+    token = _BUILT.set({})
+    try:
+        yield _BUILT.get()
+    finally:
+        _BUILT.reset(token)
 
 
 def build_model(model_cls, variant, params: dict, source: str, path: str):
-    """``model_cls(variant, **params)``, with each bad parameter named at ``path``."""
+    """``model_cls(variant, **params)``, with each bad parameter named at ``path``; recorded
+    with every resolved parameter where :func:`recording_models` listens."""
     fields = {f.name: f for f in dataclasses.fields(model_cls.Params)}
     for key, value in params.items():
         if key not in fields:
@@ -222,9 +236,19 @@ def build_model(model_cls, variant, params: dict, source: str, path: str):
         if expected is str and not isinstance(value, str):
             raise ConfigError(source, f"{path}.{key}", f"expected a string, got {value!r}")
     try:
-        return model_cls(variant, **params)
+        model = model_cls(variant, **params)
     except (ParameterError, ValueError, TypeError) as exc:
         raise ConfigError(source, path, str(exc)) from None
+    built = _BUILT.get()
+    if built is not None:
+        entry = {"name": model_cls.name, "variant": model.variant,
+                 "params": dataclasses.asdict(model.params)}
+        key, n = path, 1
+        while key in built and built[key] != entry:      # the same path, another model
+            n += 1
+            key = f"{path} ({n})"
+        built[key] = entry
+    return model
 
 
 def operating_point(model, bias, source: str, path: str):
@@ -245,20 +269,17 @@ def operating_point(model, bias, source: str, path: str):
 
 
 def build_estimator(est_cls, settings: dict, model, source: str, path: str):
-    """``est_cls(**settings)`` checked against its ``SETTINGS`` schema and ``model``.
-
-    ``SETTINGS`` marks required settings with ``REQUIRED`` and optional ones with ``None``:
-    the defaults belong to the estimator's constructor, so an unset key is not passed.
-    """
-    checked = validate(settings, est_cls.SETTINGS, source, path)
-    settings = {k: v for k, v in checked.items() if k in settings}
+    """``est_cls`` with ``settings`` checked against its declared settings
+    (:mod:`estim.settings`: every default filled in) and against ``model``; a problem is a
+    ``ConfigError`` at the setting's key path (``estimators[0].settings.Q``)."""
+    checked = validate(settings, est_cls.schema(), source, path)
     try:
-        est = est_cls(**settings)
+        est = est_cls(**checked)
         est.validate(model)
     except (ValueError, TypeError, OverflowError) as exc:
         message = str(exc)
         key, sep, rest = message.partition(": ")
-        if sep and key in est_cls.SETTINGS:             # "Q: not symmetric" -> settings.Q
+        if sep and key in checked:                      # "Q: not symmetric" -> settings.Q
             raise ConfigError(source, f"{path}.{key}", rest) from None
         raise ConfigError(source, path, message) from None
     return est
@@ -290,6 +311,9 @@ class Experiment:
     source: str
     spec: dict
     plan: Any = None
+    models: dict = field(default_factory=dict)
+    """Every model the config builds, by key path, with every parameter resolved (the
+    manifest records them)."""
 
     @property
     def analysis(self) -> str:

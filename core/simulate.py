@@ -14,9 +14,10 @@ together in one vectorised loop. ``tests/test_mosfet.py`` checks the result agai
 from __future__ import annotations
 
 import numpy as np
+from scipy.integrate import solve_ivp
+
 from estim import compiled, linalg
 from estim.errors import SimulationError
-from scipy.integrate import solve_ivp
 
 # The Radau IIA tableau and its embedded error estimate (Hairer & Wanner, Solving ODEs II,
 # IV.8; as scipy), shared with the compiled integrator.

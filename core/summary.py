@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+
 from estim import claims
 from estim.io import read_manifest, read_table
 

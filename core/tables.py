@@ -10,6 +10,7 @@ from importlib import resources
 
 import numpy as np
 import pandas as pd
+
 from estim.analyses.base import TableSpec
 from estim.errors import ReferenceJoinError
 
@@ -160,3 +161,41 @@ def render(df: pd.DataFrame, fmt: str) -> str:
                           r"\toprule", head + r" \\", r"\midrule", *body, r"\bottomrule",
                           r"\end{tabular}"]) + "\n"
     return cells.to_string(index=False, line_width=TEXT_WIDTH)
+
+
+def stored(results, metric: str, fmt: str, thesis: bool, partial: bool,
+           analyses: dict) -> str:
+    """What ``estim table`` prints: the ``metric`` tables of every experiment stored under
+    ``results`` in ``fmt`` (text, csv, markdown, latex), with the printed values and the
+    ratios beside ours when ``thesis``. csv is one table over all experiments (an
+    ``experiment`` column first); the others one table per experiment under its title. A
+    thesis join that fails, or no values at all, is a ``UsageError``."""
+    from estim.errors import UsageError
+    from estim.io import read_table, stored_tables
+
+    parts, frames = [], []
+    for folder, spec, path in stored_tables(results, metric, analyses):
+        df = view(read_table(path, spec), spec)
+        values = df.drop(columns=[*spec.keys, *sweep_columns(df)], errors="ignore")
+        if values.isna().all().all():
+            continue
+        if thesis and spec.join and "table_id" in df:
+            try:
+                df = with_reference(df, spec, allow_unmatched=partial)
+            except ReferenceJoinError as exc:
+                raise UsageError(f"{path}: {exc}") from None
+        if fmt == "csv":
+            frames.append(df.assign(experiment=folder.name)[["experiment", *df.columns]])
+            continue
+        ids = ", ".join(sorted({str(t) for t in df.get("table_id", []) if t}))
+        note = f" (thesis Table {ids})" if ids else (
+            " (no printed table to compare with)" if thesis else "")
+        title = f"{folder.name}: {spec.title}" if spec.title else folder.name
+        head = {"text": f"== {title}{note}", "markdown": f"### {title}{note}\n"}.get(
+            fmt, f"% {latex_escape(title + note)}")
+        parts.append(f"{head}\n{render(df, fmt)}")
+    if frames:
+        parts.append(render(pd.concat(frames, ignore_index=True), "csv").rstrip("\n"))
+    if not parts:
+        raise UsageError(f"no {metric} values under {results}/ (run 'estim reproduce')")
+    return "\n".join(parts)

@@ -23,6 +23,8 @@ error and an arbitrary value.
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -158,3 +160,63 @@ def fit(evaluate: Callable[[np.ndarray, np.ndarray], float], q0: np.ndarray, r0:
     return Fit(q=q, q_se=q_se, r=np.asarray(r, float), r_se=r_se,
                log_likelihood_start=float(start), log_likelihood=float(-res.fun),
                identifiable=identifiable, message=message, evaluations=count[0])
+
+
+def tune(exp, training: Callable, label: str, runs: int,
+         fit_r: bool = False) -> tuple[dict, Fit]:
+    """Maximum-likelihood ``Q`` (and ``R``) of the filter ``label`` of ``exp``, pooled over the
+    training draws its analysis gives (``training(exp, label, runs)``, e.g.
+    :func:`estim.analyses.estimation.training`): one setting for the table, as the thesis
+    uses one. Returns the estimator's config entry with the fitted diagonals, and the
+    :class:`Fit`."""
+    from estim.errors import UsageError
+    from estim.estimators.base import as_matrix
+
+    index, est, model, batches = training(exp, label, runs)
+    if not (hasattr(est, "Q") and hasattr(est, "R")):
+        raise UsageError(f"{exp.name}: {label!r} has no noise covariances to fit")
+    n, m = model.n_states, model.n_outputs
+    q0 = np.diag(as_matrix(est.Q, n, "Q")).copy()
+    r0 = np.diag(as_matrix(est.R, m, "R")).copy()
+    q0[q0 <= 0] = 1e-12 * max(float(q0.max()), 1e-300)
+
+    def evaluate(q, r):
+        trial = dataclasses.replace(est, Q=[float(v) for v in q], R=[float(v) for v in r])
+        total = 0.0
+        for data in batches:
+            out = trial.run(model, data["z"], data["u"], data["dt"], x0=data["x0"])
+            total += log_likelihood(out.innovation, out.S, R=as_matrix(r, m, "R"))
+            if not np.isfinite(total):
+                return -np.inf
+        return total
+
+    result = fit(evaluate, q0, r0, fit_r=fit_r)
+    entry = copy.deepcopy(exp.spec["estimators"][index])
+    entry["settings"]["Q"] = [float(f"{v:.6g}") for v in result.q]
+    if fit_r:
+        entry["settings"]["R"] = [float(f"{v:.6g}") for v in result.r]
+    return entry, result
+
+
+def overlay(entry: dict, result: Fit, label: str, runs: int, command: str, seconds: float,
+            fit_r: bool) -> str:
+    """The YAML overlay ``estim tune`` writes: the fit as comments (likelihoods, standard
+    errors, identifiability), then the fitted estimator entry."""
+    import yaml
+
+    lines = [
+        f"# Written by: {command}",
+        f"# Maximum-likelihood noise covariances of {label!r} (estim.tuning) on training",
+        f"# draws of {runs} runs per sweep point, apart from the table's draws.",
+        f"# Innovation log-likelihood: {result.log_likelihood_start:.6g} at the config's "
+        f"values, {result.log_likelihood:.6g} fitted ({result.evaluations} evaluations, "
+        f"{seconds:.0f} s).",
+        f"# {result.message}",
+        f"# Q diagonal:    {[float(f'{v:.4g}') for v in result.q]}",
+        f"# standard error {[float(f'{v:.2g}') for v in result.q_se]}",
+    ]
+    if fit_r:
+        lines += [f"# R diagonal:    {[float(f'{v:.4g}') for v in result.r]}",
+                  f"# standard error {[float(f'{v:.2g}') for v in result.r_se]}"]
+    lines.append("# Add the entry below to the config's estimators to run it beside the others.")
+    return "\n".join(lines) + "\n" + yaml.safe_dump({"estimators": [entry]}, sort_keys=False)

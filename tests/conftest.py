@@ -1,7 +1,8 @@
 import numpy as np
 import pytest
-from estim.models.base import Model
 from scipy import linalg
+
+from estim.models.base import Model
 
 
 class LinearModel(Model):

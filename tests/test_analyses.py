@@ -6,6 +6,7 @@ import pandas as pd
 import pytest
 import yaml
 from click.testing import CliRunner
+
 from estim import claims, io
 from estim.analyses import ANALYSES
 from estim.cli.main import main

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+
 from estim import claims
 from estim.claims import Losses
 
@@ -79,12 +80,20 @@ def test_too_few_runs_with_a_divergence_are_undecided():
     assert claims.sign_interval_rank(5) == 0 and claims.sign_interval_rank(6) == 1
 
 
-def test_one_deterministic_run_is_judged_exactly_with_a_rounding_tie():
-    assert claims.judge(Losses([1.0]), Losses([2.0]))["verdict"] == "holds"
-    assert claims.judge(Losses([2.0]), Losses([1.0]))["verdict"] == "fails"
-    tie = claims.judge(Losses([1.0]), Losses([1.0 + 1e-12]))
+def test_a_deterministic_value_is_judged_exactly_with_a_rounding_tie():
+    def exact(a, b):
+        return claims.judge(Losses([a]), Losses([b]), exact=True)
+
+    assert exact(1.0, 2.0)["verdict"] == "holds"
+    assert exact(2.0, 1.0)["verdict"] == "fails"
+    tie = exact(1.0, 1.0 + 1e-12)
     assert tie["method"] == "exact" and tie["verdict"] == "undecided"
-    assert claims.judge(Losses([2.0]), Losses([np.inf]))["verdict"] == "holds"
+    assert exact(2.0, np.inf)["verdict"] == "holds"
+
+
+def test_a_single_random_run_decides_nothing():
+    out = claims.judge(Losses([1.0]), Losses([2.0]))
+    assert out["method"] == "t" and out["verdict"] == "undecided"
 
 
 def test_table_judges_every_pair_in_every_cell_that_has_both():

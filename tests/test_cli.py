@@ -6,6 +6,7 @@ import pandas as pd
 import pytest
 import yaml
 from click.testing import CliRunner
+
 from estim.cli.main import main
 from estim.config import parse_override
 
@@ -471,9 +472,9 @@ def test_every_config_mistake_at_once_with_suggestions(tmp_path):
 def test_every_shipped_config_has_a_valid_quick_profile(path):
     """``estim run CONFIG --quick`` validates the shrunk config again: it must pass (a config
     without ``reproduces`` used to fail here)."""
-    from estim.cli.main import load
+    from estim.config import load_file
 
-    exp = load(path, quick=True)
+    exp = load_file(path, quick=True)
     assert exp.name == path.stem
 
 
@@ -844,6 +845,7 @@ def test_gain_table_skips_a_swept_experiment_without_gain_values(tmp_path):
 
 def test_a_sweep_holds_one_cells_figures_at_a_time(tmp_path, monkeypatch):
     import matplotlib.pyplot as plt
+
     from estim import io as estim_io
 
     spec = tiny_config()

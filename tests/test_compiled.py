@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+
 from estim import compiled, kernels
 from estim.models.cco import CrossCoupledOscillator
 from estim.models.diffamp_em import DiffAmpEbersMoll

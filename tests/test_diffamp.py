@@ -1,5 +1,6 @@
 import numpy as np
 import pytest
+
 from estim.models.diffamp_em import DiffAmpEbersMoll
 from estim.simulate import simulate
 

@@ -4,6 +4,7 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
+
 from estim import differentiators as fd
 from estim import tables
 

@@ -1,5 +1,7 @@
 import numpy as np
 import pytest
+from scipy import linalg
+
 from estim import discretize, registry
 from estim.estimators.base import Estimate
 from estim.estimators.ekf import ExtendedKalmanFilter
@@ -7,7 +9,6 @@ from estim.estimators.kf import KalmanFilter
 from estim.estimators.rls import RecursiveLeastSquares
 from estim.estimators.ukf import UnscentedKalmanFilter
 from estim.models.mosfet_ekv import MosfetEKV
-from scipy import linalg
 
 
 def test_kf_reaches_closed_form_steady_state_scalar():
@@ -144,25 +145,24 @@ def test_batched_and_single_run_filtering_agree():
 
 @pytest.mark.parametrize("name", sorted(registry.ESTIMATORS))
 def test_every_estimator_returns_an_estimate(name, oscillator):
-    Ad, Bd = oscillator.discrete(0.1)
-    settings = {"kf": dict(A=Ad, B=Bd, C=oscillator.C, Q=0.01, R=0.1, x0=[0, 0], P0=1.0),
-                "ekf": dict(Q=0.01, R=0.1, P0=1.0, x0=[0.0, 0.0]),
-                "rls": dict(order=3),
-                "ukf": dict(Q=0.01, R=0.1, P0=1.0, x0=[0.0, 0.0]),
-                "kronecker_ekf": dict(Q=0.01, R=0.1, P0=1.0, x0=[0.0, 0.0]),
-                "wavelet_lms": dict(measures=["x0"], epochs=2)}[name]
+    """The conformance test over the registry: each estimator's own example settings."""
+    cls = registry.ESTIMATORS[name]
+    est = cls.example(oscillator)
+    est.validate(oscillator)
     z = np.random.default_rng(4).normal(size=(5, 30, 1))
-    est = registry.ESTIMATORS[name](**settings).run(oscillator, z, np.zeros((30, 1)), 0.1)
-    assert isinstance(est, Estimate)
-    assert est.y_hat.shape == z.shape and est.innovation.shape == z.shape
-    assert est.broken.shape == (5,)
+    out = est.run(oscillator, z, np.zeros((30, 1)), 0.1)
+    assert isinstance(out, Estimate)
+    assert out.y_hat.shape == z.shape and out.innovation.shape == z.shape
+    assert out.broken.shape == (5,)
+    assert set(est.to_spec()) == set(cls.schema()), "every setting is in its spec"
 
 
-def test_joseph_covariance_stays_symmetric_positive(oscillator):
+def test_joseph_covariance_stays_symmetric_positive_definite(oscillator):
     ekf = ExtendedKalmanFilter(Q=[1e-6, 1e-6], R=1e-4, P0=[10.0, 10.0], x0=[0.0, 0.0])
     z = np.random.default_rng(5).normal(size=(2, 400, 1))
     est = ekf.run(oscillator, z, np.zeros((400, 1)), 0.05)
-    assert np.all(est.P_diag > 0)
+    np.testing.assert_array_equal(est.P, np.swapaxes(est.P, -1, -2))
+    assert np.all(np.linalg.eigvalsh(est.P) > 0)
 
 
 def test_printed_taylor_model_diverges_and_is_reported():

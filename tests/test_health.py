@@ -2,11 +2,12 @@
 
 import numpy as np
 import pytest
+from scipy import stats
+
 from estim import health
 from estim.estimators.base import Estimate
 from estim.estimators.kf import KalmanFilter
 from estim.estimators.rls import RecursiveLeastSquares
-from scipy import stats
 
 A = np.array([[0.95, 0.1], [-0.1, 0.95]])
 C = np.array([[1.0, 0.0]])

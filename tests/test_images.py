@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+
 from estim.images import kalman2d, nshp
 
 A_TRUE = np.array([0.6, 0.3, 0.5, -0.45])        # M = 1: (0,1), (1,-1), (1,0), (1,1)
@@ -208,8 +209,9 @@ def test_eqs_36_equal_a_standard_kalman_filter_on_the_synchronised_model():
 
 
 def test_strip_filter_with_noise_taken_off_improves_camera_at_5_db():
-    from estim.images import strip
     from skimage import data
+
+    from estim.images import strip
 
     img = data.camera().astype(float)[:128, :256]
     u = img - img.mean()

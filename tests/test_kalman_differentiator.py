@@ -2,8 +2,9 @@
 
 import numpy as np
 import pytest
-from estim import kalman_differentiator as kd
 from scipy import linalg
+
+from estim import kalman_differentiator as kd
 
 F = np.array([[0.0, 1.0], [0.0, 0.0]])
 H = np.array([[1.0], [0.0]])

@@ -5,6 +5,7 @@ import copy
 import numpy as np
 import pytest
 import yaml
+
 from estim import kronecker, opcount, signals
 from estim.analyses import kronecker as analysis
 from estim.config import parse_data

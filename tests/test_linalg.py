@@ -1,8 +1,9 @@
 import numpy as np
 import pytest
+from scipy import linalg as sl
+
 from estim.linalg import expm
 from estim.models.mosfet_ekv import MosfetEKV
-from scipy import linalg as sl
 
 
 @pytest.mark.parametrize("scale", [1e-3, 1.0, 30.0])

@@ -1,5 +1,6 @@
 import numpy as np
 import pytest
+
 from estim.models.mosfet_ekv import DRAIN_CURRENT_LAWS, MosfetEKV
 from estim.simulate import simulate, simulate_scipy
 
@@ -99,6 +100,7 @@ def test_simulator_matches_solve_ivp_radau():
 
 def _input_derivative_experiment(**noise):
     import yaml
+
     from estim.config import parse_data
 
     spec = yaml.safe_load(open("configs/mosfet_input_derivative.yaml"))

@@ -5,6 +5,7 @@ import copy
 import numpy as np
 import pandas as pd
 import yaml
+
 from estim import passive_network as pn
 from estim.analyses import passive_network as analysis
 from estim.config import parse_data

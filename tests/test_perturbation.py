@@ -6,6 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+
 from estim import config, metrics
 from estim.analyses import perturbation as analysis
 from estim.errors import SimulationError

@@ -2,6 +2,7 @@
 readable windows, units in titles."""
 
 import numpy as np
+
 from estim import plots
 
 

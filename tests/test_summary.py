@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pandas as pd
 from click.testing import CliRunner
+
 from estim import summary
 from estim.analyses import ANALYSES
 from estim.cli.main import main

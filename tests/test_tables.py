@@ -1,6 +1,7 @@
 import numpy as np
 import pandas as pd
 import pytest
+
 from estim import tables
 from estim.analyses import estimation
 from estim.analyses.base import TableSpec
@@ -60,6 +61,7 @@ def test_thesis_tables_ship_with_the_package():
 
 def test_render_latex_markdown_and_text_are_fit_for_a_paper():
     import pandas as pd
+
     from estim import tables
 
     df = pd.DataFrame({"frequency_hz": [100.0, 10000.0], "noise_param": [0.25, 1e-7],

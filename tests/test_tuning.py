@@ -1,6 +1,7 @@
 """Maximum-likelihood noise fitting (estim.tuning)."""
 
 import numpy as np
+
 from estim import tuning
 from estim.estimators.ekf import ExtendedKalmanFilter
 

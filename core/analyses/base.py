@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import pandas as pd
+
 from estim.tablespec import TableSpec
 
 __all__ = ["TableSpec"]

@@ -24,12 +24,15 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import pandas as pd
 import pywt
+
 from estim import claims, opcount, plots, registry, tables
 from estim.analyses.base import Result, TableSpec
+from estim.blocks import Model as ModelBlock
 from estim.errors import ConfigError
 from estim.estimators.kronecker_ekf import KroneckerEKF
 from estim.estimators.wavelet_lms import WaveletLMS
@@ -42,31 +45,59 @@ from estim.schema import (
     integer,
     list_of,
     mapping,
-    model_block,
     number,
     text,
 )
+from estim.settings import Settings, block, setting, settings_class
 from estim.summary import Quote
 
-SCHEMA: dict = {
-    "model": model_block(registry.MODELS),
-    "stages": (list_of(integer(1, 64), max_length=8, unique=True), [1, 2, 4, 8]),
-    "ekf": (mapping, REQUIRED),
-    "wavelet": (mapping, REQUIRED),
-    "timing": ({
-        "steps": (integer(10, 100_000), 200),
-        "repeats": (integer(1, 100), 5),
-        "block_samples": (integer(64, 1_000_000), 512),
-        "sample_time_s": (number(positive=True, maximum=1.0), 3.125e-5),
-        "fundamental_hz": (number(positive=True, maximum=1e9), 1000.0),
-        "batch_runs": (integer(2, 100_000), 256),
-    }, {}),
-    "tables": ({
-        "burden_ekf": (text(), "4.3"),
-        "burden_wt": (text(), "4.4"),
-    }, {}),
-    "figures": ({"name": (file_name, "fig_burden")}, {}),
-}
+
+@settings_class
+class Timing(Settings):
+    """How the wall time per step is measured (this machine's; check skips it)."""
+
+    steps: int = setting(200, integer(10, 100_000), doc="EKF steps timed")
+    repeats: int = setting(5, integer(1, 100), doc="repeats (the median is kept)")
+    block_samples: int = setting(512, integer(64, 1_000_000),
+                                 doc="samples of the wavelet method's block")
+    sample_time_s: float = setting(3.125e-5, number(positive=True, maximum=1.0), unit="s",
+                                   doc="sample time")
+    fundamental_hz: float = setting(1000.0, number(positive=True, maximum=1e9), unit="Hz",
+                                    doc="the input's fundamental")
+    batch_runs: int = setting(256, integer(2, 100_000),
+                              doc="runs filtered together in the second timing")
+
+
+@settings_class
+class Tables(Settings):
+    """The thesis tables joined."""
+
+    burden_ekf: str = setting("4.3", text(), doc="the EKF's table")
+    burden_wt: str = setting("4.4", text(), doc="the wavelet method's table")
+
+
+@settings_class
+class Figures(Settings):
+    """The figure."""
+
+    name: str = setting("fig_burden", file_name, doc="the figure's file name")
+
+
+@settings_class
+class Config(Settings):
+    """Tables 4.3-4.4: multiplications per step, printed, as written and counted."""
+
+    model: Any = block(ModelBlock, required=True, doc="a chain of stages (mosfet_darlington)")
+    stages: list = setting([1, 2, 4, 8], list_of(integer(1, 64), max_length=8, unique=True),
+                           doc="chain lengths (n_x = 4 per stage)")
+    ekf: dict = setting(REQUIRED, mapping, doc="the Kronecker EKF's settings")
+    wavelet: dict = setting(REQUIRED, mapping, doc="the wavelet method's settings")
+    timing: Timing = block(Timing, doc="the wall-time measurement")
+    tables: Tables = block(Tables, doc="the thesis tables joined")
+    figures: Figures = block(Figures, doc="the figure")
+
+
+SCHEMA: dict = Config.schema()
 
 _KEYS = ("table_id", "row_order", "row_label_printed", "n_x", "d", "p",
          "multiplications_printed", "ours_formula")
@@ -155,6 +186,7 @@ def prepare(spec: dict, source: str) -> dict:
     first = models[spec["stages"][0]]
     ekf = build_estimator(KroneckerEKF, spec["ekf"], first, source, "ekf")
     wavelet = build_estimator(WaveletLMS, spec["wavelet"], first, source, "wavelet")
+    spec["ekf"], spec["wavelet"] = ekf.to_spec(), wavelet.to_spec()   # every default
     if wavelet.measures is not None:
         raise ConfigError(source, "wavelet.measures", "the burden is counted with every state "
                           "measured (eq 4.16, H = I); leave measures unset")
@@ -303,7 +335,8 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
         cells.append((claims.cell(n_x=int(n)), {
             EKF: claims.Losses([float(at[EKF])]),
             WAVELET: claims.Losses([float(at["wavelet LMS (per sample of a block)"])])}))
-    out.tables["claims"] = claims.table(cells, CLAIMS, "multiplications per sample")
+    out.tables["claims"] = claims.table(cells, CLAIMS, "multiplications per sample",
+                                         exact=True)
     out.figures[spec["figures"]["name"]] = plots.burden(out.tables["timing"],
                                                         out.tables["slopes"])
     return out

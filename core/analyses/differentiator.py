@@ -21,25 +21,48 @@ from collections.abc import Callable
 
 import numpy as np
 import pandas as pd
+
 from estim import claims, plots
 from estim import differentiators as fd
 from estim.analyses.base import Result, TableSpec
 from estim.schema import Experiment, file_name, integer, list_of, number, text
+from estim.settings import Settings, block, setting, settings_class
 from estim.summary import Quote
 
-SCHEMA: dict = {
-    "bands": (list_of(number(minimum=0.01, maximum=0.999), max_length=50),
-              [0.95, 0.90, 0.80, 0.70, 0.60, 0.50]),
-    "thresholds_db": (list_of(number(minimum=-300.0, maximum=-1.0), max_length=20),
-                      [-40.0, -60.0, -80.0, -100.0]),
-    "max_n": (integer(1, 60), 40),
-    "max_taps": (integer(4, 1024), 128),
-    "tables": ({"orders": (text(), "fir_II")}, {}),
-    "figures": ({
-        "orders_n": (list_of(integer(1, 60), max_length=12), [1, 2, 3, 5, 7, 10]),
-        "name": (file_name, "fig_3"),
-    }, {}),
-}
+
+@settings_class
+class Tables(Settings):
+    """The paper's table joined."""
+
+    orders: str = setting("fir_II", text(), doc="the paper's Table II")
+
+
+@settings_class
+class Figures(Settings):
+    """Fig 3: relative error against frequency."""
+
+    orders_n: list = setting([1, 2, 3, 5, 7, 10], list_of(integer(1, 60), max_length=12),
+                             doc="the orders drawn")
+    name: str = setting("fig_3", file_name, doc="the figure's file name")
+
+
+@settings_class
+class Config(Settings):
+    """Maximally linear FIR differentiators against minimax designs (Table II, Fig 3)."""
+
+    bands: list = setting([0.95, 0.90, 0.80, 0.70, 0.60, 0.50],
+                          list_of(number(minimum=0.01, maximum=0.999), max_length=50),
+                          doc="omega_p: the band [omega_p pi, pi]")
+    thresholds_db: list = setting([-40.0, -60.0, -80.0, -100.0],
+                                  list_of(number(minimum=-300.0, maximum=-1.0), max_length=20),
+                                  unit="dB", doc="the relative-error bounds")
+    max_n: int = setting(40, integer(1, 60), doc="largest maximally linear order searched")
+    max_taps: int = setting(128, integer(4, 1024), doc="largest minimax length searched")
+    tables: Tables = block(Tables, doc="the table joined")
+    figures: Figures = block(Figures, doc="Fig 3")
+
+
+SCHEMA: dict = Config.schema()
 
 TABLES = {
     "orders": TableSpec("orders.csv", ("table_id", "omega_p", "threshold_db"),
@@ -119,7 +142,7 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
               {ML: claims.Losses([row["n2"]]), FULL: claims.Losses([row["n1"]]),
                BAND: claims.Losses([row["n_band_minimax"]])}) for row in rows]
     return Result(tables={"orders": pd.DataFrame(rows)[TABLES["orders"].columns],
-                          "claims": claims.table(cells, CLAIMS, "order")},
+                          "claims": claims.table(cells, CLAIMS, "order", exact=True)},
                   figures={spec["figures"]["name"]: figure})
 
 

@@ -34,17 +34,19 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+
 from estim import claims, metrics, signals
 from estim.analyses.base import Result, TableSpec, map_tasks
+from estim.blocks import READING, MonteCarlo
 from estim.errors import ConfigError
 from estim.estimators.base import as_matrix
 from estim.estimators.kf import KalmanFilter
 from estim.estimators.rls import RecursiveLeastSquares
 from estim.fields.dipole import Dipole
 from estim.schema import REQUIRED, Experiment, check_interval, integer, list_of, number, text
+from estim.settings import Settings, block, blocks, setting, settings_class
 from estim.summary import Quote
 
-_READING = text({"sigma", "variance"})
 COMPONENTS = ("E_r", "E_theta", "H_phi")
 PARTS = ("imag", "real", "abs")
 KF, RLS = "KF", "RLS"
@@ -53,44 +55,85 @@ TABLE_IDS = {(c, z, e): f"5.{1 + 3 * k + i}" for k, (z, e) in enumerate(
 """Thesis table of each (component, zone, estimator): 5.1-5.3 KF near, 5.4-5.6 RLS near,
 5.7-5.9 KF far, 5.10-5.12 RLS far."""
 
-SCHEMA: dict = {
-    "variant": (text({"literal"}), "literal"),
-    "source": ({
-        "I0_dl": (number(positive=True, maximum=1e6), 1.0),
-        "frequency": (number(positive=True, maximum=1e12), 1.0),
-        "c": (number(positive=True, maximum=1e12), 1.0),
-        "mu0": (number(positive=True, maximum=1e6), 1.0),
-    }, {}),
-    "zones": (list_of({
-        "name": (text({"near", "far"}), REQUIRED),
-        "r": (list_of(number(positive=True, maximum=1e6), max_length=2), REQUIRED),
-        "theta_deg": (list_of(number(minimum=1.0, maximum=179.0), max_length=2), [30.0, 150.0]),
-        "points_r": (integer(3, 200), 5),
-        "points_theta": (integer(3, 200), 5),
-    }, max_length=2, unique=False), REQUIRED),
-    "time": ({
-        "samples_per_period": (integer(8, 10_000), 50),
-        "periods": (integer(1, 1000), 4),
-    }, {}),
-    "noise": ({
-        "source_levels": (list_of(number(positive=True, maximum=1e3)), REQUIRED),
-        "readings": (list_of(_READING, unique=True), ["sigma", "variance"]),
-        "measurement_sigma": (number(positive=True, maximum=1e3), 0.1),
-    }, REQUIRED),
-    "kf": ({
-        "Q": (list_of(number(minimum=0.0, maximum=1e6), max_length=4), [1e-4, 1e-3, 1e-4, 1e-2]),
-        "R": (number(positive=True, maximum=1e6), 0.01),
-        "P0": (list_of(number(minimum=0.0, maximum=1e6), max_length=4), [1e-4] * 4),
-    }, {}),
-    "rls": ({
-        "lambda0": (number(minimum=0.5, maximum=1.0), 0.98),
-        "delta": (number(positive=True, maximum=1e12), 100.0),
-    }, {}),
-    "monte_carlo": ({
-        "runs": (integer(2, 100_000), REQUIRED),
-        "seed": (integer(0, 2**63 - 1), REQUIRED),
-    }, REQUIRED),
-}
+@settings_class
+class Source(Settings):
+    """The Hertzian dipole, in normalised units (D57)."""
+
+    I0_dl: float = setting(1.0, number(positive=True, maximum=1e6), doc="current moment I0 dl")
+    frequency: float = setting(1.0, number(positive=True, maximum=1e12), doc="frequency")
+    c: float = setting(1.0, number(positive=True, maximum=1e12), doc="speed of light")
+    mu0: float = setting(1.0, number(positive=True, maximum=1e6), doc="permeability")
+
+
+@settings_class
+class Zone(Settings):
+    """A near or far zone: a grid of points in (r, theta)."""
+
+    name: str = setting(REQUIRED, text({"near", "far"}), doc="near or far")
+    r: list = setting(REQUIRED, list_of(number(positive=True, maximum=1e6), max_length=2),
+                      doc="[low, high] radius")
+    theta_deg: list = setting([30.0, 150.0], list_of(number(minimum=1.0, maximum=179.0),
+                                                     max_length=2),
+                              unit="deg", doc="[low, high] polar angle")
+    points_r: int = setting(5, integer(3, 200), doc="grid points in r")
+    points_theta: int = setting(5, integer(3, 200), doc="grid points in theta")
+
+
+@settings_class
+class Time(Settings):
+    """Sampling and record."""
+
+    samples_per_period: int = setting(50, integer(8, 10_000), doc="samples per period")
+    periods: int = setting(4, integer(1, 1000), doc="record length in periods")
+
+
+@settings_class
+class Noise(Settings):
+    """Noise at the source (as printed) and on the measured potentials."""
+
+    source_levels: list = setting(REQUIRED, list_of(number(positive=True, maximum=1e3)),
+                                  doc="the printed source-noise numbers")
+    readings: list = setting(["sigma", "variance"], list_of(READING, unique=True),
+                             doc="read each level as a standard deviation, a variance, or both")
+    measurement_sigma: float = setting(0.1, number(positive=True, maximum=1e3),
+                                       doc="white noise on every measured potential")
+
+
+@settings_class
+class KF(Settings):
+    """The per-point KF of eqs 5.42-5.47, its covariances as printed."""
+
+    Q: list = setting([1e-4, 1e-3, 1e-4, 1e-2], list_of(number(minimum=0.0, maximum=1e6),
+                                                       max_length=4),
+                      doc="diag Q for [A, V, Phi, Psi] (eq 5.42)")
+    R: float = setting(0.01, number(positive=True, maximum=1e6), doc="R per measured potential")
+    P0: list = setting([1e-4] * 4, list_of(number(minimum=0.0, maximum=1e6), max_length=4),
+                       doc="diag P0 for [A, V, Phi, Psi]")
+
+
+@settings_class
+class RLS(Settings):
+    """The per-point RLS baseline (a sinusoid of the known frequency)."""
+
+    lambda0: float = setting(0.98, number(minimum=0.5, maximum=1.0), doc="fixed forgetting")
+    delta: float = setting(100.0, number(positive=True, maximum=1e12), doc="P(0) = delta I")
+
+
+@settings_class
+class Config(Settings):
+    """The thesis' Chapter 5 experiment as printed: a KF and RLS per grid point."""
+
+    variant: str = setting("literal", text({"literal"}), doc="the experiment as printed")
+    source: Source = block(Source, doc="the dipole")
+    zones: tuple = blocks(Zone, max_length=2, doc="the near and far zones")
+    time: Time = block(Time, doc="sampling and record")
+    noise: Noise = block(Noise, required=True, doc="source and measurement noise")
+    kf: KF = block(KF, doc="the KF's covariances")
+    rls: RLS = block(RLS, doc="the RLS baseline")
+    monte_carlo: MonteCarlo = block(MonteCarlo, required=True, doc="runs and seed")
+
+
+SCHEMA: dict = Config.schema()
 
 _KEYS = ("table_id", "s_no", "zone", "noise_reading", "noise_param", "noise_sigma", "estimator",
          "field_component", "part")

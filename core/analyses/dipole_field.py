@@ -34,19 +34,21 @@ from collections.abc import Callable
 
 import numpy as np
 import pandas as pd
+from scipy.spatial import cKDTree
+
 from estim import claims, metrics, plots
 from estim.analyses import dipole as literal
 from estim.analyses.base import Result, TableSpec, map_tasks
 from estim.analyses.dipole import COMPONENTS, TABLE_IDS, sinusoid_rls
+from estim.blocks import READING, MonteCarlo
 from estim.errors import ConfigError
 from estim.fields import etkf, wave
 from estim.fields.dipole import Dipole
 from estim.fields.fdtd import Grid, Simulation, fields_from, spherical
 from estim.schema import REQUIRED, Experiment, check_interval, integer, list_of, number, text
+from estim.settings import Settings, block, blocks, setting, settings_class
 from estim.summary import Quote
-from scipy.spatial import cKDTree
 
-_READING = text({"sigma", "variance"})
 KF, RLS, PLAIN = "KF", "RLS", "plain simulation"
 EULER = "plain simulation (Euler, eq 5.20)"
 DIVERGED_RATIO = 1e3
@@ -56,55 +58,112 @@ the rounding that seeded its growth and differ between machines)."""
 """The printed discretisation ``xi+ = (I + T F) xi``: forward Euler on (A, dA/dt), every
 mode grows (:func:`estim.fields.wave.step`); run once per case to show it."""
 
-SCHEMA: dict = {
-    "grid": ({
-        "n": (integer(8, 96), 32),
-        "length": (number(positive=True, maximum=1e3), 4.0),
-        "courant": (number(positive=True, maximum=0.577), 0.5),
-        "source_width": (number(positive=True, maximum=10.0), 0.7),
-        "boundary": (text({"mur", "dirichlet"}), "mur"),
-    }, {}),
-    "source": ({
-        "frequency": (number(positive=True, maximum=1e12), 1.0),
-        "c": (number(positive=True, maximum=1e12), 1.0),
-        "mu0": (number(positive=True, maximum=1e6), 1.0),
-    }, {}),
-    "scenarios": (list_of({
-        "name": (text(max_length=40), REQUIRED),
-        "nominal_amplitude": (list_of(number(minimum=0.0, maximum=1e3), max_length=2),
-                              REQUIRED),
-    }, max_length=10), REQUIRED),
-    "zones": (list_of({
-        "name": (text({"near", "far"}), REQUIRED),
-        "r": (list_of(number(positive=True, maximum=1e6), max_length=2), REQUIRED),
-        "theta_deg": (list_of(number(minimum=0.0, maximum=180.0), max_length=2), [30.0, 150.0]),
-    }, max_length=2), REQUIRED),
-    "sensors": ({
-        "fraction": (number(positive=True, maximum=1.0), 0.02),
-        "r": (list_of(number(positive=True, maximum=1e6), max_length=2), [0.2, 1.9]),
-        "measurement_sigma": (number(positive=True, maximum=1e3), 0.01),
-        "seed": (integer(0, 2**63 - 1), 5),
-    }, {}),
-    "filter": ({
-        "members": (integer(3, 2000), 50),
-        "amplitude_spread": (number(positive=True, maximum=1e3), 0.3),
-        "model_error": (number(minimum=0.0, maximum=1e3), 0.02),
-        "inflation": (number(minimum=1.0, maximum=2.0), 1.0),
-    }, {}),
-    "rls": literal.SCHEMA["rls"],
-    "time": ({
-        "spinup_periods": (integer(1, 100), 4),
-        "periods": (integer(1, 100), 2),
-    }, {}),
-    "noise": ({
-        "source_levels": (list_of(number(positive=True, maximum=1e3)), REQUIRED),
-        "readings": (list_of(_READING, unique=True), ["sigma"]),
-    }, REQUIRED),
-    "monte_carlo": ({
-        "runs": (integer(1, 10_000), REQUIRED),
-        "seed": (integer(0, 2**63 - 1), REQUIRED),
-    }, REQUIRED),
-}
+@settings_class
+class GridSettings(Settings):
+    """The cubic grid and its boundary."""
+
+    n: int = setting(32, integer(8, 96), doc="points per side (even)")
+    length: float = setting(4.0, number(positive=True, maximum=1e3), doc="side, in wavelengths")
+    courant: float = setting(0.5, number(positive=True, maximum=0.577),
+                             doc="c T / Delta (leapfrog is stable to 0.577)")
+    source_width: float = setting(0.7, number(positive=True, maximum=10.0),
+                                  doc="width of the smooth source, in cells")
+    boundary: str = setting("mur", text({"mur", "dirichlet"}),
+                            doc="Mur's absorbing faces or a Dirichlet box")
+
+
+@settings_class
+class Source(Settings):
+    """The dipole, in normalised units."""
+
+    frequency: float = setting(1.0, number(positive=True, maximum=1e12), doc="frequency")
+    c: float = setting(1.0, number(positive=True, maximum=1e12), doc="speed of light")
+    mu0: float = setting(1.0, number(positive=True, maximum=1e6), doc="permeability")
+
+
+@settings_class
+class Scenario(Settings):
+    """The source the filter is told."""
+
+    name: str = setting(REQUIRED, text(max_length=40), doc="the scenario's name in the tables")
+    nominal_amplitude: list = setting(REQUIRED, list_of(number(minimum=0.0, maximum=1e3),
+                                                        max_length=2),
+                                      doc="[magnitude, phase in degrees] of the told source")
+
+
+@settings_class
+class Zone(Settings):
+    """A near or far zone of the grid."""
+
+    name: str = setting(REQUIRED, text({"near", "far"}), doc="near or far")
+    r: list = setting(REQUIRED, list_of(number(positive=True, maximum=1e6), max_length=2),
+                      doc="[low, high] radius")
+    theta_deg: list = setting([30.0, 150.0], list_of(number(minimum=0.0, maximum=180.0),
+                                                     max_length=2),
+                              unit="deg", doc="[low, high] polar angle")
+
+
+@settings_class
+class Sensors(Settings):
+    """The sparse E/H sensors."""
+
+    fraction: float = setting(0.02, number(positive=True, maximum=1.0),
+                              doc="fraction of the grid's points that are sensors")
+    r: list = setting([0.2, 1.9], list_of(number(positive=True, maximum=1e6), max_length=2),
+                      doc="[low, high] radius the sensors are drawn from")
+    measurement_sigma: float = setting(0.01, number(positive=True, maximum=1e3),
+                                       doc="white noise on every measured component")
+    seed: int = setting(5, integer(0, 2**63 - 1), doc="seed of the sensors' positions")
+
+
+@settings_class
+class FilterSettings(Settings):
+    """The ensemble filter."""
+
+    members: int = setting(50, integer(3, 2000), doc="ensemble members")
+    amplitude_spread: float = setting(0.3, number(positive=True, maximum=1e3),
+                                      doc="spread of the members' source amplitudes")
+    model_error: float = setting(0.02, number(minimum=0.0, maximum=1e3),
+                                 doc="the grid's own error in a measured field, added to R")
+    inflation: float = setting(1.0, number(minimum=1.0, maximum=2.0),
+                               doc="multiplicative inflation of the forecast covariance")
+
+
+@settings_class
+class Time(Settings):
+    """Spin-up and record."""
+
+    spinup_periods: int = setting(4, integer(1, 100), doc="periods before the first analysis")
+    periods: int = setting(2, integer(1, 100), doc="recorded periods")
+
+
+@settings_class
+class Noise(Settings):
+    """The thesis' source-noise rows (kept for the layout, D59)."""
+
+    source_levels: list = setting(REQUIRED, list_of(number(positive=True, maximum=1e3)),
+                                  doc="the printed source-noise numbers")
+    readings: list = setting(["sigma"], list_of(READING, unique=True),
+                             doc="read each level as a standard deviation, a variance, or both")
+
+
+@settings_class
+class Config(Settings):
+    """A filter on the dipole's discretised field (D59-D61)."""
+
+    grid: GridSettings = block(GridSettings, doc="the grid")
+    source: Source = block(Source, doc="the dipole")
+    scenarios: tuple = blocks(Scenario, max_length=10, doc="the sources the filter is told")
+    zones: tuple = blocks(Zone, max_length=2, doc="the near and far zones")
+    sensors: Sensors = block(Sensors, doc="the sensors")
+    filter: FilterSettings = block(FilterSettings, doc="the ensemble filter")
+    rls: literal.RLS = block(literal.RLS, doc="the per-sensor RLS baseline")
+    time: Time = block(Time, doc="spin-up and record")
+    noise: Noise = block(Noise, required=True, doc="the source-noise rows")
+    monte_carlo: MonteCarlo = block(MonteCarlo, required=True, doc="runs and seed")
+
+
+SCHEMA: dict = Config.schema()
 
 _KEYS = ("table_id", "s_no", "scenario", "zone", "noise_reading", "noise_param", "estimator",
          "field_component", "part")

@@ -24,8 +24,10 @@ from collections.abc import Callable
 
 import numpy as np
 import pandas as pd
+
 from estim import claims, metrics, plots
 from estim.analyses.base import Result, TableSpec, map_tasks
+from estim.blocks import MonteCarlo
 from estim.images import kalman2d, nshp, strip
 from estim.schema import (
     REQUIRED,
@@ -36,6 +38,7 @@ from estim.schema import (
     number,
     text,
 )
+from estim.settings import Settings, block, setting, settings_class
 from estim.summary import Quote
 
 IMAGES = ("camera", "moon", "brick", "grass", "gravel", "coins", "text", "page", "astronaut")
@@ -46,56 +49,98 @@ STRIP, STRIP_ORACLE = "strip Kalman", "strip Kalman, model from clean image"
 STRIP_ONLINE = "strip Kalman, online model (eq 15)"
 WIENER, WIENER_ESTIMATED = "Wiener, noise given", "Wiener, noise estimated"
 WAVELET = "wavelet (BayesShrink)"
-ESTIMATORS = (NOISY, NON_ADAPTIVE, ADAPTIVE, STRIP, STRIP_ONLINE, STRIP_ORACLE, WIENER,
+RESTORATIONS = (NOISY, NON_ADAPTIVE, ADAPTIVE, STRIP, STRIP_ONLINE, STRIP_ORACLE, WIENER,
               WIENER_ESTIMATED, WAVELET)
 CLAIMS = ((ADAPTIVE, NON_ADAPTIVE), (NON_ADAPTIVE, WIENER), (ADAPTIVE, WIENER),
           (NON_ADAPTIVE, WIENER_ESTIMATED), (NON_ADAPTIVE, WAVELET), (STRIP, NON_ADAPTIVE),
-          (STRIP, WAVELET), *((est, NOISY) for est in ESTIMATORS if est != NOISY))
+          (STRIP, WAVELET), *((est, NOISY) for est in RESTORATIONS if est != NOISY))
 """The paper's claim (adaptation improves the restoration), the NSHP filters against the
 Wiener filter (told the noise variance, or left to estimate it) and wavelet denoising, the
 strip filter against the NSHP filter and wavelet denoising, and every restoration against
 the noisy image itself; the loss is each run's mean squared error."""
 QUOTES = (Quote("SNR (dB) over the images", "snr", "snr_db", by="estimator"),)
 
-SCHEMA: dict = {
-    "images": (list_of(text(set(IMAGES)), unique=True, max_length=len(IMAGES)), REQUIRED),
-    "input_snr_db": (number(minimum=-20.0, maximum=60.0), 5.0),
-    "nshp": ({
-        "order": (integer(1, 3), 1),
-    }, {}),
-    "adaptive": ({
-        "H0": (number(positive=True, maximum=1e12), 1.0),
-        "lambda0": (number(minimum=0.0, maximum=1.0), 0.95),
-        "v0": (number(positive=True, maximum=1.0), 1.0),
-        "mu_u": (number(minimum=-1e3, maximum=1e3), 0.0),
-        "gradient": (text({"full", "approximate"}), "full"),
-    }, {}),
-    "strip": ({
-        "width": (integer(1, 64), 8),
-        "order": (integer(1, 4), 1),
-        "covariance": (text({"unbiased", "biased"}), "unbiased"),
-        "eigenvalue_floor": (number(positive=True, maximum=10.0), 0.1),
-    }, {}),
-    "baselines": ({
-        "wiener_size": (integer(3, 31), 7),
-    }, {}),
-    "monte_carlo": ({
-        "runs": (integer(1, 1000), REQUIRED),
-        "seed": (integer(0, 2**63 - 1), REQUIRED),
-    }, REQUIRED),
-    "paper": ({
-        "input_snr_db": (number(), 5.0),
-        "adaptive_snr_db": (number(), 11.0),
-    }, {}),
-    "figures": ({
-        "image": (text(set(IMAGES)), "camera"),
-        "row": (integer(1, 100_000), 256),
-        "pixels": (integer(2, 100_000), 75),
-        "accuracy": (file_name, "fig_5"),
-        "gain": (file_name, "fig_6"),
-        "parameters": (file_name, "fig_7"),
-    }, {}),
-}
+@settings_class
+class NSHP(Settings):
+    """The NSHP AR model."""
+
+    order: int = setting(1, integer(1, 3), doc="M: 2M^2 + 2M parameters")
+
+
+@settings_class
+class Adaptive(Settings):
+    """Table I's recursion (eqs 23-25)."""
+
+    H0: float = setting(1.0, number(positive=True, maximum=1e12), doc="H(0) = H0 I")
+    lambda0: float = setting(0.95, number(minimum=0.0, maximum=1.0), doc="eq 24's lambda(0)")
+    v0: float = setting(1.0, number(positive=True, maximum=1.0),
+                        doc="the first pixel's step size")
+    mu_u: float = setting(0.0, number(minimum=-1e3, maximum=1e3),
+                          doc="Sigma_b(0)'s first row")
+    gradient: str = setting("full", text({"full", "approximate"}),
+                            doc="full: kappa and the row above's Sigma_a, as printed; "
+                                "approximate: without them")
+
+
+@settings_class
+class Strip(Settings):
+    """The strip Kalman filter (second paper)."""
+
+    width: int = setting(8, integer(1, 64), doc="W, rows per strip")
+    order: int = setting(1, integer(1, 4), doc="P, the vector AR order")
+    covariance: str = setting("unbiased", text({"unbiased", "biased"}),
+                              doc="eq 13's 1/(N - r) or 1/N")
+    eigenvalue_floor: float = setting(0.1, number(positive=True, maximum=10.0),
+                                      doc="T's eigenvalues raised to this times sigma_v^2")
+
+
+@settings_class
+class Baselines(Settings):
+    """The Wiener filter's window."""
+
+    wiener_size: int = setting(7, integer(3, 31), doc="the Wiener filter's window side")
+
+
+@settings_class
+class Paper(Settings):
+    """The paper's one number."""
+
+    input_snr_db: float = setting(5.0, number(), unit="dB", doc="the paper's input SNR")
+    adaptive_snr_db: float = setting(11.0, number(), unit="dB",
+                                     doc="the paper's adaptive filter's SNR")
+
+
+@settings_class
+class Figures(Settings):
+    """Figs 5-8."""
+
+    image: str = setting("camera", text(set(IMAGES)), doc="the figures' image")
+    row: int = setting(256, integer(1, 100_000), doc="the row of Figs 5-7")
+    pixels: int = setting(75, integer(2, 100_000), doc="pixels drawn")
+    accuracy: str = setting("fig_5", file_name, doc="file name of Fig 5")
+    gain: str = setting("fig_6", file_name, doc="file name of Fig 6")
+    parameters: str = setting("fig_7", file_name, doc="file name of Fig 7")
+
+
+@settings_class
+class Config(Settings):
+    """2-D adaptive and strip Kalman filtering of images, beside honest baselines."""
+
+    images: list = setting(REQUIRED, list_of(text(set(IMAGES)), unique=True,
+                                             max_length=len(IMAGES)),
+                           doc="scikit-image's test images")
+    input_snr_db: float = setting(5.0, number(minimum=-20.0, maximum=60.0), unit="dB",
+                                  doc="input SNR")
+    nshp: NSHP = block(NSHP, doc="the NSHP model")
+    adaptive: Adaptive = block(Adaptive, doc="Table I")
+    strip: Strip = block(Strip, doc="the strip filter")
+    baselines: Baselines = block(Baselines, doc="the baselines")
+    monte_carlo: MonteCarlo = block(MonteCarlo, required=True, doc="runs and seed")
+    paper: Paper = block(Paper, doc="the paper's numbers")
+    figures: Figures = block(Figures, doc="the figures")
+
+
+SCHEMA: dict = Config.schema()
 
 TABLES = {
     "snr": TableSpec("snr.csv", ("image", "input_snr_db", "estimator"),
@@ -232,9 +277,9 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
         units = done[i * runs:(i + 1) * runs]
         cells.append((claims.cell(image=image, input_snr_db=spec["input_snr_db"]),
                       {est: claims.Losses(np.array([u["quality"][est]["mse"] for u in units]))
-                       for est in ESTIMATORS}))
+                       for est in RESTORATIONS}))
         snr_in = np.array([u["quality"][NOISY]["snr_db"] for u in units])
-        for est in ESTIMATORS:
+        for est in RESTORATIONS:
             q = [u["quality"][est] for u in units]
             ok = np.array([x["finite"] for x in q])
             snr, snr_se = metrics.mean_and_se(np.array([x["snr_db"] for x in q])[ok])

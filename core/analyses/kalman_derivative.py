@@ -11,28 +11,52 @@ from collections.abc import Callable
 
 import numpy as np
 import pandas as pd
+from scipy import linalg
+
 from estim import claims, metrics, plots
 from estim import kalman_differentiator as kd
 from estim.analyses.base import Result, TableSpec, map_tasks
-from estim.schema import REQUIRED, Experiment, file_name, integer, list_of, number
+from estim.blocks import MonteCarlo
+from estim.schema import REQUIRED, Experiment, file_name, number
+from estim.settings import Settings, block, blocks, setting, settings_class
 from estim.summary import Quote
-from scipy import linalg
 
-SCHEMA: dict = {
-    "cases": (list_of({
-        "q": (number(positive=True, maximum=1e12), REQUIRED),
-        "r": (number(positive=True, maximum=1e12), REQUIRED),
-        "dt": (number(positive=True, maximum=10.0), REQUIRED),
-    }, max_length=20), REQUIRED),
-    "record_s": (number(positive=True, maximum=1e4), 5.0),
-    "settle_s": (number(minimum=0.0, maximum=1e4), 1.0),
-    "monte_carlo": ({
-        "runs": (integer(2, 100_000), REQUIRED),
-        "seed": (integer(0, 2**63 - 1), REQUIRED),
-    }, REQUIRED),
-    "figures": ({"name": (file_name, "frequency_response"),
-                 "max_hz": (number(positive=True, maximum=1e6), 20.0)}, {}),
-}
+
+@settings_class
+class Case(Settings):
+    """One double integrator: process and measurement noise, sample time."""
+
+    q: float = setting(REQUIRED, number(positive=True, maximum=1e12),
+                       doc="process noise intensity")
+    r: float = setting(REQUIRED, number(positive=True, maximum=1e12),
+                       doc="measurement noise intensity")
+    dt: float = setting(REQUIRED, number(positive=True, maximum=10.0), unit="s",
+                        doc="sample time")
+
+
+@settings_class
+class Figures(Settings):
+    """The frequency-response figure."""
+
+    name: str = setting("frequency_response", file_name, doc="the figure's file name")
+    max_hz: float = setting(20.0, number(positive=True, maximum=1e6), unit="Hz",
+                            doc="the highest frequency drawn")
+
+
+@settings_class
+class Config(Settings):
+    """The optimum differentiator from Kalman theory on the double integrator."""
+
+    cases: tuple = blocks(Case, max_length=20, doc="the cases")
+    record_s: float = setting(5.0, number(positive=True, maximum=1e4), unit="s",
+                              doc="Monte Carlo record length")
+    settle_s: float = setting(1.0, number(minimum=0.0, maximum=1e4), unit="s",
+                              doc="left out at the start of the record (the filter settling)")
+    monte_carlo: MonteCarlo = block(MonteCarlo, required=True, doc="runs and seed")
+    figures: Figures = block(Figures, doc="the figure")
+
+
+SCHEMA: dict = Config.schema()
 
 TABLES = {
     "derivative": TableSpec("derivative.csv", ("q", "r", "dt"),

@@ -27,12 +27,15 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pandas as pd
-from estim import claims, plots, registry, signals
-from estim.analyses import estimation
+
+from estim import claims, pipeline, plots, registry, signals
 from estim.analyses.base import Result, TableSpec, map_tasks
+from estim.blocks import READING, VOLTS, Claim, EstimatorEntry, Health, MonteCarlo, simulation
+from estim.blocks import Model as ModelBlock
 from estim.errors import ConfigError
 from estim.schema import (
     MAX_VOLTS,
@@ -46,89 +49,150 @@ from estim.schema import (
     integer,
     list_of,
     mapping,
-    model_block,
     number,
     operating_point,
-    simulation_block,
     text,
 )
+from estim.settings import Settings, block, blocks, setting, settings_class
 from estim.simulate import SOLVERS
 from estim.summary import Quote
 
-_READING = text({"sigma", "variance"})
 CAPACITANCES = ("C_S", "C_D", "C_B", "C_BS", "C_BD")
 """The device capacitances that scale with gate area under ``area_scaled_caps``."""
 
-SCHEMA: dict = {
-    "model": model_block(registry.MODELS),
-    "geometry": ({
-        "columns": (list_of({
-            "w_um": (number(positive=True, maximum=1e6), REQUIRED),
-            "l_um": (number(positive=True, maximum=1e6), REQUIRED),
-        }, max_length=20), REQUIRED),
-        "area_scaled_caps": (boolean, False),
-        "reference_area_um2": (number(positive=True, maximum=1e12), 4.0),
-    }, REQUIRED),
-    "input": ({
-        "amplitude_v": (number(minimum=0.0, maximum=MAX_VOLTS), REQUIRED),
-        "frequencies_hz": (list_of(number(minimum=1e-3, maximum=1e9)), REQUIRED),
-        "samples_per_period": (integer(4, 10_000), 32),
-        "periods": (integer(1, 100_000), 16),
-    }, REQUIRED),
-    "noise": ({
-        "input_levels": (list_of(number(positive=True, maximum=MAX_VOLTS)), REQUIRED),
-        "readings": (list_of(_READING, unique=True), ["variance"]),
-        "gamma": (number(positive=True, maximum=1e12), 1.0),
-        "measurement_sigma": (number(minimum=0.0, maximum=MAX_VOLTS), REQUIRED),
-        "adc_bits": (integer(1, 32), None),
-        "adc_range_v": (list_of(number(minimum=-MAX_VOLTS, maximum=MAX_VOLTS), max_length=2),
-                        [0.0, 1.0]),
-    }, REQUIRED),
-    "truth": ({
-        "data_source": (text(max_length=60), "simulated"),
-        "params": (mapping, {}),
-    }, {}),
-    "simulation": simulation_block(rtol=1e-6, atol=1e-9),
-    "estimators": (list_of({
-        "label": (text(max_length=60), REQUIRED),
-        "type": (text(registry.ESTIMATORS), REQUIRED),
-        "model": (text(registry.MODELS), None),
-        "model_params": (mapping, {}),
-        "settings": (mapping, {}),
-    }, max_length=20), REQUIRED),
-    "monte_carlo": ({
-        "runs": (integer(1, 1_000_000), REQUIRED),
-        "seed": (integer(0, 2**63 - 1), REQUIRED),
-    }, REQUIRED),
-    "tables": ({"rmse": (text(), None)}, REQUIRED),
-    "health": estimation.SCHEMA["health"],
-    "claims": estimation.SCHEMA["claims"],
-    "figures": ({
-        "frequency_hz": (number(minimum=1e-3, maximum=1e9), None),
-        "noise_level": (number(positive=True, maximum=MAX_VOLTS), None),
-        "reading": (_READING, None),
-        "names": (list_of({
-            "w_um": (number(positive=True, maximum=1e6), REQUIRED),
-            "l_um": (number(positive=True, maximum=1e6), REQUIRED),
-            "name": (file_name, REQUIRED),
-        }, nonempty=False, max_length=20), []),
-    }, {}),
-}
+UM = number(positive=True, maximum=1e6)
+
+
+@settings_class
+class WL(Settings):
+    """A W/L column of Table 4.2."""
+
+    w_um: float = setting(REQUIRED, UM, unit="um", doc="gate width")
+    l_um: float = setting(REQUIRED, UM, unit="um", doc="gate length")
+
+
+@settings_class
+class Geometry(Settings):
+    """The W/L columns and whether the capacitances scale with the gate area."""
+
+    columns: tuple = blocks(WL, max_length=20, doc="the table's W/L columns")
+    area_scaled_caps: bool = setting(False, boolean,
+                                     doc="scale the device capacitances with W L (D51)")
+    reference_area_um2: float = setting(4.0, number(positive=True, maximum=1e12), unit="um^2",
+                                        doc="the gate area at which the capacitances are as "
+                                            "printed")
+
+
+@settings_class
+class Input(Settings):
+    """The source: a sine plus an O.U. process (eqs 4.8-4.9)."""
+
+    amplitude_v: float = setting(REQUIRED, number(minimum=0.0, maximum=MAX_VOLTS), unit="V",
+                                 doc="peak amplitude of the sine")
+    frequencies_hz: list = setting(REQUIRED, list_of(number(minimum=1e-3, maximum=1e9)),
+                                   unit="Hz", doc="the table's input frequencies")
+    samples_per_period: int = setting(32, integer(4, 10_000), doc="samples per period")
+    periods: int = setting(16, integer(1, 100_000), doc="record length in periods")
+
+
+@settings_class
+class Noise(Settings):
+    """The O.U. input noise and the measurement noise (and an ADC)."""
+
+    input_levels: list = setting(REQUIRED, list_of(number(positive=True, maximum=MAX_VOLTS)),
+                                 unit="V or V^2", doc="the printed O.U. noise numbers")
+    readings: list = setting(["variance"], list_of(READING, unique=True),
+                             doc="read each level as a standard deviation, a variance, or both")
+    gamma: float = setting(1.0, number(positive=True, maximum=1e12), unit="1/s",
+                           doc="the O.U. process' decay (eq 4.8)")
+    measurement_sigma: float = setting(REQUIRED, number(minimum=0.0, maximum=MAX_VOLTS),
+                                       unit="V", doc="white noise on every measured state")
+    adc_bits: int | None = setting(None, integer(1, 32), doc="quantise the measurements with "
+                                                             "an ADC of this many bits")
+    adc_range_v: list = setting([0.0, 1.0], list_of(VOLTS, max_length=2), unit="V",
+                                doc="the ADC's input range [low, high]")
+
+
+@settings_class
+class Truth(Settings):
+    """What the actual circuit is (Table 4.1's stand-in changes it)."""
+
+    data_source: str = setting("simulated", text(max_length=60),
+                               doc="label of the actual data in the tables")
+    params: dict = setting({}, mapping, doc="parameter overrides of the actual circuit only")
+
+
+@settings_class
+class Estimator(EstimatorEntry):
+    """An estimator of Table 4.2, possibly on a model of its own."""
+
+    model: str | None = setting(None, text(registry.MODELS),
+                                doc="the estimator's own model (none: the config's)")
+
+
+@settings_class
+class Tables(Settings):
+    """Which printed table the RMSE joins."""
+
+    rmse: str | None = setting(None, text(), doc="thesis table of the RMSE (4.1, 4.2)")
+
+
+@settings_class
+class FigureName(WL):
+    """The estimates figure of one W/L column."""
+
+    name: str = setting(REQUIRED, file_name, doc="the figure's file name")
+
+
+@settings_class
+class Figures(Settings):
+    """The figures' sweep point and their columns."""
+
+    frequency_hz: float | None = setting(None, number(minimum=1e-3, maximum=1e9), unit="Hz",
+                                         doc="the figures' frequency; none: the first")
+    noise_level: float | None = setting(None, number(positive=True, maximum=MAX_VOLTS),
+                                        unit="V or V^2", doc="none: the first level")
+    reading: str | None = setting(None, READING, doc="none: the first reading")
+    names: tuple = blocks(FigureName, default=(), nonempty=False, max_length=20,
+                          doc="one figure per named W/L column")
+
+
+@settings_class
+class Config(Settings):
+    """A Chapter 4 experiment: the Kronecker EKF against the wavelet LMS."""
+
+    model: Any = block(ModelBlock, required=True, doc="the actual circuit")
+    geometry: Geometry = block(Geometry, required=True, doc="the W/L columns")
+    input: Input = block(Input, required=True, doc="the source")
+    noise: Noise = block(Noise, required=True, doc="input and measurement noise")
+    truth: Truth = block(Truth, doc="the actual circuit's own overrides")
+    simulation: Any = block(simulation(rtol=1e-6, atol=1e-9), doc="the actual circuit's solver")
+    estimators: tuple = blocks(Estimator, max_length=20, doc="the estimators compared")
+    monte_carlo: MonteCarlo = block(MonteCarlo, required=True, doc="runs and seed")
+    tables: Tables = block(Tables, required=True, doc="the thesis table joined")
+    health: Health = block(Health, doc="how filter health is judged")
+    claims: tuple = blocks(Claim, default=(), nonempty=False, max_length=20,
+                           doc="the table's headline claims (each filter is also judged "
+                               "against the raw measurement)")
+    figures: Figures = block(Figures, doc="the figures")
+
+
+SCHEMA: dict = Config.schema()
 
 _KEYS = ("table_id", "s_no", "data_source", "noise_reading", "noise_param", "noise_sigma",
          "frequency_hz", "w_um", "l_um", "area_scaled_caps", "estimator", "measures")
-MEASUREMENT = estimation.MEASUREMENT
+MEASUREMENT = pipeline.MEASUREMENT
 
 TABLES = {
     "rmse": TableSpec("rmse.csv", _KEYS,
-                      (*estimation.RMSE_VALUES, "kept_fraction", "lms_ls_gap"),
+                      (*pipeline.RMSE_VALUES, "kept_fraction", "lms_ls_gap"),
                       reference=("rmse",),
                       join=(("s_no", ("s_no",)), ("estimator", ("estimator",)),
                             ("w_um", ("w_um",)), ("l_um", ("l_um",))),
                       optional_join=("w_um", "l_um"),
                       title="RMSE of the output (eqs 3.42, 4.60)",
                       reference_ids=("4.1", "4.2")),
-    "health": TableSpec("health.csv", _KEYS[:-1], estimation.HEALTH_VALUES,
+    "health": TableSpec("health.csv", _KEYS[:-1], pipeline.HEALTH_VALUES,
                         title="filter health: divergence, consistency, whiteness"),
     "claims": claims.TABLE,
 }
@@ -213,6 +277,7 @@ def prepare(spec: dict, source: str) -> tuple[Column, ...]:
                                 f"{path}.model_params")
             estimator = build_estimator(registry.ESTIMATORS[est["type"]], est["settings"],
                                         model, source, f"{path}.settings")
+            est["settings"] = estimator.to_spec()      # the manifest records every default
             if model.n_outputs != truth.n_outputs:
                 raise ConfigError(source, f"{path}.model", f"{model.name} has "
                                   f"{model.n_outputs} outputs, the circuit {truth.n_outputs}")
@@ -319,7 +384,7 @@ def run_point(exp: Experiment, index: int, point: SweepPoint,
         z = data["z"] if seen is None else data["measured"][..., seen]
         u = model.source_to_input(data["clean"][None], data["dt"])[0]
         estimates.append(est.run(model, z, u, data["dt"], x0=data["x0"]))
-    rows, losses, _ = estimation.score(exp, data, column.filters, estimates, common, out_name)
+    rows, losses, _ = pipeline.score(exp, data, column.filters, estimates, common, out_name)
     for row, (_, _, model, seen), result in zip(rows[1:], column.filters, estimates,
                                                 strict=True):
         row["measures"] = out_name if seen is None else " ".join(model.state_names[i]
@@ -362,11 +427,11 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     df = pd.DataFrame(rows)
     df["inconsistent"] = pd.array(df["inconsistent"], dtype="Float64").astype("Int64")
     df.insert(0, "table_id", table_id or "")
-    df.insert(1, "s_no", estimation.thesis_row_numbers(df, table_id))
+    df.insert(1, "s_no", pipeline.thesis_row_numbers(df, table_id))
     out = Result(tables={"rmse": df[TABLES["rmse"].columns].reset_index(drop=True)})
     filters = df[df["estimator"] != MEASUREMENT]
     out.tables["health"] = filters[TABLES["health"].columns].reset_index(drop=True)
-    out.tables["claims"] = estimation.claims_table(
+    out.tables["claims"] = pipeline.claims_table(
         exp.spec, out.tables["rmse"], [losses for _, losses, _ in done],
         ("s_no", "noise_reading", "noise_param", "frequency_hz", "w_um", "l_um"))
     for (_, i, p, wanted), (_, _, trace) in zip(tasks, done, strict=True):

@@ -13,40 +13,70 @@ from collections.abc import Callable
 
 import numpy as np
 import pandas as pd
+
 from estim import claims, metrics, plots
 from estim import passive_network as pn
 from estim.analyses.base import Result, TableSpec
-from estim.schema import REQUIRED, Experiment, file_name, integer, list_of, number, text
+from estim.blocks import MonteCarlo
+from estim.schema import REQUIRED, Experiment, file_name, integer, number, text
+from estim.settings import Settings, block, blocks, setting, settings_class
 from estim.summary import Quote
 
-SCHEMA: dict = {
-    "signals": (list_of({
-        "A": (number(minimum=-1e6, maximum=1e6), REQUIRED),
-        "sigma": (number(minimum=0.0, maximum=1e6), REQUIRED),
-    }, max_length=20), REQUIRED),
-    "readings": (list_of({
-        "name": (text(max_length=40), REQUIRED),
-        "coupling": (text({"printed", "flipped"}), "printed"),
-        "u": (number(minimum=0.0, maximum=1e6), 6.0),
-        "x0": (number(minimum=-1e6, maximum=1e6), 1.0),
-        "V0": (number(minimum=-1e6, maximum=1e6), 2.0),
-        "feed": (text({"z", "x"}), "x"),
-        "start": (text({"zero", "one_sample"}), "one_sample"),
-    }, max_length=40), REQUIRED),
-    "sample_time": (number(positive=True, maximum=1.0), 0.01),
-    "samples": (integer(10, 1_000_000), 500),
-    "kalman_p0": (number(positive=True, maximum=1e12), 1.0),
-    "monte_carlo": ({
-        "runs": (integer(2, 100_000), REQUIRED),
-        "seed": (integer(0, 2**63 - 1), REQUIRED),
-    }, REQUIRED),
-    "figures": (list_of({
-        "A": (number(), REQUIRED),
-        "signal": (file_name, None),
-        "errors": (file_name, None),
-    }, nonempty=False, max_length=20), [{"A": 1.0, "signal": "fig_4", "errors": "fig_5"},
-                                        {"A": 100.0, "signal": "fig_6", "errors": "fig_7"}]),
-}
+
+@settings_class
+class Signal(Settings):
+    """``x = A e^-t + N`` (eqs 25-26)."""
+
+    A: float = setting(REQUIRED, number(minimum=-1e6, maximum=1e6), doc="amplitude")
+    sigma: float = setting(REQUIRED, number(minimum=0.0, maximum=1e6),
+                           doc="standard deviation of N")
+
+
+@settings_class
+class Reading(Settings):
+    """One reading of what the paper leaves open (D65)."""
+
+    name: str = setting(REQUIRED, text(max_length=40), doc="the reading's name in the tables")
+    coupling: str = setting("printed", text({"printed", "flipped"}),
+                            doc="the sign of eq 22's coupling: as printed or flipped")
+    u: float = setting(6.0, number(minimum=0.0, maximum=1e6),
+                       doc="the source u of eqs 19 and 22 (6 as printed; 1 = q)")
+    x0: float = setting(1.0, number(minimum=-1e6, maximum=1e6), doc="initial estimate")
+    V0: float = setting(2.0, number(minimum=-1e6, maximum=1e6), doc="initial gain V")
+    feed: str = setting("x", text({"z", "x"}),
+                        doc="what is fed in: the record x or the model's measurement z = x/2")
+    start: str = setting("one_sample", text({"zero", "one_sample"}),
+                         doc="the record's first sample at t = 0 or one sample later")
+
+
+@settings_class
+class Figure(Settings):
+    """The paper's figures of one signal: the record and the errors."""
+
+    A: float = setting(REQUIRED, number(), doc="the signal's A")
+    signal: str | None = setting(None, file_name, doc="file name of the record's figure")
+    errors: str | None = setting(None, file_name, doc="file name of the errors' figure")
+
+
+@settings_class
+class Config(Settings):
+    """The passive-network estimator (eq 22) against eq 19 and a Kalman filter."""
+
+    signals: tuple = blocks(Signal, max_length=20, doc="the signals")
+    readings: tuple = blocks(Reading, max_length=40, doc="the readings")
+    sample_time: float = setting(0.01, number(positive=True, maximum=1.0), unit="s",
+                                 doc="forward Euler step and sample time")
+    samples: int = setting(500, integer(10, 1_000_000), doc="points of the record")
+    kalman_p0: float = setting(1.0, number(positive=True, maximum=1e12),
+                               doc="the Kalman filter's initial variance")
+    monte_carlo: MonteCarlo = block(MonteCarlo, required=True, doc="runs and seed")
+    figures: tuple = blocks(Figure, default=({"A": 1.0, "signal": "fig_4", "errors": "fig_5"},
+                                             {"A": 100.0, "signal": "fig_6",
+                                              "errors": "fig_7"}),
+                            nonempty=False, max_length=20, doc="the paper's Figs 4-7")
+
+
+SCHEMA: dict = Config.schema()
 
 ESTIMATORS = ("eq 19", "eq 22", "Kalman filter")
 MEASUREMENT = "measurement"

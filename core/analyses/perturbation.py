@@ -20,11 +20,15 @@ docs/deviations.md D29) or over the row's window after a step. The row of ``dist
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import pandas as pd
+
 from estim import claims, metrics, plots, registry, signals
 from estim.analyses.base import Result, TableSpec, map_tasks
+from estim.blocks import VOLTS, simulation
+from estim.blocks import Model as ModelBlock
 from estim.errors import ConfigError, SimulationError
 from estim.expansion import Response, check_expansion, expand, respond
 from estim.schema import (
@@ -37,39 +41,69 @@ from estim.schema import (
     integer,
     list_of,
     mapping,
-    model_block,
     number,
     operating_point,
-    simulation_block,
     text,
 )
+from estim.settings import Settings, block, blocks, setting, settings_class
 from estim.summary import Quote
 
-SCHEMA: dict = {
-    "model": model_block(registry.MODELS),
-    "excitation": ({
-        "waveform": (text({"sine", "step"}), REQUIRED),
-        "bias_v": (list_of(number(minimum=-MAX_VOLTS, maximum=MAX_VOLTS)), REQUIRED),
-        "mix": (list_of(number(minimum=-1e3, maximum=1e3)), REQUIRED),
-        "samples_per_period": (integer(8, 10_000), 200),
-        "samples": (integer(8, 1_000_000), 2000),
-    }, REQUIRED),
-    "rows": (list_of({
-        "s_no": (integer(1, 10_000), REQUIRED),
-        "amplitude_v": (number(minimum=1e-9, maximum=MAX_VOLTS), REQUIRED),
-        "frequency_hz": (number(minimum=1e-3, maximum=1e9), None),
-        "duration_s": (number(minimum=1e-9, maximum=1e3), None),
-        "params": (mapping, {}),
-    }, max_length=100), REQUIRED),
-    "simulation": simulation_block(rtol=1e-8, atol=1e-10),
-    "tables": ({
-        "distortion": (text(), REQUIRED),
-    }, REQUIRED),
-    "figures": ({
-        "row": (integer(1, 10_000), None),
-        "name": (file_name, "perturbation"),
-    }, {}),
-}
+
+@settings_class
+class Excitation(Settings):
+    """How every row drives the circuit: a sine or a step on top of a DC bias."""
+
+    waveform: str = setting(REQUIRED, text({"sine", "step"}), doc="sine or step")
+    bias_v: list = setting(REQUIRED, list_of(VOLTS), unit="V", doc="DC level of each input")
+    mix: list = setting(REQUIRED, list_of(number(minimum=-1e3, maximum=1e3)),
+                        doc="the excitation's weight in each input")
+    samples_per_period: int = setting(200, integer(8, 10_000),
+                                      doc="samples per period of a sine (D29)")
+    samples: int = setting(2000, integer(8, 1_000_000), doc="samples of a step's window")
+
+
+@settings_class
+class Row(Settings):
+    """One thesis row: amplitude, frequency or window, and its parameters."""
+
+    s_no: int = setting(REQUIRED, integer(1, 10_000), doc="the thesis' row number")
+    amplitude_v: float = setting(REQUIRED, number(minimum=1e-9, maximum=MAX_VOLTS), unit="V",
+                                 doc="peak amplitude of the sine, or the step's height")
+    frequency_hz: float | None = setting(None, number(minimum=1e-3, maximum=1e9), unit="Hz",
+                                         doc="the sine's frequency (waveform sine)")
+    duration_s: float | None = setting(None, number(minimum=1e-9, maximum=1e3), unit="s",
+                                       doc="the window after a step (waveform step)")
+    params: dict = setting({}, mapping, doc="the row's model parameters")
+
+
+@settings_class
+class Tables(Settings):
+    """The thesis table the rows join."""
+
+    distortion: str = setting(REQUIRED, text(), doc="2.1, 2.2, 2.3 or 2.4")
+
+
+@settings_class
+class Figures(Settings):
+    """The figure of one row."""
+
+    row: int | None = setting(None, integer(1, 10_000), doc="its s_no; none: the first row")
+    name: str = setting("perturbation", file_name, doc="the figure's file name")
+
+
+@settings_class
+class Config(Settings):
+    """A Chapter 2 experiment: perturbation analysis and distortion, row by row."""
+
+    model: Any = block(ModelBlock, required=True, doc="the circuit")
+    excitation: Excitation = block(Excitation, required=True, doc="how the rows drive it")
+    rows: tuple = blocks(Row, max_length=100, doc="the thesis' rows, in order")
+    simulation: Any = block(simulation(rtol=1e-8, atol=1e-10), doc="the solver")
+    tables: Tables = block(Tables, required=True, doc="the thesis table joined")
+    figures: Figures = block(Figures, doc="the figure")
+
+
+SCHEMA: dict = Config.schema()
 
 _KEYS = ("table_id", "s_no", "amplitude_v", "frequency_hz", "row_params")
 _VALUES = ("percent_distortion", "thd_percent", "gain_db", "output_rms", "err_linear_rms",
@@ -250,7 +284,7 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
                LINEAR: claims.Losses([row["err_linear_rms"]])}) for _, row in df.iterrows()]
     out = Result(tables={"distortion": df[TABLES["distortion"].columns].reset_index(drop=True),
                          "claims": claims.table(cells, CLAIMS, "RMS error against the full "
-                                                "circuit")})
+                                                "circuit", exact=True)})
     data = figure_data(exp, {s["s_no"]: r for s, r in results})
     row = data["row"]
     what = f"amplitude {row['amplitude_v']:g} V"

@@ -1,18 +1,87 @@
 """The estimator interface and the result every estimator returns.
 
-An estimator's constructor only stores its settings. ``run(model, z, u, dt, x0)`` takes the
-measurements ``z`` of shape ``(runs, steps, m)`` at ``t_1 .. t_steps`` and the input ``u``
-of shape ``(steps, p)`` or ``(runs, steps, p)`` on the intervals before them, and an
-optional initial state ``x0`` at ``t_0`` (filters without a state ignore it), and returns an
-:class:`Estimate` for the whole batch.
+An estimator is a frozen dataclass whose fields are its settings, each declared once with
+its check, default, unit and doc (:mod:`estim.settings`); it registers itself by name::
+
+    @settings_class
+    class IteratedEKF(ExtendedKalmanFilter, name="iekf"):
+        iterations: int = setting(3, integer(1, 50), doc="Gauss-Newton iterations")
+
+``run(model, z, u, dt, x0)`` takes the measurements ``z`` of shape ``(runs, steps, m)`` at
+``t_1 .. t_steps`` and the input ``u`` of shape ``(steps, p)`` or ``(runs, steps, p)`` on the
+intervals before them, and an optional initial state ``x0`` at ``t_0`` (filters without a
+state ignore it), and returns an :class:`Estimate` for the whole batch. ``validate(model)``
+raises ``ValueError`` for settings that cannot run with ``model`` (a covariance of the wrong
+size); ``example(model)`` gives a working instance for a test model.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any, ClassVar
 
 import numpy as np
-from estim import linalg
+
+from estim import linalg, registry
+from estim.schema import REQUIRED, matrix, number, vector
+from estim.settings import Settings, setting, settings_class
+
+
+class Estimator(Settings):
+    """Base of every estimator (see the module docstring)."""
+
+    name: ClassVar[str] = ""
+
+    def __init_subclass__(cls, name: str | None = None, **kwargs) -> None:
+        super().__init_subclass__(**kwargs)
+        if name is not None:
+            cls.name = name
+            registry.ESTIMATORS.register(name, cls)
+
+    def validate(self, model) -> None:
+        """Raise ``ValueError`` (``"setting: why"``) for settings that cannot run with
+        ``model``; the settings' own checks ran when the estimator was made."""
+
+    def run(self, model, z: np.ndarray, u: np.ndarray, dt: float,
+            x0: np.ndarray | None = None) -> Estimate:
+        raise NotImplementedError
+
+    @classmethod
+    def example(cls, model) -> Estimator:
+        """A working instance for ``model`` (a small linear test model): the conformance test
+        runs every registered estimator through it."""
+        raise NotImplementedError(f"{cls.__name__} gives no example")
+
+
+@settings_class
+class GaussianFilter(Estimator):
+    """The settings every Kalman-type filter of a model shares (not registered itself):
+    additive noise covariances, the initial estimate and the bound that marks a broken run."""
+
+    Q: Any = setting(REQUIRED, matrix, unit="state^2",
+                     doc="process noise covariance per step: a number, a diagonal or a matrix")
+    R: Any = setting(REQUIRED, matrix, unit="output^2",
+                     doc="measurement noise covariance: a number, a diagonal or a matrix")
+    P0: Any = setting(REQUIRED, matrix, unit="state^2", doc="covariance of the initial estimate")
+    x0: list | None = setting(None, vector(), unit="state",
+                              doc="initial estimate; none: the x0 the analysis passes (the "
+                                  "actual operating point), else the model's own")
+    divergence_bound: float = setting(1e3, number(positive=True, maximum=1e12), unit="state",
+                                      doc="a run whose estimate leaves |x| <= bound (or is not "
+                                          "finite) is broken and frozen")
+
+    @classmethod
+    def example(cls, model) -> GaussianFilter:
+        return cls(Q=0.01, R=0.1, P0=1.0, x0=[0.0] * model.n_states)
+
+    def validate(self, model) -> None:
+        """The covariances and ``x0`` against the model's size."""
+        n, m = model.n_states, model.n_outputs
+        check_covariance(self.Q, n, "Q")
+        check_covariance(self.P0, n, "P0")
+        check_covariance(self.R, m, "R", definite=True)
+        if self.x0 is not None and np.size(self.x0) != n:
+            raise ValueError(f"x0: expected {n} values for {list(model.state_names)}")
 
 
 @dataclass(frozen=True)

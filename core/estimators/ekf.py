@@ -8,16 +8,18 @@ uses forward Euler (eqs 3.18-3.19), available as ``discretization="euler"``.
 from __future__ import annotations
 
 import numpy as np
+
 from estim import discretize
 from estim.estimators.base import (
     Estimate,
+    GaussianFilter,
     as_matrix,
     batch_input,
-    check_covariance,
     joseph_update,
     run_batch,
 )
-from estim.schema import REQUIRED, integer, list_of, matrix, number, text
+from estim.schema import integer, text
+from estim.settings import setting, settings_class
 
 
 def thesis_to_state(M: np.ndarray, model) -> np.ndarray:
@@ -28,57 +30,18 @@ def thesis_to_state(M: np.ndarray, model) -> np.ndarray:
     return S[:, None] * M * S[None, :]
 
 
-class ExtendedKalmanFilter:
-    """EKF with additive process noise ``Q`` and measurement noise ``R`` (L = M = I).
+@settings_class
+class ExtendedKalmanFilter(GaussianFilter, name="ekf"):
+    """EKF with additive process noise ``Q`` and measurement noise ``R`` (L = M = I); ``Q``
+    and ``P0`` in the units ``noise_units`` says."""
 
-    Parameters
-    ----------
-    Q, R, P0 : scalar, diagonal list or full matrix.
-    x0 : initial estimate; ``None`` takes the ``x0`` given to :meth:`run` (the analyses pass
-        the actual circuit's DC operating point), else the model's own operating point.
-    discretization : one of :data:`estim.discretize.METHODS`.
-    substeps : discretisation substeps per sample interval.
-    divergence_bound : a run whose prediction or estimate leaves ``|x| <= bound`` (or becomes
-        non-finite) is marked broken and frozen (from that step on its estimates are NaN).
-        This only catches numerical breakdown; divergence is judged by
-        :func:`estim.health.diverged`.
-    noise_units : ``thesis`` (default): ``Q`` and ``P0`` are in the thesis' state units and
-        mapped onto the model's states (:meth:`state_covariances`); ``state``: as given.
-    """
-
-    SETTINGS = {
-        "Q": (matrix, REQUIRED),
-        "R": (matrix, REQUIRED),
-        "P0": (matrix, REQUIRED),
-        "x0": (list_of(number(), max_length=64), None),
-        "discretization": (text(discretize.METHODS), None),
-        "substeps": (integer(1, 1000), None),
-        "divergence_bound": (number(positive=True, maximum=1e12), None),
-        "noise_units": (text({"thesis", "state"}), None),
-    }
-
-    def __init__(self, Q, R, P0, x0=None, discretization: str = "exponential",
-                 substeps: int = 1, divergence_bound: float = 1e3,
-                 noise_units: str = "thesis") -> None:
-        if discretization not in discretize.METHODS:
-            raise ValueError(f"discretization {discretization!r}; expected one of "
-                             f"{list(discretize.METHODS)}")
-        self.Q, self.R, self.P0, self.x0 = Q, R, P0, x0
-        self.discretization = discretization
-        self.substeps = int(substeps)
-        self.divergence_bound = float(divergence_bound)
-        self.noise_units = noise_units
-
-    def validate(self, model) -> None:
-        """Raise ``ValueError`` for settings that cannot run with ``model``."""
-        n, m = model.n_states, model.n_outputs
-        check_covariance(self.Q, n, "Q")
-        check_covariance(self.P0, n, "P0")
-        check_covariance(self.R, m, "R", definite=True)
-        if self.substeps < 1:
-            raise ValueError(f"substeps must be >= 1, got {self.substeps}")
-        if self.x0 is not None and np.size(self.x0) != n:
-            raise ValueError(f"x0: expected {n} values for {list(model.state_names)}")
+    discretization: str = setting("exponential", text(discretize.METHODS),
+                                  doc="how the prediction integrates the model over a sample "
+                                      "interval (euler: the thesis' eqs 3.18-3.19)")
+    substeps: int = setting(1, integer(1, 1000), doc="discretisation substeps per interval")
+    noise_units: str = setting("thesis", text({"thesis", "state"}),
+                               doc="thesis: Q and P0 in the thesis' state units, mapped onto "
+                                   "the model's states (S Q S); state: as given")
 
     def state_covariances(self, model) -> tuple[np.ndarray, np.ndarray]:
         """``Q`` and ``P0`` in the model's own state units (:func:`thesis_to_state`)."""

@@ -2,65 +2,97 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
-from estim.estimators.base import Estimate, as_matrix, batch_input, check_covariance, joseph_update
-from estim.schema import REQUIRED, list_of, matrix, number
+
+from estim.estimators.base import (
+    Estimate,
+    Estimator,
+    as_matrix,
+    batch_input,
+    check_covariance,
+    joseph_update,
+)
+from estim.schema import REQUIRED, matrix, vector
+from estim.settings import setting, settings_class
 
 
-class KalmanFilter:
+@settings_class
+class KalmanFilter(Estimator, name="kf"):
     """``x_k = A x_{k-1} + B u_{k-1} + v``, ``z_k = C x_k + w`` with known ``A, B, C, Q, R``.
 
     The model argument of :meth:`run` is not used: the matrices are the settings. The
     initial estimate is the ``x0`` setting; without it, the ``x0`` given to :meth:`run` (the
-    analyses pass the actual operating point, as for the EKF), else zero.
+    analyses pass the actual operating point, as for the EKF), else zero. The shapes of the
+    matrices are checked against each other when the filter is made.
     """
 
-    SETTINGS = {
-        "A": (matrix, REQUIRED),
-        "B": (matrix, REQUIRED),
-        "C": (matrix, REQUIRED),
-        "Q": (matrix, REQUIRED),
-        "R": (matrix, REQUIRED),
-        "P0": (matrix, REQUIRED),
-        "x0": (list_of(number(), max_length=64), None),
-    }
+    A: Any = setting(REQUIRED, matrix, doc="state transition per step (n x n)")
+    B: Any = setting(REQUIRED, matrix, doc="input matrix (n x p)")
+    C: Any = setting(REQUIRED, matrix, doc="measurement matrix (m x n)")
+    Q: Any = setting(REQUIRED, matrix, unit="state^2", doc="process noise covariance per step")
+    R: Any = setting(REQUIRED, matrix, unit="output^2", doc="measurement noise covariance")
+    P0: Any = setting(REQUIRED, matrix, unit="state^2", doc="covariance of the initial estimate")
+    x0: list | None = setting(None, vector(), unit="state",
+                              doc="initial estimate; none: the x0 the analysis passes, else 0")
 
-    def __init__(self, A, B, C, Q, R, P0, x0=None) -> None:
-        self.A = np.atleast_2d(np.asarray(A, float))
-        n = self.A.shape[0]
-        self.B = np.asarray(B, float).reshape(n, -1)
-        self.C = np.atleast_2d(np.asarray(C, float))
-        self.Q = as_matrix(Q, n, "Q")
-        self.R = as_matrix(R, self.C.shape[0], "R")
-        self.x0 = None if x0 is None else np.asarray(x0, float).reshape(n)
-        self.P0 = as_matrix(P0, n, "P0")
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        self.matrices()
+
+    @classmethod
+    def example(cls, model) -> KalmanFilter:
+        A, B = model.discrete(0.1)
+        return cls(A=A, B=B, C=model.C, Q=0.01, R=0.1, P0=1.0, x0=[0.0] * model.n_states)
+
+    def matrices(self) -> tuple[np.ndarray, ...]:
+        """``A, B, C, Q, R, P0`` as arrays; ``ValueError`` naming the setting whose shape does
+        not fit the others."""
+        A = np.atleast_2d(np.asarray(self.A, float))
+        n = A.shape[0]
+        if A.shape != (n, n):
+            raise ValueError(f"A: expected a square matrix, got shape {A.shape}")
+        B = np.asarray(self.B, float)
+        if B.ndim > 2 or (B.size % n and B.size != 0) or (B.ndim == 2 and B.shape[0] != n):
+            raise ValueError(f"B: expected {n} rows (one per state), got shape {B.shape}")
+        B = B.reshape(n, -1)
+        C = np.atleast_2d(np.asarray(self.C, float))
+        if C.ndim != 2 or C.shape[1] != n:
+            raise ValueError(f"C: expected {n} columns (one per state), got shape {C.shape}")
+        if self.x0 is not None and np.size(self.x0) != n:
+            raise ValueError(f"x0: expected {n} values, got {np.size(self.x0)}")
+        return (A, B, C, as_matrix(self.Q, n, "Q"), as_matrix(self.R, C.shape[0], "R"),
+                as_matrix(self.P0, n, "P0"))
 
     def validate(self, model) -> None:
         """The covariances: finite, symmetric, positive (semi)definite."""
-        n = self.A.shape[0]
-        check_covariance(self.Q, n, "Q")
-        check_covariance(self.P0, n, "P0")
-        check_covariance(self.R, self.C.shape[0], "R", definite=True)
+        A, _, C, Q, R, P0 = self.matrices()
+        n = A.shape[0]
+        check_covariance(Q, n, "Q")
+        check_covariance(P0, n, "P0")
+        check_covariance(R, C.shape[0], "R", definite=True)
 
     def run(self, model, z: np.ndarray, u: np.ndarray, dt: float | None = None,
             x0: np.ndarray | None = None) -> Estimate:
         runs, steps, m = z.shape
-        n = self.A.shape[0]
+        A, B, C, Q, R, P0 = self.matrices()
+        n = A.shape[0]
         u = batch_input(u, runs)
         start = self.x0 if self.x0 is not None else (np.zeros(n) if x0 is None else x0)
         x = np.broadcast_to(np.asarray(start, float), (runs, n)).copy()
-        P = np.broadcast_to(self.P0, (runs, n, n)).copy()
-        H = np.broadcast_to(self.C, (runs, m, n))
+        P = np.broadcast_to(P0, (runs, n, n)).copy()
+        H = np.broadcast_to(C, (runs, m, n))
         x_hat = np.empty((runs, steps, n))
         P_hist = np.empty((runs, steps, n, n))
         S_hist = np.empty((runs, steps, m, m))
         innovation = np.empty((runs, steps, m))
         for k in range(steps):
-            x = x @ self.A.T + u[:, k, :] @ self.B.T
-            P = self.A @ P @ self.A.T + self.Q
-            innovation[:, k] = z[:, k] - x @ self.C.T
-            x, P, S_hist[:, k] = joseph_update(x, P, innovation[:, k], H, self.R)
+            x = x @ A.T + u[:, k, :] @ B.T
+            P = A @ P @ A.T + Q
+            innovation[:, k] = z[:, k] - x @ C.T
+            x, P, S_hist[:, k] = joseph_update(x, P, innovation[:, k], H, R)
             x_hat[:, k] = x
             P_hist[:, k] = P
-        return Estimate(y_hat=x_hat @ self.C.T, innovation=innovation,
+        return Estimate(y_hat=x_hat @ C.T, innovation=innovation,
                         broken=np.zeros(runs, bool), x_hat=x_hat, P=P_hist, S=S_hist)

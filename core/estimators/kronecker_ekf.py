@@ -20,53 +20,33 @@ discretised linearisation). ``jacobian: printed`` uses ``F1`` alone as eq 4.38 d
 
 from __future__ import annotations
 
+from dataclasses import field
+
 import numpy as np
+
 from estim import kronecker, opcount
 from estim.estimators.base import (
     Estimate,
+    GaussianFilter,
     as_matrix,
     batch_input,
-    check_covariance,
     run_batch,
 )
-from estim.schema import REQUIRED, integer, list_of, matrix, number, text
+from estim.schema import integer, text
+from estim.settings import setting, settings_class
 
 
-class KroneckerEKF:
+@settings_class
+class KroneckerEKF(GaussianFilter, name="kronecker_ekf"):
     """EKF on eq 4.36 with additive ``Q`` and ``R`` (``L = M = I``)."""
 
-    SETTINGS = {
-        "Q": (matrix, REQUIRED),
-        "R": (matrix, REQUIRED),
-        "P0": (matrix, REQUIRED),
-        "x0": (list_of(number(), max_length=256), None),
-        "discretization": (text(kronecker.DISCRETIZATIONS), None),
-        "order": (integer(1, 2), None),
-        "jacobian": (text({"full", "printed"}), None),
-        "divergence_bound": (number(positive=True, maximum=1e12), None),
-    }
-
-    def __init__(self, Q, R, P0, x0=None, discretization: str = "exponential", order: int = 2,
-                 jacobian: str = "full", divergence_bound: float = 1e3) -> None:
-        if discretization not in kronecker.DISCRETIZATIONS:
-            raise ValueError(f"discretization {discretization!r}; expected one of "
-                             f"{list(kronecker.DISCRETIZATIONS)}")
-        if order not in (1, 2):
-            raise ValueError(f"order must be 1 or 2, got {order!r}")
-        if jacobian not in ("full", "printed"):
-            raise ValueError(f"jacobian {jacobian!r}; expected 'full' or 'printed'")
-        self.Q, self.R, self.P0, self.x0 = Q, R, P0, x0
-        self.discretization, self.order, self.jacobian = discretization, int(order), jacobian
-        self.divergence_bound = float(divergence_bound)
-        self._cache: dict = {}
-
-    def validate(self, model) -> None:
-        n, m = model.n_states, model.n_outputs
-        check_covariance(self.Q, n, "Q")
-        check_covariance(self.P0, n, "P0")
-        check_covariance(self.R, m, "R", definite=True)
-        if self.x0 is not None and np.size(self.x0) != n:
-            raise ValueError(f"x0: expected {n} values for {list(model.state_names)}")
+    discretization: str = setting("exponential", text(kronecker.DISCRETIZATIONS),
+                                  doc="discretisation of the Kronecker form (euler: eq 4.45)")
+    order: int = setting(2, integer(1, 2), doc="1: linear terms only; 2: with x (x) x")
+    jacobian: str = setting("full", text({"full", "printed"}),
+                            doc="full: F1 + the quadratic terms' derivative; printed: F1 alone "
+                                "(eq 4.38)")
+    _cache: dict = field(default_factory=dict, init=False, repr=False)
 
     def discrete(self, model, dt: float) -> kronecker.DiscreteKronecker:
         """The discretised Kronecker form of ``model`` for sample time ``dt`` (cached)."""

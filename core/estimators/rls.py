@@ -39,55 +39,43 @@ filled (rows ``k >= M``: the directions the input excites persistently) out of
 from __future__ import annotations
 
 import numpy as np
-from estim.estimators.base import Estimate, batch_input
+
+from estim.estimators.base import Estimate, Estimator, batch_input
 from estim.schema import boolean, integer, number, text
+from estim.settings import setting, settings_class
 
 
-class RecursiveLeastSquares:
+@settings_class
+class RecursiveLeastSquares(Estimator, name="rls"):
     """RLS-VFF output estimator; see the module docstring for the recursion."""
 
-    SETTINGS = {
-        "order": (integer(1, 200), None),
-        "chi": (number(positive=True, maximum=1e12), None),
-        "forgetting": (text({"variable", "fixed"}), None),
-        "lambda0": (number(positive=True, maximum=1.0), None),
-        "lambda_min": (number(positive=True, maximum=1.0), None),
-        "delta": (number(positive=True, maximum=1e12), None),
-        "bias": (boolean, None),
-        "p_max": (number(positive=True, maximum=1e300), None),
-    }
+    order: int = setting(10, integer(1, 200), doc="M, input taps in the regressor")
+    chi: float = setting(1.0, number(positive=True, maximum=1e12), unit="output^2",
+                         doc="eq 1.16's chi: the error power that sets the forgetting")
+    forgetting: str = setting("variable", text({"variable", "fixed"}),
+                              doc="variable: eq 1.16 per step; fixed: lambda_k = lambda0")
+    lambda0: float | None = setting(None, number(positive=True, maximum=1.0),
+                                    doc="the constant forgetting factor of forgetting: fixed")
+    lambda_min: float = setting(0.9, number(positive=True, maximum=1.0),
+                                doc="lower bound of eq 1.16's lambda_k")
+    delta: float = setting(100.0, number(positive=True, maximum=1e12),
+                           doc="P(0) = delta I")
+    bias: bool = setting(True, boolean, doc="a constant 1 in the regressor")
+    p_max: float | None = setting(None, number(positive=True, maximum=1e300),
+                                  doc="bound on trace P (a variant; none: unbounded)")
 
-    def __init__(self, order: int = 10, chi: float = 1.0, forgetting: str = "variable",
-                 lambda0: float | None = None, lambda_min: float = 0.9, delta: float = 100.0,
-                 bias: bool = True, p_max: float | None = None) -> None:
-        self.order = int(order)
-        self.chi = float(chi)
-        self.forgetting = forgetting
-        self.lambda0 = None if lambda0 is None else float(lambda0)
-        self.p_max = None if p_max is None else float(p_max)
-        self.lambda_min = float(lambda_min)
-        self.delta = float(delta)
-        self.bias = bool(bias)
-
-    def validate(self, model) -> None:
-        """Raise ``ValueError`` for settings that cannot run."""
-        if self.order < 1:
-            raise ValueError(f"order must be >= 1, got {self.order}")
-        if not 0 < self.lambda_min <= 1:
-            raise ValueError(f"lambda_min must be in (0, 1], got {self.lambda_min}")
-        if self.forgetting not in ("variable", "fixed"):
-            raise ValueError(f"forgetting must be variable or fixed, got {self.forgetting!r}")
+    def __post_init__(self) -> None:
+        super().__post_init__()
         if self.forgetting == "variable" and self.lambda0 is not None:
             raise ValueError("lambda0 is the constant factor of forgetting: fixed; with "
                              "forgetting: variable eq 1.16 computes every lambda_k from its "
                              "step's error and lambda0 would have no effect")
-        if self.forgetting == "fixed":
-            if self.lambda0 is None:
-                raise ValueError("forgetting: fixed needs lambda0")
-            if not 0 < self.lambda0 <= 1:
-                raise ValueError(f"lambda0 must be in (0, 1], got {self.lambda0}")
-        if not (self.chi > 0 and self.delta > 0):
-            raise ValueError("chi and delta must be positive")
+        if self.forgetting == "fixed" and self.lambda0 is None:
+            raise ValueError("forgetting: fixed needs lambda0")
+
+    @classmethod
+    def example(cls, model) -> RecursiveLeastSquares:
+        return cls(order=3)
 
     def regressors(self, u: np.ndarray) -> np.ndarray:
         """``(runs, steps, q)`` regressors: row ``k`` is ``[1, u[k], u[k-1], ..., u[k-M+1]]``.

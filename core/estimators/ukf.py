@@ -23,10 +23,12 @@ Settings are the EKF's (``Q``, ``R`` and ``P0`` in the thesis' state units by de
 from __future__ import annotations
 
 import numpy as np
+
 from estim import discretize, linalg
 from estim.estimators.base import joseph_update
 from estim.estimators.ekf import ExtendedKalmanFilter
 from estim.schema import number
+from estim.settings import setting, settings_class
 
 
 def sqrt_psd(P: np.ndarray) -> np.ndarray:
@@ -49,22 +51,17 @@ def sqrt_psd(P: np.ndarray) -> np.ndarray:
     return out
 
 
-class UnscentedKalmanFilter(ExtendedKalmanFilter):
-    """UKF with additive ``Q`` and ``R``; see the module docstring."""
+@settings_class
+class UnscentedKalmanFilter(ExtendedKalmanFilter, name="ukf"):
+    """UKF with additive ``Q`` and ``R``; see the module docstring. Settings: the EKF's and
+    the sigma points' scaling."""
 
-    SETTINGS = {
-        **ExtendedKalmanFilter.SETTINGS,
-        "alpha": (number(positive=True, maximum=10.0), None),
-        "beta": (number(minimum=0.0, maximum=100.0), None),
-        "kappa": (number(minimum=-100.0, maximum=100.0), None),
-    }
-
-    def __init__(self, Q, R, P0, x0=None, discretization: str = "exponential",
-                 substeps: int = 1, divergence_bound: float = 1e3,
-                 noise_units: str = "thesis", alpha: float = 1.0, beta: float = 2.0,
-                 kappa: float = 0.0) -> None:
-        super().__init__(Q, R, P0, x0, discretization, substeps, divergence_bound, noise_units)
-        self.alpha, self.beta, self.kappa = float(alpha), float(beta), float(kappa)
+    alpha: float = setting(1.0, number(positive=True, maximum=10.0),
+                           doc="spread of the sigma points")
+    beta: float = setting(2.0, number(minimum=0.0, maximum=100.0),
+                          doc="prior knowledge of the distribution (2: Gaussian)")
+    kappa: float = setting(0.0, number(minimum=-100.0, maximum=100.0),
+                           doc="secondary scaling of the sigma points")
 
     def validate(self, model) -> None:
         super().validate(model)

@@ -27,12 +27,22 @@ from __future__ import annotations
 
 import numpy as np
 import pywt
+
 from estim import opcount
-from estim.estimators.base import Estimate, batch_input
+from estim.estimators.base import Estimate, Estimator, batch_input
 from estim.schema import integer, list_of, number, text
+from estim.settings import setting, settings_class
 
 STEP_BOUND = 2.0
 """Normalised LMS is mean-square stable only for a step in (0, 2)."""
+
+
+def stable_step(value) -> str | None:
+    """A step inside the stability bound of normalised LMS."""
+    if number(positive=True, below=STEP_BOUND)(value) is None:
+        return None
+    return (f"a step in (0, {STEP_BOUND:g}), the stability bound of normalised LMS "
+            "(mean-square stable only there)")
 
 
 def regressors(c: np.ndarray, u: np.ndarray) -> np.ndarray:
@@ -73,34 +83,35 @@ def fundamental(u: np.ndarray, dt: float) -> float:
     return float(freqs[1 + np.argmax(spectrum[1:])]) if trace.size > 2 else 1.0 / dt
 
 
-class WaveletLMS:
+@settings_class
+class WaveletLMS(Estimator, name="wavelet_lms"):
     """Block identification in the wavelet domain, then simulation of the identified model."""
 
-    SETTINGS = {
-        "measures": (list_of(text(max_length=40), max_length=256, unique=True), None),
-        "wavelet": (text(max_length=20), None),
-        "band_factor": (number(positive=True, maximum=1e6), None),
-        "step": (number(positive=True, maximum=1e3), None),
-        "epochs": (integer(1, 100_000), None),
-        "solver": (text({"lms", "least_squares"}), None),
-        "divergence_bound": (number(positive=True, maximum=1e12), None),
-    }
+    measures: list | None = setting(None, list_of(text(max_length=40), max_length=256,
+                                                  unique=True),
+                                    doc="the states measured (names); none: every state "
+                                        "(eq 4.16, H = I)")
+    wavelet: str = setting("db4", text(max_length=20), doc="a discrete wavelet of PyWavelets")
+    band_factor: float = setting(4.0, number(positive=True, maximum=1e6),
+                                 doc="keep the detail levels whose lower band edge lies below "
+                                     "this many times the input's fundamental")
+    step: float = setting(0.5, stable_step, doc="normalised LMS step (stable in (0, 2))")
+    epochs: int = setting(200, integer(1, 100_000), doc="LMS passes over the kept coefficients")
+    solver: str = setting("lms", text({"lms", "least_squares"}),
+                          doc="which identified model is rebuilt: LMS or batch least squares")
+    divergence_bound: float = setting(1e3, number(positive=True, maximum=1e12), unit="state",
+                                      doc="a rebuilt state beyond it (or not finite) breaks the "
+                                          "run")
 
-    def __init__(self, measures=None, wavelet: str = "db4", band_factor: float = 4.0,
-                 step: float = 0.5, epochs: int = 200, solver: str = "lms",
-                 divergence_bound: float = 1e3) -> None:
-        if wavelet not in pywt.wavelist(kind="discrete"):
-            raise ValueError(f"wavelet {wavelet!r} is not a discrete wavelet of PyWavelets "
-                             "(e.g. db4, sym8, haar)")
-        if not 0 < step < STEP_BOUND:
-            raise ValueError(f"step {step!r} is outside the stability bound of normalised LMS:"
-                             f" expected 0 < step < {STEP_BOUND:g}")
-        if solver not in ("lms", "least_squares"):
-            raise ValueError(f"solver {solver!r}; expected 'lms' or 'least_squares'")
-        self.measures = None if measures is None else list(measures)
-        self.wavelet, self.band_factor, self.step = wavelet, float(band_factor), float(step)
-        self.epochs, self.solver = int(epochs), solver
-        self.divergence_bound = float(divergence_bound)
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.wavelet not in pywt.wavelist(kind="discrete"):
+            raise ValueError(f"wavelet: {self.wavelet!r} is not a discrete wavelet of "
+                             "PyWavelets (e.g. db4, sym8, haar)")
+
+    @classmethod
+    def example(cls, model) -> WaveletLMS:
+        return cls(measures=[model.state_names[0]], epochs=2)
 
     def measured_states(self, model) -> list[int]:
         """Indices of the states this estimator is given measurements of."""

@@ -25,9 +25,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.special import erf
+
 from estim.fields import operators as ops
 from estim.fields.dipole import Dipole
-from scipy.special import erf
 
 
 @dataclass

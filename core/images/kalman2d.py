@@ -24,8 +24,9 @@ vectorised.
 from __future__ import annotations
 
 import numpy as np
-from estim.images import nshp
 from numba import njit
+
+from estim.images import nshp
 
 
 @njit(cache=True)

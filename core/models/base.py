@@ -14,21 +14,11 @@ import dataclasses
 from typing import Any
 
 import numpy as np
-from estim.errors import ParameterError, SimulationError
-from estim.simulate import simulate
 from scipy import optimize
 
-
-def parameter_table(params_cls: type) -> dict[str, tuple[Any, str, str]]:
-    """Return ``{name: (default, unit, description)}`` for a parameter dataclass."""
-    out = {}
-    for field in dataclasses.fields(params_cls):
-        out[field.name] = (
-            field.default,
-            field.metadata.get("unit", "-"),
-            field.metadata.get("doc", ""),
-        )
-    return out
+from estim import registry
+from estim.errors import ParameterError, SimulationError
+from estim.simulate import simulate
 
 
 def param(default: Any, unit: str = "-", doc: str = "") -> Any:
@@ -49,13 +39,20 @@ def check_params(params: Any, positive: tuple[str, ...] = (),
 
 
 class Model:
-    """Base class: subclasses set the names and implement ``f``, ``jacobian`` and ``h``.
-
-    Subclasses hold their parameters in a frozen dataclass ``Params`` and accept
-    keyword overrides of it in their constructor.
+    """Base class: a subclass names its states, inputs and outputs, holds its parameters in
+    a frozen dataclass ``Params`` (each a :func:`param`: default, unit, doc), and implements
+    ``f_and_jacobian`` and ``h`` (and ``h_jacobian``). It registers itself by the class
+    keyword ``name``: ``class DiodeRC(Model, name="diode_rc")`` (:mod:`estim.registry`).
+    The constructor takes a variant and keyword overrides of ``Params``.
     """
 
     name: str = "model"
+
+    def __init_subclass__(cls, name: str | None = None, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if name is not None:
+            cls.name = name
+            registry.MODELS.register(name, cls)
     state_names: tuple[str, ...] = ()
     input_names: tuple[str, ...] = ()
     output_names: tuple[str, ...] = ()

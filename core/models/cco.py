@@ -31,6 +31,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
 from estim.devices import ebers_moll
 from estim.models.base import Model, check_params, param
 
@@ -69,10 +70,9 @@ class CCOParams:
 _TRANSISTORS = ((2, 0, 4), (3, 1, 5))
 
 
-class CrossCoupledOscillator(Model):
+class CrossCoupledOscillator(Model, name="cco"):
     """Cross-coupled BJT pair with inductive collector loads and capacitive cross coupling."""
 
-    name = "cco"
     state_names = ("v_C1", "v_C2", "v_B1", "v_B2", "v_E1", "v_E2", "i_L1", "i_L4")
     input_names = ("V_CC",)
     output_names = ("v_C1",)

@@ -30,6 +30,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
 from estim import kernels
 from estim.devices import ebers_moll
 from estim.models.base import Model, check_params, param
@@ -69,10 +70,9 @@ class DiffAmpParams(DiffAmpCircuit):
         return self.alpha_F * self.I_ES / self.alpha_R
 
 
-class DiffAmpEbersMoll(Model):
+class DiffAmpEbersMoll(Model, name="diffamp_em"):
     """Emitter-coupled BJT pair with an R_L-C_L load between the collectors."""
 
-    name = "diffamp_em"
     state_names = ("v_E", "q_L", "v_C1", "v_C2")
     input_names = ("v_B1", "v_B2")
     output_names = ("v_C1 - v_C2",)

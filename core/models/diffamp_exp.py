@@ -18,6 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
 from estim.models.base import param
 from estim.models.diffamp_em import DiffAmpCircuit, DiffAmpEbersMoll
 
@@ -35,10 +36,9 @@ class DiffAmpExpParams(DiffAmpCircuit):
         return self.alpha / (1 - self.alpha)
 
 
-class DiffAmpExponential(DiffAmpEbersMoll):
+class DiffAmpExponential(DiffAmpEbersMoll, name="diffamp_exp"):
     """Emitter-coupled pair whose transistors follow eqs 2.48-2.51."""
 
-    name = "diffamp_exp"
     Params = DiffAmpExpParams
     variants = {"completed": {}, "thesis_printed": {"R_E": 80.0}}
 

@@ -17,6 +17,7 @@ import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
+
 from estim.models.base import Model, param
 from estim.models.mosfet_ekv import MosfetEKV, MosfetParams
 
@@ -38,10 +39,9 @@ class ChainParams(MosfetParams):
             raise ValueError(f"stages must be an integer in [1, 64], got {self.stages!r}")
 
 
-class MosfetDarlington(Model):
+class MosfetDarlington(Model, name="mosfet_darlington"):
     """A chain of EKV MOSFET stages, each gate driven by the previous stage's source."""
 
-    name = "mosfet_darlington"
     input_names = ("dv_in/dt",)
     input_is_source_slope = True
     output_names = ("v_D",)

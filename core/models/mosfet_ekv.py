@@ -33,6 +33,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
 from estim import kernels
 from estim.models.base import Model, check_params, param
 
@@ -98,10 +99,9 @@ _LAWS = {"ekv": 0.0, "weak_inversion": 1.0, "weak_saturation": 2.0}
 
 
 
-class MosfetEKV(Model):
+class MosfetEKV(Model, name="mosfet_ekv"):
     """EKV MOSFET with the capacitor network of eqs 3.1-3.4."""
 
-    name = "mosfet_ekv"
     state_names = ("v_G", "v_B", "v_S", "v_D")
     input_names = ("dv_in/dt",)
     input_is_source_slope = True

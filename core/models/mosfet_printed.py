@@ -17,6 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
 from estim.kronecker import printed_matrices, printed_s
 from estim.models.base import Model, check_params, param
 from estim.models.mosfet_ekv import DeviceParams
@@ -37,10 +38,9 @@ class PrintedParams(DeviceParams):
                                      "C_B", "C_BS", "C_BD", "gamma"))
 
 
-class MosfetPrinted(Model):
+class MosfetPrinted(Model, name="mosfet_printed"):
     """Eq 4.15 with the printed ``A1 .. A4``."""
 
-    name = "mosfet_printed"
     state_names = ("v_G", "v_B", "v_S", "v_D")
     input_names = ("v_in",)
     output_names = ("v_D",)

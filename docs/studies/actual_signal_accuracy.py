@@ -22,6 +22,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+
 from estim import config
 from estim.analyses import estimation
 from estim.schema import Experiment

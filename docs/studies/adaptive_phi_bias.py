@@ -18,6 +18,7 @@ and the SNR lost against the filter that knows phi, for each gradient.
 from __future__ import annotations
 
 import numpy as np
+
 from estim.images import kalman2d, nshp
 
 FIELDS = ([0.6, 0.3, 0.5, -0.45], [0.5, 0.2, 0.3, -0.2], [0.4, 0.1, 0.3, -0.15],

@@ -20,6 +20,7 @@ import copy
 
 import numpy as np
 import yaml
+
 from estim import config, health, metrics, tuning
 from estim.analyses import estimation
 

@@ -16,6 +16,7 @@ against the exact filter that knows phi.
 from __future__ import annotations
 
 import numpy as np
+
 from estim.images import kalman2d, nshp
 
 PHI = np.array([0.6, 0.3, 0.5, -0.45])

@@ -19,8 +19,9 @@ adaptive recursion itself needs long rows (it restarts at every row), which is w
 from __future__ import annotations
 
 import numpy as np
-from estim.images import kalman2d, nshp
 from scipy.optimize import minimize
+
+from estim.images import kalman2d, nshp
 
 PHI = np.array([0.6, 0.3, 0.5, -0.45])
 

@@ -16,6 +16,7 @@ import sys
 
 import numpy as np
 import yaml
+
 from estim import config
 from estim.analyses import estimation
 from estim.errors import ConfigError

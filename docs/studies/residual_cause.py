@@ -12,6 +12,7 @@ import sys
 
 import numpy as np
 import yaml
+
 from estim import config, metrics
 from estim.analyses import estimation
 

@@ -52,6 +52,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+
 from estim import config
 from estim.analyses import perturbation
 from estim.schema import Experiment

@@ -28,6 +28,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 import pandas as pd
+
 from estim import config
 from estim.analyses import estimation
 from estim.analyses import kronecker as analysis

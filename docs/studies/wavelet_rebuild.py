@@ -15,11 +15,12 @@ import sys
 
 import numpy as np
 import yaml
+from scipy import linalg
+
 from estim import kronecker
 from estim.analyses import kronecker as analysis
 from estim.config import parse_data
 from estim.estimators.wavelet_lms import WaveletLMS, fundamental
-from scipy import linalg
 
 
 def main(frequency_hz: float) -> None:

@@ -1,0 +1,85 @@
+"""What the commands print besides their results: progress while work units finish, and the
+summary after a run."""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import click
+
+from estim import runner
+from estim.schema import Experiment
+
+
+def progress_lines(name: str, total: int, prefix: str = "") -> Callable[[], None]:
+    """Without a terminal (CI, cluster logs): one line per finished work unit with the
+    elapsed time and an estimate of the time left."""
+    start, done = time.perf_counter(), [0]
+
+    def on_done() -> None:
+        done[0] += 1
+        elapsed = time.perf_counter() - start
+        left = elapsed / done[0] * (total - done[0]) if done[0] < total else 0.0
+        click.echo(f"{prefix}{name}: {min(done[0], total)}/{total} done, {elapsed:.0f} s "
+                   f"elapsed, about {left:.0f} s left", err=True)
+    return on_done
+
+
+class Progress:
+    """The progress of a run: nothing when quiet, a bar on a terminal, one line per finished
+    work unit otherwise. :meth:`start` once the run's folder is open (a run refused before
+    any work prints none of it), :meth:`done` per finished unit, :meth:`close` at the end."""
+
+    def __init__(self, exp: Experiment, quiet: bool) -> None:
+        self.exp, self.quiet = exp, quiet
+        self._bar = None
+        self._line: Callable[[], None] | None = None
+
+    def start(self) -> None:
+        if self.quiet:
+            return
+        total = runner.work_units(self.exp)
+        if sys.stderr.isatty():
+            self._bar = click.progressbar(length=total, label=self.exp.name, file=sys.stderr)
+            self._bar.__enter__()
+        else:
+            click.echo(f"{self.exp.name}: {total} work units ...", err=True)
+            self._line = progress_lines(self.exp.name, total)
+
+    def done(self) -> None:
+        if self._bar is not None:
+            self._bar.update(1)
+        elif self._line is not None:
+            self._line()
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.__exit__(None, None, None)
+            self._bar = None
+
+
+def run_and_report(exp: Experiment, folder: Path, jobs: int, quiet: bool,
+                   overrides: dict | None = None, executor=None, resume: bool = True,
+                   figure_format: str = "png") -> None:
+    """:func:`estim.runner.run_to_folder` with progress, then where the results went and the
+    analysis' summary (unless quiet)."""
+    shown = Progress(exp, quiet)
+    try:
+        result, resumed = runner.run_to_folder(
+            exp, folder, jobs, on_done=shown.done, executor=executor, resume=resume,
+            figure_format=figure_format, command=" ".join(["estim", *sys.argv[1:]]),
+            overrides=overrides, on_start=shown.start)
+    finally:
+        shown.close()
+    if quiet:
+        return
+    if resumed:
+        click.echo(f"{exp.name}: resumed with {resumed} finished cell(s) of an earlier run",
+                   err=True)
+    click.echo(f"{exp.name} -> {folder / exp.name}")
+    text = runner.summary(exp, result)
+    if text:
+        click.echo(text)

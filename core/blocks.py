@@ -1,0 +1,104 @@
+"""Config blocks that several analyses share, each declared once (:mod:`estim.settings`).
+
+An analysis declares its config as a :class:`~estim.settings.Settings` dataclass whose fields
+use these blocks (``monte_carlo: MonteCarlo = block(MonteCarlo, required=True)``) and its own.
+"""
+
+from __future__ import annotations
+
+from estim import health, registry
+from estim.schema import (
+    MAX_VOLTS,
+    REQUIRED,
+    integer,
+    mapping,
+    number,
+    text,
+)
+from estim.settings import Settings, setting, settings_class
+
+READING = text({"sigma", "variance"})
+"""How a printed noise number reads: a standard deviation or a variance (notes.md (a))."""
+
+
+@settings_class
+class MonteCarlo(Settings):
+    """Monte Carlo runs per table cell and the seed every cell's draws derive from."""
+
+    runs: int = setting(REQUIRED, integer(1, 1_000_000), doc="Monte Carlo runs per cell")
+    seed: int = setting(REQUIRED, integer(0, 2**63 - 1),
+                        doc="root of every cell's SeedSequence (same seed, same tables)")
+
+
+def simulation(rtol: float, atol: float) -> type:
+    default_rtol, default_atol = rtol, atol
+    """The ``simulation`` block (the stiff solver of the "actual" signal) with an analysis'
+    default tolerances."""
+    from estim.simulate import SOLVERS
+
+    @settings_class
+    class Simulation(Settings):
+        """The stiff solver of the actual signal."""
+
+        solver: str = setting("batched_radau", text(SOLVERS),
+                              doc="batched_radau: estim's batched Radau IIA; scipy: solve_ivp")
+        rtol: float = setting(default_rtol, number(minimum=1e-12, below=0.1),
+                              doc="relative tolerance of the solver")
+        atol: float = setting(default_atol, number(minimum=1e-15, maximum=1.0), unit="state",
+                              doc="absolute tolerance of the solver")
+
+    return Simulation
+
+
+@settings_class
+class Model(Settings):
+    """A registered model, its variant and its parameter overrides."""
+
+    name: str = setting(REQUIRED, text(registry.MODELS), doc="a registered model")
+    variant: str | None = setting(None, text(), doc="one of the model's variants; none: its "
+                                                    "first (the completed circuit)")
+    params: dict = setting({}, mapping, doc="parameter overrides (estim settings --models "
+                                            "lists them)")
+
+
+@settings_class
+class Health(Settings):
+    """How filter health is judged (:mod:`estim.health`, docs/claims.md)."""
+
+    band: float = setting(health.DEFAULTS["band"], number(minimum=0.5, maximum=0.9999),
+                          doc="two-sided probability of the NEES/NIS band")
+    whiteness_lag: int = setting(health.DEFAULTS["lag"], integer(1, 1000),
+                                 doc="Ljung-Box lag (at most a quarter of the record)")
+    whiteness_level: float = setting(health.DEFAULTS["white_level"],
+                                     number(minimum=1e-6, maximum=0.5),
+                                     doc="Ljung-Box test size")
+    consecutive: int = setting(health.DEFAULTS["consecutive"], integer(1, 1_000_000),
+                               doc="steps in a row outside the physical range that make a run "
+                                   "diverged")
+    growth: float = setting(health.DEFAULTS["growth"], number(minimum=1.5, maximum=1e6),
+                            doc="last-quarter over second-quarter RMS error of a runaway run")
+
+
+@settings_class
+class Claim(Settings):
+    """One claim of the config: ``better``'s loss below ``worse``'s (docs/claims.md)."""
+
+    better: str = setting(REQUIRED, text(max_length=60), doc="an estimator label")
+    worse: str = setting(REQUIRED, text(max_length=60), doc="an estimator label")
+
+
+@settings_class
+class EstimatorEntry(Settings):
+    """One estimator of an estimation table: its label, type and settings."""
+
+    label: str = setting(REQUIRED, text(max_length=60), doc="the row's name in the tables")
+    type: str = setting(REQUIRED, text(registry.ESTIMATORS), doc="a registered estimator")
+    model_params: dict = setting({}, mapping,
+                                 doc="overrides of the model's parameters for this filter's "
+                                     "own model")
+    settings: dict = setting({}, mapping, doc="the estimator's settings (estim settings "
+                                              "--estimators lists them)")
+
+
+VOLTS = number(minimum=-MAX_VOLTS, maximum=MAX_VOLTS)
+"""A voltage within the bound of every config (:data:`estim.schema.MAX_VOLTS`)."""

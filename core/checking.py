@@ -1,0 +1,94 @@
+"""The stored-vs-new comparison of ``estim check``: re-run a config and compare every cell
+of its tables with the stored ones under the config's tolerances (docs/checking.md)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from estim import io, runner, tables
+from estim.analyses import ANALYSES
+from estim.config import spec_hash
+from estim.errors import ReferenceJoinError, UsageError
+from estim.io import read_manifest, read_table
+from estim.schema import Experiment
+
+
+def config_differences(stored: dict, current: dict, path: str = "") -> list[str]:
+    """Key paths where two resolved configs differ, with both values."""
+    if isinstance(stored, dict) and isinstance(current, dict):
+        out = []
+        for key in sorted(set(stored) | set(current), key=str):
+            sub = f"{path}.{key}" if path else str(key)
+            out += config_differences(stored.get(key), current.get(key), sub)
+        return out
+    if stored != current:
+        return [f"{path or '(config)'}: stored {stored!r}, config {current!r}"]
+    return []
+
+
+def check(exp: Experiment, stored_dir: Path, tmp: Path, jobs: int, say: Callable[[str], None],
+          same_config: bool = True, on_done: Callable[[], None] | None = None,
+          note: Callable[[str], None] | None = None) -> int:
+    """Re-run ``exp`` into ``tmp`` and compare it with the stored results in ``stored_dir``:
+    the number of differences, each reported through ``say`` (one line each; ``note`` gets
+    progress, e.g. the run's time). With ``same_config`` the stored manifest must record
+    this config."""
+    note = note or (lambda _text: None)
+    if not stored_dir.is_dir():
+        say(f"{exp.name}: no stored results in {stored_dir}")
+        return 1
+    manifest = read_manifest(stored_dir)
+    if manifest is None:
+        say(f"{exp.name}: {stored_dir / 'manifest.json'} is missing or not JSON")
+        return 1
+    if same_config and manifest.get("config_sha256") != spec_hash(exp.spec):
+        changes = config_differences(manifest.get("config"), exp.spec)
+        shown = "; ".join(changes[:5]) + (f"; and {len(changes) - 5} more" if
+                                          len(changes) > 5 else "")
+        say(f"{exp.name}: the stored results were made with another config than "
+            f"{exp.source}: {shown or 'config hash differs'}")
+        return 1
+    total = runner.work_units(exp)
+    note(f"{exp.name}: running {total} work units ...")
+    start = time.perf_counter()
+    result, _ = runner.run_to_folder(exp, tmp, jobs, on_done=on_done)
+    note(f"{exp.name}: ran in {time.perf_counter() - start:.0f} s")
+    tol = exp.spec["check"]["tolerances"]
+    for column in sorted(c for c, t in tol.items() if t.get("skip")):
+        say(f"{exp.name}: column {column} not compared ({tol[column]['skip']})")
+    analysis = ANALYSES[exp.analysis]
+    differing = 0
+    for metric, new in result.tables.items():
+        path = stored_dir / f"{metric}.csv"
+        if not path.exists():
+            say(f"{exp.name}/{metric}.csv: missing from the stored results")
+            differing += 1
+            continue
+        try:
+            stored = read_table(path, analysis.TABLES.get(metric))
+        except UsageError as exc:
+            say(f"{exp.name}/{metric}.csv: {exc}")
+            differing += 1
+            continue
+        diffs = io.compare_tables(stored, read_table(tmp / exp.name / f"{metric}.csv"), tol)
+        for d in diffs:
+            say(f"{exp.name}/{metric}.csv row {d['row']} {d['column']}: obtained "
+                f"{d['obtained']}, expected {d['expected']}, difference {d['difference']}")
+        differing += len(diffs)
+        spec = analysis.TABLES.get(metric)
+        if spec is not None and spec.join:
+            try:
+                tables.with_reference(tables.view(stored, spec), spec, allow_unmatched=True)
+            except ReferenceJoinError as exc:
+                say(f"{exp.name}/{metric}.csv: {exc}")
+                differing += 1
+        if not diffs:
+            say(f"{exp.name}/{metric}.csv: {len(new)} rows match")
+    for name in sorted(result.figures):
+        stored_as = [stored_dir / "figures" / f"{name}.{fmt}" for fmt in ("png", "svg", "pdf")]
+        if not any(f.is_file() and f.stat().st_size > 0 for f in stored_as):
+            say(f"{exp.name}/figures/{name}.png: missing from the stored results")
+            differing += 1
+    return differing
