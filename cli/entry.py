@@ -23,6 +23,7 @@ SHORT_HELP = {
     "merge": "Gather the cells of sharded runs and write the tables.",
     "reproduce": "Run every config of configs/ (the thesis tables on the default settings).",
     "run": "Run the experiment(s) of CONFIGS and write OUT/<config name>/.",
+    "settings": "List every setting a config can give: analyses, estimators, models.",
     "summary": "Print each experiment's claim verdicts and quoted ranges from RESULTS.",
     "table": "Print the METRIC tables of every experiment found under RESULTS.",
     "tune": "Fit the Q (and R) of one estimator of CONFIG by maximum likelihood.",

@@ -216,3 +216,53 @@ def describe(cls: type, prefix: str = "") -> list[tuple[str, str, str, str, str]
 def settings_class(cls: type) -> type:
     """``@dataclass(frozen=True, eq=False)`` for a :class:`Settings` subclass."""
     return dataclass(frozen=True, eq=False)(cls)
+
+
+def _table(rows: list[tuple[str, ...]], head: tuple[str, ...]) -> str:
+    def cell(text_: str) -> str:
+        return str(text_).replace("|", "\\|")
+
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    lines += ["| " + " | ".join(cell(c) for c in row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def _model_rows(cls: type) -> list[tuple[str, str, str, str]]:
+    return [(f.name, repr(_plain(f.default)), f.metadata.get("unit", "-"),
+             f.metadata.get("doc", "")) for f in fields(cls.Params)]
+
+
+def listing(only: str | None = None) -> str:
+    """Every setting a config can give, as Markdown: each analysis' keys (the common ones
+    first), each registered estimator's settings and each registered model's parameters,
+    from their declarations. ``only``: one analysis, estimator or model by name."""
+    from estim import registry
+    from estim.analyses import ANALYSES
+    from estim.config import Common
+
+    def first(cls: type) -> str:
+        paragraph = (cls.__doc__ or "").strip().split("\n\n")[0]
+        return " ".join(line.strip() for line in paragraph.splitlines())
+
+    parts = []
+    head = ("key", "type", "default", "unit", "what")
+    for name, module in ANALYSES.items():
+        if only in (None, name) and hasattr(module, "Config"):
+            doc = first(module.Config)
+            parts.append(f"### analysis `{name}`\n\n{doc}\n\n"
+                         + _table(describe(Common) + describe(module.Config), head))
+    for name in registry.ESTIMATORS:
+        if only in (None, name):
+            cls = registry.ESTIMATORS[name]
+            doc = first(cls)
+            parts.append(f"### estimator `{name}` (`estimators[i].settings`)\n\n{doc}\n\n"
+                         + _table(describe(cls), head))
+    for name in registry.MODELS:
+        if only in (None, name):
+            cls = registry.MODELS[name]
+            doc = first(cls)
+            variants = ", ".join(cls.variants) or "-"
+            parts.append(f"### model `{name}` (`model.params`; variants: {variants})\n\n{doc}"
+                         "\n\n" + _table(_model_rows(cls), ("parameter", "default", "unit",
+                                                          "what")))
+    return "\n\n".join(parts) + "\n"

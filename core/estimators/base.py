@@ -18,7 +18,7 @@ size); ``example(model)`` gives a working instance for a test model.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
 
@@ -58,11 +58,12 @@ class GaussianFilter(Estimator):
     """The settings every Kalman-type filter of a model shares (not registered itself):
     additive noise covariances, the initial estimate and the bound that marks a broken run."""
 
-    Q: Any = setting(REQUIRED, matrix, unit="state^2",
+    Q: float | list = setting(REQUIRED, matrix, unit="state^2",
                      doc="process noise covariance per step: a number, a diagonal or a matrix")
-    R: Any = setting(REQUIRED, matrix, unit="output^2",
+    R: float | list = setting(REQUIRED, matrix, unit="output^2",
                      doc="measurement noise covariance: a number, a diagonal or a matrix")
-    P0: Any = setting(REQUIRED, matrix, unit="state^2", doc="covariance of the initial estimate")
+    P0: float | list = setting(REQUIRED, matrix, unit="state^2",
+                               doc="covariance of the initial estimate")
     x0: list | None = setting(None, vector(), unit="state",
                               doc="initial estimate; none: the x0 the analysis passes (the "
                                   "actual operating point), else the model's own")

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from estim.estimators.base import (
@@ -28,12 +26,14 @@ class KalmanFilter(Estimator, name="kf"):
     matrices are checked against each other when the filter is made.
     """
 
-    A: Any = setting(REQUIRED, matrix, doc="state transition per step (n x n)")
-    B: Any = setting(REQUIRED, matrix, doc="input matrix (n x p)")
-    C: Any = setting(REQUIRED, matrix, doc="measurement matrix (m x n)")
-    Q: Any = setting(REQUIRED, matrix, unit="state^2", doc="process noise covariance per step")
-    R: Any = setting(REQUIRED, matrix, unit="output^2", doc="measurement noise covariance")
-    P0: Any = setting(REQUIRED, matrix, unit="state^2", doc="covariance of the initial estimate")
+    A: float | list = setting(REQUIRED, matrix, doc="state transition per step (n x n)")
+    B: float | list = setting(REQUIRED, matrix, doc="input matrix (n x p)")
+    C: float | list = setting(REQUIRED, matrix, doc="measurement matrix (m x n)")
+    Q: float | list = setting(REQUIRED, matrix, unit="state^2",
+                              doc="process noise covariance per step")
+    R: float | list = setting(REQUIRED, matrix, unit="output^2", doc="measurement noise covariance")
+    P0: float | list = setting(REQUIRED, matrix, unit="state^2",
+                               doc="covariance of the initial estimate")
     x0: list | None = setting(None, vector(), unit="state",
                               doc="initial estimate; none: the x0 the analysis passes, else 0")
 
