@@ -32,7 +32,7 @@ def case(path: Path) -> dict:
     row = exp.spec["rows"][0]
     amplitudes = np.array([row["amplitude_v"], row["amplitude_v"] / 2])
     src, dt = perturbation.source(exp, row, amplitudes)
-    model = exp.plan[row["s_no"]]
+    model = exp.plan.models[row["s_no"]]
     bias = np.asarray(exp.spec["excitation"]["bias_v"], float)
     u_in = model.source_to_input(src, dt)
     u_op = model.source_to_input(np.broadcast_to(bias, (2, src.shape[-1])), dt)[0]

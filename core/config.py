@@ -328,8 +328,9 @@ def _check_table_ids(spec: dict, module, source: str) -> None:
             continue
         if table.reference_ids and table_id not in table.reference_ids:
             raise ConfigError(source, f"tables.{metric}", f"expected one of "
-                              f"{list(table.reference_ids)} for a {metric} table, got "
-                              f"{table_id!r}")
+                              f"{[*table.reference_ids, tables.OWN_TABLE]} for a {metric} "
+                              f"table, got {table_id!r} ('{tables.OWN_TABLE}': a table of our "
+                              "own, joined to no printed one)")
         if not tables.has_reference_table(table_id):
             raise ConfigError(source, f"tables.{metric}",
                               f"no thesis Table {table_id} ships with estim")

@@ -23,6 +23,8 @@ from collections.abc import Iterator, Mapping
 from pathlib import Path
 
 NOT_REGISTERED = ("base",)
+PLUGIN_PREFIX = "estim_plugin_"
+"""Modules imported from a config's ``plugins:`` are named with this prefix."""
 """Modules of the model and estimator packages that hold no registered class."""
 
 
@@ -35,9 +37,16 @@ class Registry(Mapping):
         self._classes: dict[str, type] = {}
 
     def register(self, name: str, cls: type) -> None:
+        """Register ``cls`` as ``name``. A plugin's class may replace another plugin's (a
+        file edited and loaded again), never one of estim's own."""
         known = self._classes.get(name)
+        if known is None and not cls.__module__.startswith(PLUGIN_PREFIX) \
+                and name in self._builtin() and cls.__module__ != f"{self.package}.{name}":
+            importlib.import_module(f"{self.package}.{name}")
+            known = self._classes.get(name)
         if known is not None and known is not cls and (
-                known.__module__, known.__qualname__) != (cls.__module__, cls.__qualname__):
+                known.__module__, known.__qualname__) != (cls.__module__, cls.__qualname__) \
+                and not known.__module__.startswith(PLUGIN_PREFIX):
             raise ValueError(f"{self.kind} name {name!r} is taken by {known.__module__}."
                              f"{known.__qualname__}")
         self._classes[name] = cls
@@ -71,11 +80,13 @@ ESTIMATORS = Registry("estim.estimators", "estimator")
 
 
 def load_plugins(paths: list[Path]) -> None:
-    """Import each Python file of ``paths`` once (by its resolved path), so the models and
-    estimators it defines register themselves. Raises ``ImportError`` with the reason."""
+    """Import each Python file of ``paths`` once per content (by its resolved path and its
+    bytes: an edited file is imported again), so the models and estimators it defines
+    register themselves. Whatever the import raises propagates."""
     for path in paths:
         path = Path(path).resolve()
-        module = "estim_plugin_" + hashlib.sha256(str(path).encode()).hexdigest()[:16]
+        digest = hashlib.sha256(str(path).encode() + b"\0" + path.read_bytes())
+        module = PLUGIN_PREFIX + digest.hexdigest()[:16]
         if module in sys.modules:
             continue
         spec = importlib.util.spec_from_file_location(module, path)

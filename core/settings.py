@@ -234,8 +234,8 @@ def _model_rows(cls: type) -> list[tuple[str, str, str, str]]:
 
 def listing(only: str | None = None) -> str:
     """Every setting a config can give, as Markdown: each analysis' keys (the common ones
-    first), each registered estimator's settings and each registered model's parameters,
-    from their declarations. ``only``: one analysis, estimator or model by name."""
+    first), each of estim's estimators' settings and each of its models' parameters (not a
+    plugin's), from their declarations. ``only``: one analysis, estimator or model."""
     from estim import registry
     from estim.analyses import ANALYSES
     from estim.config import Common
@@ -251,14 +251,17 @@ def listing(only: str | None = None) -> str:
             doc = first(module.Config)
             parts.append(f"### analysis `{name}`\n\n{doc}\n\n"
                          + _table(describe(Common) + describe(module.Config), head))
+    def own(cls: type) -> bool:
+        return not cls.__module__.startswith(registry.PLUGIN_PREFIX)
+
     for name in registry.ESTIMATORS:
-        if only in (None, name):
+        if only in (None, name) and own(registry.ESTIMATORS[name]):
             cls = registry.ESTIMATORS[name]
             doc = first(cls)
             parts.append(f"### estimator `{name}` (`estimators[i].settings`)\n\n{doc}\n\n"
                          + _table(describe(cls), head))
     for name in registry.MODELS:
-        if only in (None, name):
+        if only in (None, name) and own(registry.MODELS[name]):
             cls = registry.MODELS[name]
             doc = first(cls)
             variants = ", ".join(cls.variants) or "-"

@@ -7,9 +7,11 @@ An analysis is a module registered by one line in :data:`estim.analyses.ANALYSES
                 required)
 ``TABLES``      ``{metric: TableSpec}``: every table it writes, its columns and the key that
                 joins a row to the reference (thesis or paper) table
-``prepare(spec, source) -> plan``   cross-checks beyond the schema (raising ``ConfigError``
+``Config``      its settings (:mod:`estim.settings`); ``SCHEMA = Config.schema()``
+``prepare(spec, source) -> Plan``   cross-checks beyond the schema (raising ``ConfigError``
                 with the key path) and the objects built once per experiment (models,
-                estimators); stored as ``Experiment.plan``
+                estimators) as the analysis' own typed ``Plan``; stored as
+                ``Experiment.plan``
 ``work_units(exp) -> int``          for progress reports
 ``work_size(spec) -> int``          state-samples the run computes, bounded by ``--max-work``
 ``run(exp, jobs, on_done) -> Result``  tables (one DataFrame per metric) and figures
@@ -25,7 +27,7 @@ from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any
 
 import pandas as pd
 
@@ -38,23 +40,6 @@ __all__ = ["TableSpec"]
 class Result:
     tables: dict[str, pd.DataFrame]
     figures: dict[str, Any] = field(default_factory=dict)
-
-
-class Analysis(Protocol):
-    SCHEMA: dict
-    TABLES: dict[str, TableSpec]
-
-    def prepare(self, spec: dict, source: str) -> Any: ...
-
-    def work_units(self, exp) -> int: ...
-
-    def work_size(self, spec: dict) -> int: ...
-
-    def run(self, exp, jobs: int = 1, on_done: Callable[[], None] | None = None) -> Result: ...
-
-    def summary(self, result: Result) -> str: ...
-
-    def tiny(self, spec: dict) -> dict: ...
 
 
 def _ignore_interrupts() -> None:

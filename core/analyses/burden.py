@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -173,7 +174,17 @@ def dwt_coefficients(samples: int, wavelet: str) -> int:
     return sum(math.ceil(samples / 2**j) for j in range(1, level + 1))
 
 
-def prepare(spec: dict, source: str) -> dict:
+@dataclass(frozen=True)
+class Plan:
+    """What the burden analysis builds once: the chain of each length, and the two
+    estimators whose multiplications it counts."""
+
+    models: dict
+    ekf: KroneckerEKF
+    wavelet: WaveletLMS
+
+
+def prepare(spec: dict, source: str) -> Plan:
     model_cls = registry.MODELS[spec["model"]["name"]]
     if "stages" not in model_cls.Params.__dataclass_fields__:
         raise ConfigError(source, "model.name", f"{model_cls.name} has no 'stages' parameter: "
@@ -193,7 +204,7 @@ def prepare(spec: dict, source: str) -> dict:
     for metric, table_id in spec["tables"].items():
         if not tables.has_reference_table(table_id):
             raise ConfigError(source, f"tables.{metric}", f"no reference table {table_id!r}")
-    return {"models": models, "ekf": ekf, "wavelet": wavelet}
+    return Plan(models, ekf, wavelet)
 
 
 def work_units(exp: Experiment) -> int:
@@ -263,9 +274,9 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     ref_wt = tables.reference_table(spec["tables"]["burden_wt"])
     ekf_rows, wt_rows, timing = [], [], []
     for k in spec["stages"]:
-        model = plan["models"][k]
+        model = plan.models[k]
         n, d, p = model.n_states, model.n_outputs, model.n_inputs
-        tally, sec, sec_batch = _measure_ekf(plan["ekf"], model, t["steps"], t["repeats"],
+        tally, sec, sec_batch = _measure_ekf(plan.ekf, model, t["steps"], t["repeats"],
                                              t["sample_time_s"], t["batch_runs"])
         common = {"n_x": n, "d": d, "p": p}
         for _, row in ref_ekf.iterrows():
@@ -286,15 +297,15 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
                          "printed": float("nan"), "as_written_formula": "-",
                          "as_written": float("nan"), "counted": tally.get("jacobian", 0.0),
                          "ours_formula": ours, "ours_value": evaluate(ours, n, d, p)})
-        wt_tally, kept, wt_sec = _measure_wavelet(plan["wavelet"], model, t["block_samples"],
+        wt_tally, kept, wt_sec = _measure_wavelet(plan.wavelet, model, t["block_samples"],
                                                   t["repeats"], t["sample_time_s"],
                                                   t["fundamental_hz"])
-        epochs = plan["wavelet"].epochs
+        epochs = plan.wavelet.epochs
         ours_wt = {1: ("regressors", "N*q*(q+1)/2"),
                    2: ("LMS", "epochs*K*(2*q*D + 2*D)")}
         size = {"N": t["block_samples"], "q": n, "D": n + n * (n + 1) // 2 + p + 1, "K": kept,
-                "epochs": epochs, "taps": pywt.Wavelet(plan["wavelet"].wavelet).dec_len,
-                "C": dwt_coefficients(t["block_samples"], plan["wavelet"].wavelet)}
+                "epochs": epochs, "taps": pywt.Wavelet(plan.wavelet.wavelet).dec_len,
+                "C": dwt_coefficients(t["block_samples"], plan.wavelet.wavelet)}
         for _, row in ref_wt.iterrows():
             label, ours = ours_wt[int(row["row_order"])]
             wt_rows.append({"table_id": spec["tables"]["burden_wt"],

@@ -18,6 +18,7 @@ axis is clipped).
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
@@ -87,8 +88,15 @@ QUOTES = (
 )
 
 
-def prepare(spec: dict, source: str) -> None:
-    return None
+@dataclass(frozen=True)
+class Plan:
+    """The typed config: this analysis builds nothing else before its work units."""
+
+    config: Config
+
+
+def prepare(spec: dict, source: str) -> Plan:
+    return Plan(Config.build(spec))
 
 
 def work_units(exp: Experiment) -> int:

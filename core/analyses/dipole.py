@@ -159,7 +159,15 @@ class Zone:
     theta: np.ndarray
 
 
-def prepare(spec: dict, source: str) -> dict:
+@dataclass(frozen=True)
+class Plan:
+    """The zones' grids and the dipole, built once."""
+
+    zones: tuple
+    dipole: Dipole
+
+
+def prepare(spec: dict, source: str) -> Plan:
     zones = []
     for i, z in enumerate(spec["zones"]):
         for key in ("r", "theta_deg"):
@@ -175,7 +183,7 @@ def prepare(spec: dict, source: str) -> dict:
         if len(spec["kf"][key]) != 4:
             raise ConfigError(source, f"kf.{key}", "expected 4 diagonal entries for "
                               "[A, V, Phi, Psi] (eq 5.42)")
-    return {"zones": tuple(zones), "dipole": dipole}
+    return Plan(tuple(zones), dipole)
 
 
 @dataclass(frozen=True)
@@ -190,7 +198,7 @@ class Point:
 def sweep(exp: Experiment) -> list[Point]:
     noise = exp.spec["noise"]
     return [Point((z, r, i), z, reading, float(level), signals.noise_sigma(level, reading))
-            for z in range(len(exp.plan["zones"]))
+            for z in range(len(exp.plan.zones))
             for r, reading in enumerate(noise["readings"])
             for i, level in enumerate(noise["source_levels"])]
 
@@ -306,7 +314,7 @@ def run_point(exp: Experiment, point: Point) -> tuple[list[dict], list]:
     """Rows of one zone, noise reading and level: every estimator, component and part; and
     per component and part its cell's per-run losses for the claims."""
     spec, plan = exp.spec, exp.plan
-    zone, dipole = plan["zones"][point.zone], plan["dipole"]
+    zone, dipole = plan.zones[point.zone], plan.dipole
     runs = spec["monte_carlo"]["runs"]
     dt = 1.0 / (spec["source"]["frequency"] * spec["time"]["samples_per_period"])
     steps = spec["time"]["samples_per_period"] * spec["time"]["periods"]

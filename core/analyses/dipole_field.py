@@ -31,6 +31,7 @@ magnitude formed from the two (:func:`_errors`). Normalised units as in
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
@@ -182,7 +183,18 @@ nearest sensor."""
 QUOTES = (Quote("relative RMSE (RMSE / field RMS)", "rmse", "relative", by="estimator"),)
 
 
-def prepare(spec: dict, source: str) -> dict:
+@dataclass(frozen=True)
+class Plan:
+    """The grid, the sensors (grid indices) and their rows of the operators, and each
+    zone's grid points, built once."""
+
+    grid: Grid
+    sensors: np.ndarray
+    zones: dict
+    sensor_ops: tuple
+
+
+def prepare(spec: dict, source: str) -> Plan:
     g = spec["grid"]
     if g["n"] % 2:
         raise ConfigError(source, "grid.n", "expected an even number (no grid point on the "
@@ -217,8 +229,8 @@ def prepare(spec: dict, source: str) -> dict:
         zones[z["name"]] = np.flatnonzero((grid.r >= z["r"][0]) & (grid.r <= z["r"][1])
                                           & (th >= z["theta_deg"][0])
                                           & (th <= z["theta_deg"][1]))
-    return {"grid": grid, "sensors": sensors, "zones": zones,
-            "sensor_ops": sensor_operators(grid, sensors)}
+    return Plan(grid=grid, sensors=sensors, zones=zones,
+                sensor_ops=sensor_operators(grid, sensors))
 
 
 FIELD_COST_RATIO = 1000
@@ -297,7 +309,7 @@ def run_point(exp: Experiment, key: tuple) -> tuple[list[dict], list, dict]:
     """Rows of one scenario and noise row over every run; and, for the first noise row of a
     scenario, the figure's slices from run 1 at the last recorded step."""
     spec, plan = exp.spec, exp.plan
-    grid, sensors = plan["grid"], plan["sensors"]
+    grid, sensors = plan.grid, plan.sensors
     s_idx, r_idx, l_idx = key
     scenario = spec["scenarios"][s_idx]
     reading = spec["noise"]["readings"][r_idx]
@@ -347,7 +359,7 @@ def run_point(exp: Experiment, key: tuple) -> tuple[list[dict], list, dict]:
             turn = np.exp(1j * dipole.omega * t_obs)
             truth_cart = _analytic_cartesian(grid, phasors, turn, sensors)
             y = truth_cart.ravel() + sigma_obs * rng.standard_normal(truth_cart.size)
-            obs = _observe(grid, ens, ens_next, dt, dipole.mu0, plan["sensor_ops"])
+            obs = _observe(grid, ens, ens_next, dt, dipole.mu0, plan.sensor_ops)
             Y = np.concatenate([obs["E"], obs["H"]], axis=1).reshape(m, -1)
             X = np.concatenate([ens_next.reshape(m, -1), amps.real[:, None],
                                 amps.imag[:, None]], axis=1)
@@ -458,7 +470,7 @@ def _errors(exp, grid, phasors, dipole, sensors, times, traces, measured, smooth
     ``Im{F e^{j omega t}}``. ``abs``: the magnitude formed from the two, against ``|F|``."""
     out = {}
     tree = cKDTree(grid.xyz[sensors])
-    for zone, where in exp.plan["zones"].items():
+    for zone, where in exp.plan.zones.items():
         _, nearest = tree.query(grid.xyz[where])
         turn = np.exp(1j * dipole.omega * times)[:, None]
         want = {"E_r": (phasors["E_r"][where] * turn).real,

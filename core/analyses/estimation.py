@@ -316,7 +316,7 @@ def filter_input(exp: Experiment, data: dict, method: str, bandwidth: float) -> 
 
 def estimate_point(exp: Experiment, data: dict) -> list:
     """Run every configured estimator on one simulated batch."""
-    inputs = exp.plan.inputs or (("difference", 0.0),) * len(exp.plan.filters)
+    inputs = exp.plan.inputs
     return [est.run(model, data["z"], filter_input(exp, data, *how), data["dt"], x0=data["x0"])
             for (_, est, model), how in zip(exp.plan.filters, inputs, strict=True)]
 

@@ -21,6 +21,7 @@ PSNR and SSIM (scikit-image) on the 0-255 scale.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
@@ -156,7 +157,14 @@ TABLES = {
 }
 
 
-def prepare(spec: dict, source: str) -> None:
+@dataclass(frozen=True)
+class Plan:
+    """The typed config: this analysis builds nothing else before its work units."""
+
+    config: Config
+
+
+def prepare(spec: dict, source: str) -> Plan:
     from estim.errors import ConfigError
 
     if spec["figures"]["image"] not in spec["images"]:
@@ -166,6 +174,7 @@ def prepare(spec: dict, source: str) -> None:
         rows = _load(image).shape[0]
         if spec["figures"]["row"] > rows:
             raise ConfigError(source, "figures.row", f"image {image!r} has {rows} rows")
+    return Plan(Config.build(spec))
 
 
 def work_units(exp: Experiment) -> int:

@@ -8,6 +8,7 @@ differentiator's frequency response against the ideal ``s``.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
@@ -81,8 +82,15 @@ F = np.array([[0.0, 1.0], [0.0, 0.0]])
 H = np.array([[1.0], [0.0]])
 
 
-def prepare(spec: dict, source: str) -> None:
-    return None
+@dataclass(frozen=True)
+class Plan:
+    """The typed config: this analysis builds nothing else before its work units."""
+
+    config: Config
+
+
+def prepare(spec: dict, source: str) -> Plan:
+    return Plan(Config.build(spec))
 
 
 def work_units(exp: Experiment) -> int:

@@ -230,7 +230,14 @@ def _geometry(spec: dict, model_cls, column: dict) -> dict:
     return out
 
 
-def prepare(spec: dict, source: str) -> tuple[Column, ...]:
+@dataclass(frozen=True)
+class Plan:
+    """Every W/L column's actual circuit and estimators, built once."""
+
+    columns: tuple[Column, ...]
+
+
+def prepare(spec: dict, source: str) -> Plan:
     """Builds the actual circuit and every estimator's model per W/L column."""
     model_cls = registry.MODELS[spec["model"]["name"]]
     variant = spec["model"]["variant"]
@@ -288,7 +295,7 @@ def prepare(spec: dict, source: str) -> tuple[Column, ...]:
                                   "needs a model with the circuit's states")
             filters.append((est["label"], estimator, model, seen))
         built.append(Column(c["w_um"], c["l_um"], truth, x0, tuple(filters)))
-    return tuple(built)
+    return Plan(tuple(built))
 
 
 @dataclass(frozen=True)
@@ -310,7 +317,7 @@ def sweep(exp: Experiment) -> list[SweepPoint]:
 
 
 def work_units(exp: Experiment) -> int:
-    return len(sweep(exp)) * len(exp.plan)
+    return len(sweep(exp)) * len(exp.plan.columns)
 
 
 def work_size(spec: dict) -> int:
@@ -370,7 +377,7 @@ def run_point(exp: Experiment, index: int, point: SweepPoint,
               traces: bool) -> tuple[list, dict, dict]:
     """Rows (measurement baseline, then each estimator) for one column and sweep point, the
     per-run losses for the claims, and with ``traces`` the figure's traces of run 1."""
-    column = exp.plan[index]
+    column = exp.plan.columns[index]
     data = simulate_point(exp, column, point, exp.spec["monte_carlo"]["runs"])
     common = {"data_source": exp.spec["truth"]["data_source"], "noise_reading": point.reading,
               "noise_param": point.level, "noise_sigma": point.sigma,
@@ -420,7 +427,7 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     shown = _figure_point(exp, points)
     named = {(f["w_um"], f["l_um"]): f["name"] for f in exp.spec["figures"]["names"]}
     tasks = [(exp, i, p, p == shown and (c.w_um, c.l_um) in named)
-             for i, c in enumerate(exp.plan) for p in points]
+             for i, c in enumerate(exp.plan.columns) for p in points]
     done = map_tasks(_run_point_args, tasks, jobs, on_done)
     rows = [row for part, _, _ in done for row in part]
     table_id = exp.spec["tables"]["rmse"]
@@ -436,7 +443,7 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
         ("s_no", "noise_reading", "noise_param", "frequency_hz", "w_um", "l_um"))
     for (_, i, p, wanted), (_, _, trace) in zip(tasks, done, strict=True):
         if wanted:
-            c = exp.plan[i]
+            c = exp.plan.columns[i]
             title = (f"W = {c.w_um:g} um, L = {c.l_um:g} um, {p.frequency_hz:g} Hz, "
                      f"O.U. input noise {p.level:g} ({p.reading})")
             out.figures[named[(c.w_um, c.l_um)]] = plots.estimates_clipped(trace, title)

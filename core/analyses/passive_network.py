@@ -10,6 +10,7 @@ by :mod:`estim.claims` on the per-run mean absolute errors."""
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
@@ -100,7 +101,14 @@ TABLES = {
 }
 
 
-def prepare(spec: dict, source: str) -> None:
+@dataclass(frozen=True)
+class Plan:
+    """The typed config: this analysis builds nothing else before its work units."""
+
+    config: Config
+
+
+def prepare(spec: dict, source: str) -> Plan:
     from estim.errors import ConfigError
 
     names = [r["name"] for r in spec["readings"]]
@@ -119,6 +127,7 @@ def prepare(spec: dict, source: str) -> None:
             if fig[kind] in files:
                 raise ConfigError(source, f"figures[{i}].{kind}", f"repeats {fig[kind]!r}")
             files.append(fig[kind])
+    return Plan(Config.build(spec))
 
 
 def work_units(exp: Experiment) -> int:

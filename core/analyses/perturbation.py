@@ -20,6 +20,7 @@ docs/deviations.md D29) or over the row's window after a step. The row of ``dist
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -134,7 +135,14 @@ QUOTES = (
 )
 
 
-def prepare(spec: dict, source: str) -> dict:
+@dataclass(frozen=True)
+class Plan:
+    """The circuit of every row (by ``s_no``), built once."""
+
+    models: dict
+
+
+def prepare(spec: dict, source: str) -> Plan:
     """Cross-checks beyond the schema; the model of every row, built once (by ``s_no``)."""
     model_cls = registry.MODELS[spec["model"]["name"]]
     variant = spec["model"]["variant"]
@@ -166,7 +174,7 @@ def prepare(spec: dict, source: str) -> dict:
     if row is not None and row not in models:
         raise ConfigError(source, "figures.row",
                           f"expected the s_no of a row ({sorted(models)}), got {row}")
-    return models
+    return Plan(models)
 
 
 def _check_expansion(model, bias: list, source: str, path: str) -> None:
@@ -227,8 +235,9 @@ def respond_row(exp: Experiment, row: dict) -> tuple[Response, np.ndarray]:
     amplitudes = np.array([row["amplitude_v"], row["amplitude_v"] / 2])
     src, dt = source(exp, row, amplitudes)
     sim = exp.spec["simulation"]
-    response = respond(exp.plan[row["s_no"]], src, np.asarray(exp.spec["excitation"]["bias_v"]),
-                       dt, periodic=exp.spec["excitation"]["waveform"] == "sine",
+    response = respond(exp.plan.models[row["s_no"]], src,
+                       np.asarray(exp.spec["excitation"]["bias_v"]), dt,
+                       periodic=exp.spec["excitation"]["waveform"] == "sine",
                        solver=sim["solver"], rtol=sim["rtol"], atol=sim["atol"])
     return response, amplitudes
 

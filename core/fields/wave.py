@@ -7,8 +7,8 @@ state ``(u, v = u')``, any linear operator ``L`` (a sparse Laplacian here).
               ``c T k <= 2``. For the 7-point Laplacian ``k^2 < 12 / Delta^2``, so every
               mode is stable up to ``c T / Delta = 1/sqrt(3) = 0.577``.
 ``euler``     forward Euler on ``(u, v)`` (the thesis' ``F ~ I + T F``, eq 5.20): every mode
-              grows by ``sqrt(1 + (c T k)^2)`` per step, at any ``T`` (variant
-              ``thesis_euler``, kept to show it).
+              grows by ``sqrt(1 + (c T k)^2)`` per step, at any ``T`` (the row "plain
+              simulation (Euler, eq 5.20)" of ``dipole_field``, kept to show it).
 """
 
 from __future__ import annotations

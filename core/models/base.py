@@ -178,11 +178,13 @@ class Model:
         raise NotImplementedError
 
     def source_to_input(self, source: np.ndarray, dt: float) -> np.ndarray:
-        """Map sampled source waveforms ``(..., steps, p)`` to the model input on each interval.
+        """Map sampled sources ``(..., steps + 1, p)`` (at ``t_0 .. t_steps``) to the model
+        input on each of the ``steps`` intervals, ``(..., steps, p)``.
 
-        The default passes the samples through (zero-order hold).
+        The default holds each interval at the source's value at its start (zero-order
+        hold); a model whose input is another function of the source overrides it.
         """
-        return source
+        return np.asarray(source)[..., :-1, :]
 
     def operating_point(self, x_guess: np.ndarray | None = None,
                         u: np.ndarray | None = None) -> np.ndarray:

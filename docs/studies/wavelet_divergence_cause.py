@@ -88,7 +88,7 @@ def inputs(data: dict, model, seen: list[int]) -> tuple[np.ndarray, ...]:
 def cell(args: tuple) -> dict:
     """Counts over the runs of one column and sweep point."""
     exp, index, point, epochs = args
-    column = exp.plan[index]
+    column = exp.plan.columns[index]
     data = analysis.simulate_point(exp, column, point, exp.spec["monte_carlo"]["runs"])
     filters = {label: (est, model, seen) for label, est, model, seen in column.filters}
     flags, fits, given = {}, {}, {}
@@ -147,7 +147,8 @@ def reproduction(df: pd.DataFrame) -> str:
 def main(epochs: int) -> None:
     start = time.perf_counter()
     exp = experiment()
-    tasks = [(exp, i, p, epochs) for i in range(len(exp.plan)) for p in analysis.sweep(exp)]
+    tasks = [(exp, i, p, epochs) for i in range(len(exp.plan.columns))
+             for p in analysis.sweep(exp)]
     with ProcessPoolExecutor(max_workers=min(len(tasks), os.cpu_count() or 1)) as pool:
         df = pd.DataFrame(list(pool.map(cell, tasks)))
     total = df[list(COUNTS)].sum()

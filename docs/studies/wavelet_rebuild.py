@@ -27,7 +27,7 @@ def main(frequency_hz: float) -> None:
     spec = yaml.safe_load(open("configs/kronecker_table_4_2.yaml"))
     spec["check"] = {}
     exp = parse_data(spec, "wavelet_rebuild", "wavelet_rebuild")
-    column = exp.plan[0]
+    column = exp.plan.columns[0]
     point = next(p for p in analysis.sweep(exp) if p.reading == "sigma"
                  and p.level == 0.001 and p.frequency_hz == frequency_hz)
     runs = exp.spec["monte_carlo"]["runs"]
