@@ -16,7 +16,7 @@ import click
 import estim
 from estim import checking, config, io, runner, tables, tuning
 from estim.analyses import ANALYSES
-from estim.cli import project
+from estim.cli import arguments, project
 from estim.cli.group import Group, fail
 from estim.cli.output import progress_lines, run_and_report
 from estim.config import MAX_WORK
@@ -39,20 +39,6 @@ _jobs = click.option("--jobs", type=click.IntRange(1, 256), default=1, show_defa
 _max_work = click.option("--max-work", type=click.IntRange(1), default=MAX_WORK,
                          show_default=True,
                          help="Refuse a config whose work (state-samples) exceeds this.")
-
-
-def _overrides(given: dict, runs: int | None, seed: int | None) -> dict:
-    return {**given, **{k: v for k, v in (("monte_carlo.runs", runs),
-                                          ("monte_carlo.seed", seed)) if v is not None}}
-
-
-def _shard(text_: str) -> tuple[int, int]:
-    """``K/N`` with ``1 <= K <= N`` (ASCII digits only)."""
-    k, sep, n = text_.partition("/")
-    if not (sep and k.isascii() and n.isascii() and k.isdigit() and n.isdigit()
-            and 1 <= int(k) <= int(n)):
-        fail(f"--shard {text_!r}: expected K/N with 1 <= K <= N")
-    return int(k), int(n)
 
 
 @main.command()
@@ -97,7 +83,7 @@ def run(configs, out, runs, seed, update_baseline, quick, jobs, max_work, execut
     paths, given = config.split_arguments(configs)
     if not paths:
         fail("no config file given")
-    overrides = _overrides(given, runs, seed)
+    overrides = arguments.overrides(given, runs, seed)
     if quick and update_baseline:
         fail("--quick never writes the baseline: drop --update-baseline")
     if scheduler and executor != "dask":
@@ -109,7 +95,7 @@ def run(configs, out, runs, seed, update_baseline, quick, jobs, max_work, execut
         click.echo(note, err=True)
     io.ensure_writable(folder)
     if shard is not None:
-        k, n = _shard(shard)
+        k, n = arguments.shard(shard)
         for exp in exps:
             computed, splits = runner.run_shard(exp, folder, k, n, jobs)
             if not splits:
@@ -144,7 +130,7 @@ def merge(configs, sources, out, runs, seed, quick, jobs, max_work, quiet) -> No
     the tables, computing any cell no shard made. CONFIGS, overrides, --runs and --seed as
     given to run: the cells are found by the config they were computed for."""
     paths, given = config.split_arguments(configs)
-    overrides = _overrides(given, runs, seed)
+    overrides = arguments.overrides(given, runs, seed)
     exps = config.load_files(paths, overrides, max_work, quick)
     folder, note = project.locate().output_folder(out, [e.source for e in exps],
                                                   bool(overrides) or quick, False)
@@ -180,16 +166,7 @@ def reproduce(out, jobs, max_work, quiet) -> None:
         run_and_report(exp, folder, jobs, quiet)
 
 
-def _metrics_help() -> str:
-    """The metrics of the registered analyses, for ``estim table --help``."""
-    lines = ["\b", "Metrics (analyses that write them):"]
-    for metric, specs in sorted(runner.table_specs().items()):
-        title = next((s.title for s in specs.values() if s.title), "")
-        lines.append(f"  {metric:<11} {title} [{', '.join(sorted(specs))}]")
-    return "\n".join(lines)
-
-
-@main.command(epilog=_metrics_help())
+@main.command(epilog=arguments.metrics_help())
 @click.argument("metric", type=click.Choice(sorted(runner.table_specs())))
 @click.option("--results", type=click.Path(file_okay=False, path_type=Path),
               help="Folder of stored results [default: the project's results/].")

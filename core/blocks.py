@@ -11,11 +11,12 @@ from estim.schema import (
     MAX_VOLTS,
     REQUIRED,
     integer,
+    list_of,
     mapping,
     number,
     text,
 )
-from estim.settings import Settings, setting, settings_class
+from estim.settings import Settings, block, blocks, setting, settings_class
 
 READING = text({"sigma", "variance"})
 """How a printed noise number reads: a standard deviation or a variance (notes.md (a))."""
@@ -102,3 +103,56 @@ class EstimatorEntry(Settings):
 
 VOLTS = number(minimum=-MAX_VOLTS, maximum=MAX_VOLTS)
 """A voltage within the bound of every config (:data:`estim.schema.MAX_VOLTS`)."""
+
+
+@settings_class
+class Sine(Settings):
+    """A sine source: its amplitude and the table's frequencies."""
+
+    amplitude_v: float = setting(REQUIRED, number(minimum=0.0, maximum=MAX_VOLTS), unit="V",
+                                 doc="peak amplitude of the sine")
+    frequencies_hz: list = setting(REQUIRED, list_of(number(minimum=1e-3, maximum=1e9)),
+                                   unit="Hz", doc="the table's input frequencies")
+
+
+@settings_class
+class Readings(Settings):
+    """How the printed noise numbers read."""
+
+    readings: list = setting(["sigma"], list_of(READING, unique=True),
+                             doc="read each printed level as a standard deviation, a "
+                                 "variance, or both (notes.md (a))")
+
+
+@settings_class
+class InputNoise(Readings):
+    """Noise at the input source, as printed, and on the measurement."""
+
+    input_levels: list = setting(REQUIRED, list_of(number(positive=True, maximum=MAX_VOLTS)),
+                                 unit="V or V^2", doc="the printed noise numbers, one block of "
+                                                      "table rows each")
+    measurement_sigma: float = setting(REQUIRED, number(minimum=0.0, maximum=MAX_VOLTS),
+                                       unit="V", doc="white noise on each measured value")
+
+
+@settings_class
+class FigurePoint(Settings):
+    """The sweep point the figures show."""
+
+    frequency_hz: float | None = setting(None, number(minimum=1e-3, maximum=1e9), unit="Hz",
+                                         doc="the figures' frequency; none: the first")
+    noise_level: float | None = setting(None, number(positive=True, maximum=MAX_VOLTS),
+                                        unit="V or V^2", doc="none: the first level")
+    reading: str | None = setting(None, READING, doc="none: the first reading")
+
+
+@settings_class
+class FilterTable(Settings):
+    """What every table of estimators against an actual circuit shares (Chapters 3 and 4)."""
+
+    model: Model = block(Model, required=True, doc="the actual circuit")
+    monte_carlo: MonteCarlo = block(MonteCarlo, required=True, doc="runs and seed")
+    health: Health = block(Health, doc="how filter health is judged")
+    claims: tuple = blocks(Claim, default=(), nonempty=False, max_length=20,
+                           doc="the table's headline claims (each filter is also judged "
+                               "against the raw measurement)")

@@ -37,7 +37,7 @@ import pandas as pd
 
 from estim import claims, metrics, signals
 from estim.analyses.base import Result, TableSpec, map_tasks
-from estim.blocks import READING, MonteCarlo
+from estim.blocks import MonteCarlo, Readings
 from estim.errors import ConfigError
 from estim.estimators.base import as_matrix
 from estim.estimators.kf import KalmanFilter
@@ -57,17 +57,23 @@ TABLE_IDS = {(c, z, e): f"5.{1 + 3 * k + i}" for k, (z, e) in enumerate(
 
 @settings_class
 class Source(Settings):
-    """The Hertzian dipole, in normalised units (D57)."""
+    """The Hertzian dipole's medium and frequency, in normalised units (D57)."""
 
-    I0_dl: float = setting(1.0, number(positive=True, maximum=1e6), doc="current moment I0 dl")
     frequency: float = setting(1.0, number(positive=True, maximum=1e12), doc="frequency")
     c: float = setting(1.0, number(positive=True, maximum=1e12), doc="speed of light")
     mu0: float = setting(1.0, number(positive=True, maximum=1e6), doc="permeability")
 
 
 @settings_class
-class Zone(Settings):
-    """A near or far zone: a grid of points in (r, theta)."""
+class LiteralSource(Source):
+    """The Hertzian dipole, in normalised units (D57)."""
+
+    I0_dl: float = setting(1.0, number(positive=True, maximum=1e6), doc="current moment I0 dl")
+
+
+@settings_class
+class ZoneBlock(Settings):
+    """A near or far zone in (r, theta)."""
 
     name: str = setting(REQUIRED, text({"near", "far"}), doc="near or far")
     r: list = setting(REQUIRED, list_of(number(positive=True, maximum=1e6), max_length=2),
@@ -75,6 +81,12 @@ class Zone(Settings):
     theta_deg: list = setting([30.0, 150.0], list_of(number(minimum=1.0, maximum=179.0),
                                                      max_length=2),
                               unit="deg", doc="[low, high] polar angle")
+
+
+@settings_class
+class LiteralZone(ZoneBlock):
+    """A near or far zone: a grid of points in (r, theta)."""
+
     points_r: int = setting(5, integer(3, 200), doc="grid points in r")
     points_theta: int = setting(5, integer(3, 200), doc="grid points in theta")
 
@@ -88,19 +100,23 @@ class Time(Settings):
 
 
 @settings_class
-class Noise(Settings):
-    """Noise at the source (as printed) and on the measured potentials."""
+class SourceNoise(Readings):
+    """The thesis' noise at the source, as printed."""
 
     source_levels: list = setting(REQUIRED, list_of(number(positive=True, maximum=1e3)),
                                   doc="the printed source-noise numbers")
-    readings: list = setting(["sigma", "variance"], list_of(READING, unique=True),
-                             doc="read each level as a standard deviation, a variance, or both")
+
+
+@settings_class
+class Noise(SourceNoise):
+    """Noise at the source (as printed) and on the measured potentials."""
+
     measurement_sigma: float = setting(0.1, number(positive=True, maximum=1e3),
                                        doc="white noise on every measured potential")
 
 
 @settings_class
-class KF(Settings):
+class KFSettings(Settings):
     """The per-point KF of eqs 5.42-5.47, its covariances as printed."""
 
     Q: list = setting([1e-4, 1e-3, 1e-4, 1e-2], list_of(number(minimum=0.0, maximum=1e6),
@@ -112,7 +128,7 @@ class KF(Settings):
 
 
 @settings_class
-class RLS(Settings):
+class RLSSettings(Settings):
     """The per-point RLS baseline (a sinusoid of the known frequency)."""
 
     lambda0: float = setting(0.98, number(minimum=0.5, maximum=1.0), doc="fixed forgetting")
@@ -124,12 +140,12 @@ class Config(Settings):
     """The thesis' Chapter 5 experiment as printed: a KF and RLS per grid point."""
 
     variant: str = setting("literal", text({"literal"}), doc="the experiment as printed")
-    source: Source = block(Source, doc="the dipole")
-    zones: tuple = blocks(Zone, max_length=2, doc="the near and far zones")
+    source: LiteralSource = block(LiteralSource, doc="the dipole")
+    zones: tuple = blocks(LiteralZone, max_length=2, doc="the near and far zones")
     time: Time = block(Time, doc="sampling and record")
     noise: Noise = block(Noise, required=True, doc="source and measurement noise")
-    kf: KF = block(KF, doc="the KF's covariances")
-    rls: RLS = block(RLS, doc="the RLS baseline")
+    kf: KFSettings = block(KFSettings, doc="the KF's covariances")
+    rls: RLSSettings = block(RLSSettings, doc="the RLS baseline")
     monte_carlo: MonteCarlo = block(MonteCarlo, required=True, doc="runs and seed")
 
 

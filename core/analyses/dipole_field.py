@@ -41,7 +41,7 @@ from estim import claims, metrics, plots
 from estim.analyses import dipole as literal
 from estim.analyses.base import Result, TableSpec, map_tasks
 from estim.analyses.dipole import COMPONENTS, TABLE_IDS, sinusoid_rls
-from estim.blocks import READING, MonteCarlo
+from estim.blocks import MonteCarlo
 from estim.errors import ConfigError
 from estim.fields import etkf, wave
 from estim.fields.dipole import Dipole
@@ -74,15 +74,6 @@ class GridSettings(Settings):
 
 
 @settings_class
-class Source(Settings):
-    """The dipole, in normalised units."""
-
-    frequency: float = setting(1.0, number(positive=True, maximum=1e12), doc="frequency")
-    c: float = setting(1.0, number(positive=True, maximum=1e12), doc="speed of light")
-    mu0: float = setting(1.0, number(positive=True, maximum=1e6), doc="permeability")
-
-
-@settings_class
 class Scenario(Settings):
     """The source the filter is told."""
 
@@ -90,18 +81,6 @@ class Scenario(Settings):
     nominal_amplitude: list = setting(REQUIRED, list_of(number(minimum=0.0, maximum=1e3),
                                                         max_length=2),
                                       doc="[magnitude, phase in degrees] of the told source")
-
-
-@settings_class
-class Zone(Settings):
-    """A near or far zone of the grid."""
-
-    name: str = setting(REQUIRED, text({"near", "far"}), doc="near or far")
-    r: list = setting(REQUIRED, list_of(number(positive=True, maximum=1e6), max_length=2),
-                      doc="[low, high] radius")
-    theta_deg: list = setting([30.0, 150.0], list_of(number(minimum=0.0, maximum=180.0),
-                                                     max_length=2),
-                              unit="deg", doc="[low, high] polar angle")
 
 
 @settings_class
@@ -139,28 +118,20 @@ class Time(Settings):
 
 
 @settings_class
-class Noise(Settings):
-    """The thesis' source-noise rows (kept for the layout, D59)."""
-
-    source_levels: list = setting(REQUIRED, list_of(number(positive=True, maximum=1e3)),
-                                  doc="the printed source-noise numbers")
-    readings: list = setting(["sigma"], list_of(READING, unique=True),
-                             doc="read each level as a standard deviation, a variance, or both")
-
-
-@settings_class
 class Config(Settings):
     """A filter on the dipole's discretised field (D59-D61)."""
 
     grid: GridSettings = block(GridSettings, doc="the grid")
-    source: Source = block(Source, doc="the dipole")
+    source: literal.Source = block(literal.Source, doc="the dipole")
     scenarios: tuple = blocks(Scenario, max_length=10, doc="the sources the filter is told")
-    zones: tuple = blocks(Zone, max_length=2, doc="the near and far zones")
+    zones: tuple = blocks(literal.ZoneBlock, max_length=2, doc="the near and far zones")
     sensors: Sensors = block(Sensors, doc="the sensors")
     filter: FilterSettings = block(FilterSettings, doc="the ensemble filter")
-    rls: literal.RLS = block(literal.RLS, doc="the per-sensor RLS baseline")
+    rls: literal.RLSSettings = block(literal.RLSSettings, doc="the per-sensor RLS baseline")
     time: Time = block(Time, doc="spin-up and record")
-    noise: Noise = block(Noise, required=True, doc="the source-noise rows")
+    noise: literal.SourceNoise = block(literal.SourceNoise, required=True,
+                                       doc="the thesis' source-noise rows (kept for the "
+                                           "layout, D59)")
     monte_carlo: MonteCarlo = block(MonteCarlo, required=True, doc="runs and seed")
 
 

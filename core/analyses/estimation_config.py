@@ -6,8 +6,16 @@ from __future__ import annotations
 
 from typing import Any
 
-from estim.blocks import READING, VOLTS, Claim, EstimatorEntry, Health, MonteCarlo, simulation
-from estim.blocks import Model as ModelBlock
+from estim.blocks import (
+    READING,
+    VOLTS,
+    EstimatorEntry,
+    FigurePoint,
+    FilterTable,
+    InputNoise,
+    Sine,
+    simulation,
+)
 from estim.schema import (
     MAX_VOLTS,
     REQUIRED,
@@ -29,14 +37,10 @@ derivative at the interval's midpoint, or the Kalman differentiator of the sampl
 
 
 @settings_class
-class Input(Settings):
+class Input(Sine):
     """The source: a sine, sampled, with a DC level per model input."""
 
     waveform: str = setting("sine", text({"sine"}), doc="the source's waveform")
-    amplitude_v: float = setting(REQUIRED, number(minimum=0.0, maximum=MAX_VOLTS), unit="V",
-                                 doc="peak amplitude of the sine")
-    frequencies_hz: list = setting(REQUIRED, list_of(number(minimum=1e-3, maximum=1e9)),
-                                   unit="Hz", doc="the table's input frequencies")
     samples_per_period: int = setting(10, integer(2, 10_000),
                                       doc="samples per period of each frequency")
     sample_time_s: float | None = setting(None, number(minimum=1e-12, maximum=1e3), unit="s",
@@ -53,16 +57,9 @@ class Input(Settings):
 
 
 @settings_class
-class Noise(Settings):
-    """Noise at the input source (as the thesis prints it) and on the measurement."""
+class Noise(InputNoise):
+    """Noise at the input source (as the thesis prints it) and on the measured output."""
 
-    input_levels: list = setting(REQUIRED, list_of(number(positive=True, maximum=MAX_VOLTS)),
-                                 unit="V or V^2", doc="the printed noise numbers, one table "
-                                                      "row block each")
-    readings: list = setting(["sigma"], list_of(READING, unique=True),
-                             doc="read each level as a standard deviation, a variance, or both")
-    measurement_sigma: float = setting(REQUIRED, number(minimum=0.0, maximum=MAX_VOLTS),
-                                       unit="V", doc="white noise on the measured output")
     measurement: list = setting(["noisy"], list_of(text({"noisy", "noise_free"}), unique=True,
                                                    max_length=2),
                                 doc="noisy: output plus measurement noise; noise_free: the "
@@ -107,14 +104,9 @@ class ExtraNoisy(Settings):
 
 
 @settings_class
-class Figures(Settings):
+class Figures(FigurePoint):
     """The figures' sweep point and file names."""
 
-    frequency_hz: float | None = setting(None, number(minimum=1e-3, maximum=1e9), unit="Hz",
-                                         doc="the figures' frequency; none: the first")
-    noise_level: float | None = setting(None, number(positive=True, maximum=MAX_VOLTS),
-                                        unit="V or V^2", doc="none: the first level")
-    reading: str | None = setting(None, READING, doc="none: the first reading")
     names: dict = setting({}, mapping, doc="file name of each figure kind (noiseless, noisy, "
                                            "rmse, residual)")
     extra_noisy: tuple = blocks(ExtraNoisy, default=(), nonempty=False, max_length=20,
@@ -122,23 +114,17 @@ class Figures(Settings):
 
 
 @settings_class
-class Config(Settings):
+class Config(FilterTable):
     """An estimation experiment (Chapter 3): the circuit, its noisy source, the estimators."""
 
-    model: Any = block(ModelBlock, required=True, doc="the actual circuit")
     input: Input = block(Input, required=True, doc="the source")
     noise: Noise = block(Noise, required=True, doc="input and measurement noise")
     simulation: Any = block(simulation(rtol=1e-6, atol=1e-7), doc="the actual circuit's solver")
     estimators: tuple = blocks(Estimator, max_length=20, doc="the estimators compared")
-    monte_carlo: MonteCarlo = block(MonteCarlo, required=True, doc="runs and seed")
     tables: Tables = block(Tables, required=True, doc="the thesis tables joined")
     regime: str | None = setting(None, text(max_length=60),
                                  doc="the operating regime the table names (rmse.csv gives the "
                                      "fraction of samples in it)")
-    health: Health = block(Health, doc="how filter health is judged")
-    claims: tuple = blocks(Claim, default=(), nonempty=False, max_length=20,
-                           doc="the table's headline claims (each filter is also judged "
-                               "against the raw measurement)")
     figures: Figures = block(Figures, doc="the figures")
 
 

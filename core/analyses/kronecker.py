@@ -34,11 +34,17 @@ import pandas as pd
 
 from estim import claims, pipeline, plots, registry, signals
 from estim.analyses.base import Result, TableSpec, map_tasks
-from estim.blocks import READING, VOLTS, Claim, EstimatorEntry, Health, MonteCarlo, simulation
-from estim.blocks import Model as ModelBlock
+from estim.blocks import (
+    VOLTS,
+    EstimatorEntry,
+    FigurePoint,
+    FilterTable,
+    InputNoise,
+    Sine,
+    simulation,
+)
 from estim.errors import ConfigError
 from estim.schema import (
-    MAX_VOLTS,
     REQUIRED,
     Experiment,
     boolean,
@@ -84,29 +90,19 @@ class Geometry(Settings):
 
 
 @settings_class
-class Input(Settings):
+class Input(Sine):
     """The source: a sine plus an O.U. process (eqs 4.8-4.9)."""
 
-    amplitude_v: float = setting(REQUIRED, number(minimum=0.0, maximum=MAX_VOLTS), unit="V",
-                                 doc="peak amplitude of the sine")
-    frequencies_hz: list = setting(REQUIRED, list_of(number(minimum=1e-3, maximum=1e9)),
-                                   unit="Hz", doc="the table's input frequencies")
     samples_per_period: int = setting(32, integer(4, 10_000), doc="samples per period")
     periods: int = setting(16, integer(1, 100_000), doc="record length in periods")
 
 
 @settings_class
-class Noise(Settings):
-    """The O.U. input noise and the measurement noise (and an ADC)."""
+class Noise(InputNoise):
+    """The O.U. input noise, the noise on every measured state, and an ADC."""
 
-    input_levels: list = setting(REQUIRED, list_of(number(positive=True, maximum=MAX_VOLTS)),
-                                 unit="V or V^2", doc="the printed O.U. noise numbers")
-    readings: list = setting(["variance"], list_of(READING, unique=True),
-                             doc="read each level as a standard deviation, a variance, or both")
     gamma: float = setting(1.0, number(positive=True, maximum=1e12), unit="1/s",
                            doc="the O.U. process' decay (eq 4.8)")
-    measurement_sigma: float = setting(REQUIRED, number(minimum=0.0, maximum=MAX_VOLTS),
-                                       unit="V", doc="white noise on every measured state")
     adc_bits: int | None = setting(None, integer(1, 32), doc="quantise the measurements with "
                                                              "an ADC of this many bits")
     adc_range_v: list = setting([0.0, 1.0], list_of(VOLTS, max_length=2), unit="V",
@@ -145,35 +141,24 @@ class FigureName(WL):
 
 
 @settings_class
-class Figures(Settings):
+class Figures(FigurePoint):
     """The figures' sweep point and their columns."""
 
-    frequency_hz: float | None = setting(None, number(minimum=1e-3, maximum=1e9), unit="Hz",
-                                         doc="the figures' frequency; none: the first")
-    noise_level: float | None = setting(None, number(positive=True, maximum=MAX_VOLTS),
-                                        unit="V or V^2", doc="none: the first level")
-    reading: str | None = setting(None, READING, doc="none: the first reading")
     names: tuple = blocks(FigureName, default=(), nonempty=False, max_length=20,
                           doc="one figure per named W/L column")
 
 
 @settings_class
-class Config(Settings):
+class Config(FilterTable):
     """A Chapter 4 experiment: the Kronecker EKF against the wavelet LMS."""
 
-    model: Any = block(ModelBlock, required=True, doc="the actual circuit")
     geometry: Geometry = block(Geometry, required=True, doc="the W/L columns")
     input: Input = block(Input, required=True, doc="the source")
     noise: Noise = block(Noise, required=True, doc="input and measurement noise")
     truth: Truth = block(Truth, doc="the actual circuit's own overrides")
     simulation: Any = block(simulation(rtol=1e-6, atol=1e-9), doc="the actual circuit's solver")
     estimators: tuple = blocks(Estimator, max_length=20, doc="the estimators compared")
-    monte_carlo: MonteCarlo = block(MonteCarlo, required=True, doc="runs and seed")
     tables: Tables = block(Tables, required=True, doc="the thesis table joined")
-    health: Health = block(Health, doc="how filter health is judged")
-    claims: tuple = blocks(Claim, default=(), nonempty=False, max_length=20,
-                           doc="the table's headline claims (each filter is also judged "
-                               "against the raw measurement)")
     figures: Figures = block(Figures, doc="the figures")
 
 

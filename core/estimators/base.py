@@ -54,9 +54,9 @@ class Estimator(Settings):
 
 
 @settings_class
-class GaussianFilter(Estimator):
-    """The settings every Kalman-type filter of a model shares (not registered itself):
-    additive noise covariances, the initial estimate and the bound that marks a broken run."""
+class NoiseCovariances(Estimator):
+    """The settings every Kalman-type filter shares (not registered itself): additive noise
+    covariances and the initial estimate."""
 
     Q: float | list = setting(REQUIRED, matrix, unit="state^2",
                      doc="process noise covariance per step: a number, a diagonal or a matrix")
@@ -66,7 +66,14 @@ class GaussianFilter(Estimator):
                                doc="covariance of the initial estimate")
     x0: list | None = setting(None, vector(), unit="state",
                               doc="initial estimate; none: the x0 the analysis passes (the "
-                                  "actual operating point), else the model's own")
+                                  "actual operating point), else the model's own (a KF: 0)")
+
+
+@settings_class
+class GaussianFilter(NoiseCovariances):
+    """A Kalman-type filter of a model (not registered itself): the noise covariances and
+    the bound that marks a broken run."""
+
     divergence_bound: float = setting(1e3, number(positive=True, maximum=1e12), unit="state",
                                       doc="a run whose estimate leaves |x| <= bound (or is not "
                                           "finite) is broken and frozen")

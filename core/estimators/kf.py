@@ -6,18 +6,18 @@ import numpy as np
 
 from estim.estimators.base import (
     Estimate,
-    Estimator,
+    NoiseCovariances,
     as_matrix,
     batch_input,
     check_covariance,
     joseph_update,
 )
-from estim.schema import REQUIRED, matrix, vector
+from estim.schema import REQUIRED, matrix
 from estim.settings import setting, settings_class
 
 
 @settings_class
-class KalmanFilter(Estimator, name="kf"):
+class KalmanFilter(NoiseCovariances, name="kf"):
     """``x_k = A x_{k-1} + B u_{k-1} + v``, ``z_k = C x_k + w`` with known ``A, B, C, Q, R``.
 
     The model argument of :meth:`run` is not used: the matrices are the settings. The
@@ -29,13 +29,6 @@ class KalmanFilter(Estimator, name="kf"):
     A: float | list = setting(REQUIRED, matrix, doc="state transition per step (n x n)")
     B: float | list = setting(REQUIRED, matrix, doc="input matrix (n x p)")
     C: float | list = setting(REQUIRED, matrix, doc="measurement matrix (m x n)")
-    Q: float | list = setting(REQUIRED, matrix, unit="state^2",
-                              doc="process noise covariance per step")
-    R: float | list = setting(REQUIRED, matrix, unit="output^2", doc="measurement noise covariance")
-    P0: float | list = setting(REQUIRED, matrix, unit="state^2",
-                               doc="covariance of the initial estimate")
-    x0: list | None = setting(None, vector(), unit="state",
-                              doc="initial estimate; none: the x0 the analysis passes, else 0")
 
     def __post_init__(self) -> None:
         super().__post_init__()

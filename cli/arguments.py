@@ -1,0 +1,30 @@
+"""Parsing what the commands are given (kept apart so that cli/main.py holds the commands)."""
+
+from __future__ import annotations
+
+from estim import runner
+from estim.cli.group import fail
+
+
+def overrides(given: dict, runs: int | None, seed: int | None) -> dict:
+    """The key-path overrides of a command line with ``--runs`` and ``--seed`` among them."""
+    return {**given, **{k: v for k, v in (("monte_carlo.runs", runs),
+                                          ("monte_carlo.seed", seed)) if v is not None}}
+
+
+def shard(text_: str) -> tuple[int, int]:
+    """``K/N`` with ``1 <= K <= N`` (ASCII digits only)."""
+    k, sep, n = text_.partition("/")
+    if not (sep and k.isascii() and n.isascii() and k.isdigit() and n.isdigit()
+            and 1 <= int(k) <= int(n)):
+        fail(f"--shard {text_!r}: expected K/N with 1 <= K <= N")
+    return int(k), int(n)
+
+
+def metrics_help() -> str:
+    """The metrics of the registered analyses, for ``estim table --help``."""
+    lines = ["\b", "Metrics (analyses that write them):"]
+    for metric, specs in sorted(runner.table_specs().items()):
+        title = next((s.title for s in specs.values() if s.title), "")
+        lines.append(f"  {metric:<11} {title} [{', '.join(sorted(specs))}]")
+    return "\n".join(lines)
