@@ -200,11 +200,12 @@ def estimates_clipped(trace: dict, title: str) -> Figure:
 
 
 def field_slices(data: dict, title: str) -> Figure:
-    """|E| (top) and |H| (bottom) in a plane: analytic truth, filter, RLS baseline and the
-    filter's error, one shared logarithmic colour scale per row (Chapter 5)."""
+    """|E| (top) and |H| (bottom) in a plane, one panel per entry of ``data["labels"]``
+    (default: truth, filter, RLS baseline, the filter's error), one shared logarithmic
+    colour scale per row (Chapter 5)."""
     from matplotlib.colors import LogNorm
 
-    labels = ("truth", "KF", "RLS", "KF error")
+    labels = tuple(data.get("labels", ("truth", "KF", "RLS", "KF error")))
     fig, axes = plt.subplots(2, 4, figsize=(14.0, 7.0), sharex=True, sharey=True)
     for row, field in enumerate(("E", "H")):
         truth = data[f"{field}|truth"]
@@ -222,6 +223,25 @@ def field_slices(data: dict, title: str) -> Figure:
                 ax.set_ylabel("z [wavelengths]")
         fig.colorbar(image, ax=axes[row, :], shrink=0.8, label=f"|{field}| (normalised)")
     fig.suptitle(title, fontsize=10)
+    return fig
+
+
+def ensemble_rank(health) -> Figure:
+    """The ensembles' effective rank over the record, per filter and scenario (lowest over
+    runs and noise rows), with the NIS per reading on a second panel (Chapter 5)."""
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8.0, 6.0), sharex=True)
+    for (scenario, name), g in health.groupby(["scenario", "estimator"], sort=False):
+        by_step = g.groupby("time", sort=True)
+        top.plot(by_step["effective_rank_min"].min(), lw=1.0, label=f"{name}, {scenario}")
+        bottom.plot(by_step["nis"].mean(), lw=1.0, label=f"{name}, {scenario}")
+    top.set_ylabel("effective rank")
+    bottom.set_ylabel("NIS per reading")
+    bottom.set_yscale("log")
+    bottom.axhline(1.0, color="k", lw=0.5)
+    bottom.set_xlabel("t [periods]")
+    top.legend(fontsize=8)
+    top.set_title("ensemble rank (singular values above 1e-6 of the largest) and NIS")
+    fig.tight_layout()
     return fig
 
 

@@ -43,7 +43,7 @@ from estim.analyses.base import Result, TableSpec, map_tasks
 from estim.analyses.dipole import COMPONENTS, TABLE_IDS, sinusoid_rls
 from estim.blocks import MonteCarlo
 from estim.errors import ConfigError
-from estim.fields import etkf, wave
+from estim.fields import etkf, letkf, model_error, wave
 from estim.fields.dipole import Dipole
 from estim.fields.fdtd import Grid, Simulation, fields_from, spherical
 from estim.schema import REQUIRED, Experiment, check_interval, integer, list_of, number, text
@@ -51,6 +51,8 @@ from estim.settings import Settings, block, blocks, setting, settings_class
 from estim.summary import Quote
 
 KF, RLS, PLAIN = "KF", "RLS", "plain simulation"
+SOURCE_ONLY, FIT = "KF (source only)", "amplitude-only fit"
+SLICE_LABELS = ("truth", KF, FIT, "KF error")
 EULER = "plain simulation (Euler, eq 5.20)"
 DIVERGED_RATIO = 1e3
 """An estimate whose RMSE exceeds this multiple of the field's RMS has diverged: its cell
@@ -98,15 +100,41 @@ class Sensors(Settings):
 
 @settings_class
 class FilterSettings(Settings):
-    """The ensemble filter."""
+    """The field filter: a local ETKF on the field with model error (D61)."""
 
     members: int = setting(50, integer(3, 2000), doc="ensemble members")
     amplitude_spread: float = setting(0.3, number(positive=True, maximum=1e3),
                                       doc="spread of the members' source amplitudes")
-    model_error: float = setting(0.02, number(minimum=0.0, maximum=1e3),
-                                 doc="the grid's own error in a measured field, added to R")
+    field_error: float = setting(0.003, number(minimum=0.0, maximum=0.5),
+                                 doc="model error per step: std of the relative amplitude and "
+                                     "of the phase (rad) of each member's local phasor")
+    field_error_length: float = setting(3.0, number(positive=True, maximum=100.0),
+                                        unit="cells",
+                                        doc="Gaussian correlation length of the model error")
+    localisation: float = setting(1.0, number(positive=True, maximum=100.0),
+                                  unit="wavelengths",
+                                  doc="Gaspari-Cohn half-width around each cube (zero from "
+                                      "twice it)")
+    amplitude_localisation: float = setting(0.5, number(positive=True, maximum=100.0),
+                                            unit="wavelengths",
+                                            doc="Gaspari-Cohn half-width around the source "
+                                                "for the amplitude's analysis")
+    block: int = setting(4, integer(1, 32), unit="cells",
+                         doc="side of the cubes analysed together (divides grid.n)")
+    representation_error: float = setting(0.0, number(minimum=0.0, maximum=1e3),
+                                          doc="added to the sensor noise in R (in quadrature)")
     inflation: float = setting(1.0, number(minimum=1.0, maximum=2.0),
                                doc="multiplicative inflation of the forecast covariance")
+
+
+@settings_class
+class SourceOnly(Settings):
+    """The source-only ETKF (the earlier field filter, kept as a variant): one global
+    analysis whose ensemble differs only in the source amplitude."""
+
+    representation_error: float = setting(0.02, number(minimum=0.0, maximum=1e3),
+                                          doc="the grid's own error in a measured field, "
+                                              "added to R in quadrature (D60)")
 
 
 @settings_class
@@ -126,7 +154,8 @@ class Config(Settings):
     scenarios: tuple = blocks(Scenario, max_length=10, doc="the sources the filter is told")
     zones: tuple = blocks(literal.ZoneBlock, max_length=2, doc="the near and far zones")
     sensors: Sensors = block(Sensors, doc="the sensors")
-    filter: FilterSettings = block(FilterSettings, doc="the ensemble filter")
+    filter: FilterSettings = block(FilterSettings, doc="the field filter (LETKF)")
+    source_only: SourceOnly = block(SourceOnly, doc="the source-only ETKF")
     rls: literal.RLSSettings = block(literal.RLSSettings, doc="the per-sensor RLS baseline")
     time: Time = block(Time, doc="spin-up and record")
     noise: literal.SourceNoise = block(literal.SourceNoise, required=True,
@@ -137,8 +166,8 @@ class Config(Settings):
 
 SCHEMA: dict = Config.schema()
 
-_KEYS = ("table_id", "s_no", "scenario", "zone", "noise_reading", "noise_param", "estimator",
-         "field_component", "part")
+_KEYS = ("table_id", "s_no", "scenario", "zone", "beta_r", "noise_reading", "noise_param",
+         "estimator", "field_component", "part")
 TABLES = {
     "rmse": TableSpec("rmse.csv", _KEYS, ("rmse", "rmse_se", "runs", "field_rms",
                                           "relative"),
@@ -146,11 +175,18 @@ TABLES = {
                       title="RMSE of the fields against the analytic dipole (field filter)",
                       reference_ids=tuple(TABLE_IDS.values())),
     "claims": claims.TABLE,
+    "health": TableSpec("health.csv", ("scenario", "noise_reading", "noise_param",
+                                       "estimator", "step"),
+                        ("time", "effective_rank_min", "effective_rank_max", "nis", "runs"),
+                        title="the ensembles over time: effective rank of the forecast "
+                              "(singular values above 1e-6 of the largest), NIS per reading"),
 }
-CLAIMS = ((KF, RLS), (KF, PLAIN), (KF, "measurement"), (RLS, "measurement"))
-"""The thesis' headline (the filter below RLS), the filter against the plain simulation
-(the open loop: with the true source, the grid's floor) and each filter against the raw
-nearest sensor."""
+CLAIMS = ((KF, FIT), (KF, PLAIN), (KF, SOURCE_ONLY), (KF, RLS), (KF, "measurement"),
+          (RLS, "measurement"))
+"""The field filter against the best a source-only filter can do (the amplitude-only fit),
+the plain simulation (the open loop: with the true source, the grid's floor), today's
+source-only ETKF, the thesis' RLS baseline (its headline) and the raw nearest sensor; and RLS
+against the raw sensor."""
 QUOTES = (Quote("relative RMSE (RMSE / field RMS)", "rmse", "relative", by="estimator"),)
 
 
@@ -163,6 +199,7 @@ class Plan:
     sensors: np.ndarray
     zones: dict
     sensor_ops: tuple
+    beta_r: dict
 
 
 def prepare(spec: dict, source: str) -> Plan:
@@ -200,8 +237,13 @@ def prepare(spec: dict, source: str) -> Plan:
         zones[z["name"]] = np.flatnonzero((grid.r >= z["r"][0]) & (grid.r <= z["r"][1])
                                           & (th >= z["theta_deg"][0])
                                           & (th <= z["theta_deg"][1]))
+    if g["n"] % spec["filter"]["block"]:
+        raise ConfigError(source, "filter.block", f"expected a divisor of grid.n = {g['n']}")
+    wavelength = spec["source"]["c"] / spec["source"]["frequency"]
+    beta_r = {z["name"]: "{:.2f}-{:.2f}".format(*(2 * np.pi * np.array(z["r"]) / wavelength))
+              for z in spec["zones"]}
     return Plan(grid=grid, sensors=sensors, zones=zones,
-                sensor_ops=sensor_operators(grid, sensors))
+                sensor_ops=sensor_operators(grid, sensors), beta_r=beta_r)
 
 
 FIELD_COST_RATIO = 1000
@@ -213,13 +255,14 @@ members x 96 steps) took 21 s, where ``mosfet_saturation``'s 4.3e5 state-samples
 
 
 def work_size(spec: dict) -> int:
-    """Grid-point updates (``4 n^3`` per member and step, the plain simulation counted as a
-    member) over every scenario, noise row and run, over :data:`FIELD_COST_RATIO`."""
+    """Grid-point updates (``4 n^3`` per member and step; two ensembles, the field filter's
+    and the source-only one, and three free runs: the plain simulation and the fit's basis)
+    over every scenario, noise row and run, over :data:`FIELD_COST_RATIO`."""
     g, t = spec["grid"], spec["time"]
     per_period = round(g["n"] / (g["courant"] * g["length"]))
     steps = (t["spinup_periods"] + t["periods"]) * per_period
     points = len(spec["noise"]["source_levels"]) * len(spec["noise"].get("readings") or [1])
-    updates = (4 * g["n"] ** 3 * (spec["filter"]["members"] + 1) * steps * points
+    updates = (4 * g["n"] ** 3 * (2 * spec["filter"]["members"] + 3) * steps * points
                * len(spec["scenarios"]) * spec["monte_carlo"]["runs"])
     return int(updates / FIELD_COST_RATIO)
 
@@ -276,16 +319,27 @@ def sensor_operators(grid: Grid, sensors: np.ndarray) -> tuple:
     return grad_s.tocsr(), curl_z.tocsr(), sensors
 
 
-def run_point(exp: Experiment, key: tuple) -> tuple[list[dict], list, dict]:
-    """Rows of one scenario and noise row over every run; and, for the first noise row of a
-    scenario, the figure's slices from run 1 at the last recorded step."""
-    spec, plan = exp.spec, exp.plan
-    grid, sensors = plan.grid, plan.sensors
-    s_idx, r_idx, l_idx = key
-    scenario = spec["scenarios"][s_idx]
-    reading = spec["noise"]["readings"][r_idx]
-    level = float(spec["noise"]["source_levels"][l_idx])
-    src = spec["source"]
+@dataclass
+class _Setup:
+    """What one case's runs share: the simulation, its step, the record's length, the
+    localisation and the observation variances."""
+
+    sim: Simulation
+    dipole: Dipole
+    dt: float
+    per: int
+    quarter: int
+    spin: int
+    record: int
+    local: letkf.Localisation
+    amplitude_taper: np.ndarray
+    smoother: np.ndarray
+    R_field: np.ndarray
+    R_source: np.ndarray
+
+
+def _setup(spec: dict, plan: Plan) -> _Setup:
+    grid, src = plan.grid, spec["source"]
     dipole = Dipole(I0=1.0, dl=grid.spacing, omega=2 * np.pi * src["frequency"], c=src["c"],
                     mu0=src["mu0"])
     dt = spec["grid"]["courant"] * grid.spacing / src["c"]
@@ -294,70 +348,215 @@ def run_point(exp: Experiment, key: tuple) -> tuple[list[dict], list, dict]:
     sim = Simulation(grid, dipole, dt, dl=grid.spacing, width=spec["grid"]["source_width"],
                      boundary=spec["grid"]["boundary"])
     quarter = max(1, per // 4)
-    spin = spec["time"]["spinup_periods"] * per - quarter
-    record = spec["time"]["periods"] * per + quarter
+    f, so = spec["filter"], spec["source_only"]
+    wavelength = src["c"] / src["frequency"]
+    where = grid.xyz[plan.sensors]
+    local = letkf.localisation(grid.n, grid.xyz, where, f["block"],
+                               f["localisation"] * wavelength)
+    sigma2 = spec["sensors"]["measurement_sigma"] ** 2
+    shape = (plan.sensors.size, 6)
+    return _Setup(sim=sim, dipole=dipole, dt=dt, per=per, quarter=quarter,
+                  spin=spec["time"]["spinup_periods"] * per - quarter,
+                  record=spec["time"]["periods"] * per + quarter, local=local,
+                  amplitude_taper=letkf.gaspari_cohn(np.linalg.norm(where, axis=1),
+                                                     f["amplitude_localisation"] * wavelength),
+                  smoother=model_error.gaussian_smoother(grid.n, f["field_error_length"]),
+                  R_field=np.full(shape, sigma2 + f["representation_error"] ** 2),
+                  R_source=np.full(shape, sigma2 + so["representation_error"] ** 2))
+
+
+def _levels(X: np.ndarray) -> np.ndarray:
+    """Rows ``[A(t - dt), A(t), Phi(t), A(t + dt), Phi(t + dt)]`` -> leapfrog states
+    ``(m, 2, 2, points)`` holding the levels (t, t + dt)."""
+    return np.stack([X[:, 1:3], X[:, 3:5]], axis=1)
+
+
+def _rows_of(before: np.ndarray, after: np.ndarray) -> np.ndarray:
+    """The analysed state of one step: ``A(t - dt)`` from ``before``'s first level and the
+    two levels of ``after`` (t, t + dt), ``(m, 5, points)``. ``dA/dt`` at ``t`` is formed
+    from this one analysis (D61: before, the first step mixed an un-analysed ``A(t - dt)``
+    with analysed levels)."""
+    return np.concatenate([before[:, 0, 0][:, None], after[:, 0], after[:, 1]], axis=1)
+
+
+def _fields_of(grid: Grid, X: np.ndarray, dt: float, mu0: float) -> dict[str, np.ndarray]:
+    """E and H at ``t`` of the mean of ``X (m, 5, points)`` (:func:`_rows_of`)."""
+    mean = X.mean(axis=0)
+    return fields_from(grid, mean[None, 1], mean[None, 2], (mean[None, 3] - mean[None, 0])
+                       / (2 * dt), mu0)
+
+
+def _sensor_rows(grid, before, after, dt, mu0, ops) -> np.ndarray:
+    """Predicted readings ``(members, sensors, 6)``."""
+    o = _observe(grid, before, after, dt, mu0, ops)
+    return np.concatenate([o["E"], o["H"]], axis=1).transpose(0, 2, 1)
+
+
+def _nis(Yp: np.ndarray, innovation: np.ndarray, R: np.ndarray) -> float:
+    """Normalised innovation squared per reading, ``d^T S^-1 d / p`` with ``S = R + Yp^T Yp
+    / (m - 1)`` (Woodbury: an ``m x m`` solve); 1 for a consistent filter."""
+    m = Yp.shape[0]
+    Z = Yp.reshape(m, -1)
+    d, r = innovation.ravel(), R.ravel()
+    Zr = Z / r
+    inner = (m - 1) * np.eye(m) + Zr @ Z.T
+    v = Zr @ d
+    return float((d @ (d / r) - v @ np.linalg.solve(inner, v)) / d.size)
+
+
+def field_analysis(su: _Setup, before: np.ndarray, after: np.ndarray, amps: np.ndarray,
+                   y_rows: np.ndarray, Y: np.ndarray, inflation: float) -> tuple:
+    """One analysis of the field filter: local ETKF transforms of the field (levels ``t - dt``
+    to ``t + dt``, :func:`_rows_of`) from the sensors around each cube, and of the source
+    amplitude from the sensors around the source. Returns the analysed leapfrog state, the
+    amplitudes, the analysed rows and the forecast's effective rank and NIS."""
+    Yp, dy = Y - Y.mean(axis=0), y_rows - Y.mean(axis=0)
+    X = _rows_of(before, after)
+    rank, nis = letkf.effective_rank(after[:, 0]), _nis(Yp, dy, su.R_field)
+    W = letkf.transforms(Yp, dy, su.R_field, su.local.taper, inflation)
+    X = letkf.analyse(X, su.local, W)
+    W0 = letkf.transforms(Yp, dy, su.R_field, su.amplitude_taper[None], inflation)[0]
+    amps = amps.mean() + W0 @ (amps - amps.mean())
+    return _levels(X), amps, X, rank, nis
+
+
+def source_analysis(su: _Setup, before: np.ndarray, after: np.ndarray, amps: np.ndarray,
+                    y_rows: np.ndarray, Y: np.ndarray, inflation: float) -> tuple:
+    """One analysis of the source-only filter: one global ETKF of the field and the source
+    amplitude together, R including the representation error (D60)."""
+    m = Y.shape[0]
+    rows = _rows_of(before, after)
+    rank = letkf.effective_rank(after[:, 0])
+    nis = _nis(Y - Y.mean(axis=0), y_rows - Y.mean(axis=0), su.R_source)
+    Xs = np.concatenate([rows.reshape(m, -1), amps.real[:, None], amps.imag[:, None]], axis=1)
+    Xs = etkf.analysis(Xs, Y.reshape(m, -1), y_rows.ravel(), su.R_source.ravel(), inflation)
+    rows = Xs[:, :-2].reshape(rows.shape)
+    return _levels(rows), Xs[:, -2] + 1j * Xs[:, -1], rows, rank, nis
+
+
+def cycle(exp: Experiment, su: _Setup, nominal: complex, rng: np.random.Generator,
+          euler: bool = False) -> dict:
+    """One run: spin-up, then ``record`` steps of forecast, sensors and both filters'
+    analyses. Returns the traces of every estimator's E and H at each step (``traces``),
+    the times, the readings ``(steps, 2, 3, sensors)`` and the filters' health per step."""
+    spec, plan = exp.spec, exp.plan
+    grid = plan.grid
+    sim, dipole, dt = su.sim, su.dipole, su.dt
     fcfg = spec["filter"]
-    m = fcfg["members"]
+    m, infl = fcfg["members"], fcfg["inflation"]
     sigma_obs = spec["sensors"]["measurement_sigma"]
-    R = np.full(6 * sensors.size, sigma_obs**2 + fcfg["model_error"] ** 2)
-    nominal = _amplitude(scenario["nominal_amplitude"])
+    free_amps = np.array([nominal, 1.0, 1.0j])          # plain simulation, the fit's basis
     phasors = dipole.phasors(grid.r, grid.theta)
-    runs = spec["monte_carlo"]["runs"]
-    per_run = {}
-    for run in range(runs):
+    omega_dt = dipole.omega * dt
+    draws = rng.standard_normal(m) + 1j * rng.standard_normal(m)
+    amps = nominal + fcfg["amplitude_spread"] * draws / np.sqrt(2)
+    state = np.zeros((m + 3, 2, 2, grid.size))
+    t = 0.0
+    everything = np.concatenate([amps, free_amps])
+    for _ in range(su.spin):
+        state = sim.step(state, t, everything)
+        t += dt
+    field, src, free = state[:m].copy(), state[:m].copy(), state[m:]
+    amp_field, amp_src = amps.copy(), amps.copy()
+    run_euler = _EulerRun(sim, nominal) if euler else None
+    if run_euler is not None:
+        for k in range(su.spin):
+            run_euler.step(k * dt)
+    traces = {name: [] for name in (KF, SOURCE_ONLY, PLAIN, EULER)}
+    basis_traces, basis_sensors, measured, times, health = [], [], [], [], []
+    mu0, ops = dipole.mu0, plan.sensor_ops
+    for step in range(su.record):
+        both = sim.step(np.concatenate([src, free]), t, np.concatenate([amp_src, free_amps]))
+        src_next, free_next = both[:m], both[m:]
+        field_next = sim.step(field, t, amp_field)
+        jitter = fcfg["field_error"] * model_error.smooth_noise(rng, 2 * m, grid.n, su.smoother)
+        field_next = model_error.perturb(field_next, omega_dt, jitter[:m], jitter[m:])
+        truth = _analytic_cartesian(grid, phasors, np.exp(1j * dipole.omega * t), plan.sensors)
+        y = truth + sigma_obs * rng.standard_normal(truth.shape)
+        y_rows = y.reshape(6, -1).T                      # (sensors, 6)
+        Y = _sensor_rows(grid, field, field_next, dt, mu0, ops)
+        field, amp_field, X, rank_f, nis_f = field_analysis(su, field, field_next, amp_field,
+                                                            y_rows, Y, infl)
+        traces[KF].append(_fields_of(grid, X, dt, mu0))
+        Y = _sensor_rows(grid, src, src_next, dt, mu0, ops)
+        src, amp_src, X, rank_s, nis_s = source_analysis(su, src, src_next, amp_src, y_rows, Y,
+                                                         infl)
+        traces[SOURCE_ONLY].append(_fields_of(grid, X, dt, mu0))
+        traces[PLAIN].append(_observe(grid, free[:1], free_next[:1], dt, mu0))
+        basis_traces.append(_observe(grid, free[1:], free_next[1:], dt, mu0))
+        basis_sensors.append(_sensor_rows(grid, free[1:], free_next[1:], dt, mu0, ops))
+        free = free_next
+        if run_euler is not None:
+            traces[EULER].append(run_euler.fields())
+            run_euler.step(t)
+        measured.append(y)
+        times.append(t)
+        health += [{"step": step, "time": t, "estimator": name, "effective_rank": rank,
+                    "nis": nis} for name, rank, nis in ((KF, rank_f, nis_f),
+                                                        (SOURCE_ONLY, rank_s, nis_s))]
+        t += dt
+    measured = np.stack(measured)
+    traces[FIT] = _amplitude_fit(measured, basis_sensors, basis_traces)
+    return {"traces": traces, "times": np.array(times), "measured": measured,
+            "health": health, "phasors": phasors}
+
+
+def run_point(exp: Experiment, key: tuple) -> tuple[list[dict], list, dict, list[dict]]:
+    """Rows of one scenario and noise row over every run; for the first noise row of a
+    scenario, the figure's slices from run 1 at the last recorded step; and the filters'
+    health over time (effective rank, NIS)."""
+    spec, plan = exp.spec, exp.plan
+    grid, sensors = plan.grid, plan.sensors
+    s_idx, r_idx, l_idx = key
+    scenario = spec["scenarios"][s_idx]
+    reading = spec["noise"]["readings"][r_idx]
+    level = float(spec["noise"]["source_levels"][l_idx])
+    su = _setup(spec, plan)
+    nominal = _amplitude(scenario["nominal_amplitude"])
+    per_run, health = {}, []
+    for run in range(spec["monte_carlo"]["runs"]):
         rng = np.random.default_rng(np.random.SeedSequence(spec["monte_carlo"]["seed"],
                                                            spawn_key=(*key, run)))
-        spread = fcfg["amplitude_spread"]
-        draws = rng.standard_normal(m) + 1j * rng.standard_normal(m)
-        amps = nominal + spread * draws / np.sqrt(2)
-        ens = np.zeros((m, 2, 2, grid.size))
-        plain = np.zeros((1, 2, 2, grid.size))
-        t = 0.0
-        for _ in range(spin):
-            ens = sim.step(ens, t, amps)
-            plain = sim.step(plain, t, np.array([nominal]))
-            t += dt
-        euler = _EulerRun(sim, nominal) if run == 0 else None
-        if euler is not None:
-            for k in range(spin):
-                euler.step(k * dt)
-        traces = {name: [] for name in (KF, PLAIN, EULER, "measured")}
-        times = []
-        for _ in range(record):
-            ens_next = sim.step(ens, t, amps)
-            plain_next = sim.step(plain, t, np.array([nominal]))
-            t_obs = t                                   # the level ens_next[:, 0] is at t
-            turn = np.exp(1j * dipole.omega * t_obs)
-            truth_cart = _analytic_cartesian(grid, phasors, turn, sensors)
-            y = truth_cart.ravel() + sigma_obs * rng.standard_normal(truth_cart.size)
-            obs = _observe(grid, ens, ens_next, dt, dipole.mu0, plan.sensor_ops)
-            Y = np.concatenate([obs["E"], obs["H"]], axis=1).reshape(m, -1)
-            X = np.concatenate([ens_next.reshape(m, -1), amps.real[:, None],
-                                amps.imag[:, None]], axis=1)
-            Xa = etkf.analysis(X, Y, y, R, fcfg["inflation"])
-            amps = Xa[:, -2] + 1j * Xa[:, -1]
-            analysed = Xa[:, :-2].reshape(ens_next.shape)
-            mean_now = analysed.mean(axis=0, keepdims=True)
-            traces[KF].append(_observe(grid, ens.mean(axis=0, keepdims=True), mean_now, dt,
-                                       dipole.mu0))
-            traces[PLAIN].append(_observe(grid, plain, plain_next, dt, dipole.mu0))
-            if euler is not None:
-                traces[EULER].append(euler.fields())
-                euler.step(t)
-            traces["measured"].append(y.reshape(2, 3, -1))
-            times.append(t_obs)
-            ens, plain = analysed, plain_next
-            t += dt
-        times = np.array(times)
-        measured = np.stack(traces["measured"])                # (steps, 2, 3, sensors)
-        smooth = _smoothed(measured, times, dipole.omega, spec["rls"])
-        per_run[run] = _errors(exp, grid, phasors, dipole, sensors, times, traces, measured,
-                               smooth, quarter)
+        out = cycle(exp, su, nominal, rng, euler=run == 0)
+        health += [{**h, "run": run} for h in out["health"]]
+        smooth = _smoothed(out["measured"], out["times"], su.dipole.omega, spec["rls"])
+        per_run[run] = _errors(exp, grid, out["phasors"], su.dipole, sensors, out["times"],
+                               out["traces"], out["measured"], smooth, su.quarter)
         if run == 0 and r_idx == 0 and l_idx == 0:
-            slices = _slices(grid, phasors, dipole, sensors, times, traces, smooth[-1])
+            slices = _slices(grid, out["phasors"], su.dipole, out["times"], out["traces"])
     figure = {"scenario": scenario["name"], **slices} if r_idx == 0 and l_idx == 0 else {}
     rows, cells = _rows(exp, key, reading, level, per_run)
-    return rows, cells, figure
+    return rows, cells, figure, _health_rows(exp, key, reading, level, health)
+
+
+def _amplitude_fit(measured: np.ndarray, basis_sensors: list, basis_traces: list) -> list:
+    """The amplitude-only fit: the one complex source amplitude ``a`` whose simulation best
+    fits every reading of the record in least squares (the simulation is linear in ``Re a``
+    and ``Im a``: two basis runs, driven by 1 and by j), then its fields. It sees the whole
+    record at once (a smoother): the best any filter that corrects only the source can do."""
+    G = np.stack(basis_sensors)                    # (steps, 2 basis, sensors, 6)
+    y = measured.reshape(len(G), 6, -1).transpose(0, 2, 1)
+    design = G.transpose(1, 0, 2, 3).reshape(2, -1).T
+    coef = np.linalg.lstsq(design, y.ravel(), rcond=None)[0]
+    return [{F: coef[0] * b[F][:1] + coef[1] * b[F][1:] for F in ("E", "H")}
+            for b in basis_traces]
+
+
+def _health_rows(exp, key, reading, level, health) -> list[dict]:
+    """Per filter and recorded step: the effective rank of the forecast ensemble (singular
+    values of the anomalies of ``A`` and ``Phi`` at ``t`` above 1e-6 of the largest; min and
+    max over runs) and the NIS
+    per reading (mean over runs)."""
+    df = pd.DataFrame(health)
+    out = []
+    for (name, step), g in df.groupby(["estimator", "step"], sort=False):
+        out.append({"scenario": exp.spec["scenarios"][key[0]]["name"],
+                    "noise_reading": reading, "noise_param": level, "estimator": name,
+                    "step": int(step), "time": float(g["time"].iloc[0]),
+                    "effective_rank_min": int(g["effective_rank"].min()),
+                    "effective_rank_max": int(g["effective_rank"].max()),
+                    "nis": float(g["nis"].mean()), "runs": len(g)})
+    return out
 
 
 def _smoothed(measured: np.ndarray, times: np.ndarray, omega: float, rls: dict) -> np.ndarray:
@@ -366,22 +565,21 @@ def _smoothed(measured: np.ndarray, times: np.ndarray, omega: float, rls: dict) 
     return sinusoid_rls(series, times, omega, rls)[..., 0].T.reshape(measured.shape)
 
 
-def _slices(grid, phasors, dipole, sensors, times, traces, smooth_last) -> dict:
+def _slices(grid, phasors, dipole, times, traces) -> dict:
     """|E| and |H| in the plane through the source nearest y = 0 at the last recorded step:
-    the analytic truth, the filter's mean, the RLS baseline (nearest sensor) and the
+    the analytic truth, the field filter's mean, the amplitude-only fit and the field
     filter's error; points within two cells of the source are left blank."""
     n = grid.n
     plane = np.flatnonzero(np.isclose(grid.xyz[:, 1], grid.axis[n // 2]))
     turn = np.exp(1j * dipole.omega * times[-1])
     truth = _analytic_cartesian(grid, phasors, turn, plane)
     kf = np.stack([traces[KF][-1]["E"][0][:, plane], traces[KF][-1]["H"][0][:, plane]])
-    _, nearest = cKDTree(grid.xyz[sensors]).query(grid.xyz[plane])
-    rls = smooth_last[..., nearest]
+    fit = np.stack([traces[FIT][-1]["E"][0][:, plane], traces[FIT][-1]["H"][0][:, plane]])
     blank = grid.r[plane] < 2 * grid.spacing
-    out = {}
+    out = {"labels": SLICE_LABELS}
     for i, field_name in enumerate(("E", "H")):
-        for label, data in (("truth", truth[i]), (KF, kf[i]), (RLS, rls[i]),
-                            ("KF error", kf[i] - truth[i])):
+        for label, data in zip(SLICE_LABELS, (truth[i], kf[i], fit[i], kf[i] - truth[i]),
+                               strict=True):
             mag = np.linalg.norm(data, axis=0)
             mag[blank] = np.nan
             out[f"{field_name}|{label}"] = mag.reshape(n, n)
@@ -448,7 +646,7 @@ def _errors(exp, grid, phasors, dipole, sensors, times, traces, measured, smooth
                 "E_theta": (phasors["E_theta"][where] * turn).real,
                 "H_phi": (phasors["H_phi"][where] * turn).real}
         est = {}
-        for name in (KF, PLAIN, EULER):
+        for name in (KF, SOURCE_ONLY, FIT, PLAIN, EULER):
             if not traces[name]:
                 continue
             E = np.stack([tr["E"][0] for tr in traces[name]])[..., where]
@@ -495,7 +693,8 @@ def _rows(exp, key, reading, level, per_run) -> tuple[list[dict], list]:
             mean, se = float("inf"), float("nan")
         losses.setdefault((zone, comp, part), {})[name] = claims.Losses(values, broke)
         rows.append({"table_id": TABLE_IDS.get((comp, zone, name), ""), "s_no": s_no,
-                     "scenario": scenario, "zone": zone, "noise_reading": reading,
+                     "scenario": scenario, "zone": zone, "beta_r": exp.plan.beta_r[zone],
+                     "noise_reading": reading,
                      "noise_param": level, "estimator": name, "field_component": comp,
                      "part": part, "rmse": mean, "rmse_se": se, "runs": len(values),
                      "field_rms": np.sqrt(ref), "relative": mean / np.sqrt(ref)})
@@ -511,18 +710,20 @@ def _run_point_args(args):
 
 def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = None) -> Result:
     done = map_tasks(_run_point_args, [(exp, k) for k in _points(exp)], jobs, on_done)
-    df = pd.DataFrame([row for part, _, _ in done for row in part])[TABLES["rmse"].columns]
-    table = claims.table([c for _, cells, _ in done for c in cells], CLAIMS, "RMSE")
+    df = pd.DataFrame([row for part, _, _, _ in done for row in part])[TABLES["rmse"].columns]
+    table = claims.table([c for _, cells, _, _ in done for c in cells], CLAIMS, "RMSE")
+    health = pd.DataFrame([row for *_, part in done for row in part])[TABLES["health"].columns]
     figures = {}
-    for _, _, fig in done:
+    for _, _, fig, _ in done:
         if fig:
             name = "field_slices_" + "".join(ch if ch.isalnum() else "_"
                                              for ch in fig["scenario"]).strip("_")
             figures[name] = plots.field_slices(
                 fig, f"{fig['scenario']}: |E| and |H| in the x-z plane through the source, "
                 f"t = {fig['time']:.3g} periods (run 1)")
-    return Result(tables={"rmse": df.reset_index(drop=True), "claims": table},
-                  figures=figures)
+    figures["effective_rank"] = plots.ensemble_rank(health)
+    return Result(tables={"rmse": df.reset_index(drop=True), "claims": table,
+                          "health": health.reset_index(drop=True)}, figures=figures)
 
 
 def summary(result: Result) -> str:

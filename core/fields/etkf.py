@@ -34,4 +34,6 @@ def analysis(E: np.ndarray, Y: np.ndarray, y: np.ndarray, R: np.ndarray,
     Pt = (V / s) @ V.T
     w = Pt @ (C @ (y - yf))
     T = (V * np.sqrt((m - 1) / s)) @ V.T
-    return x + (w[None, :] + T) @ A
+    out = (w[None, :] + T) @ A
+    out += x
+    return out
