@@ -207,7 +207,7 @@ def test_with_the_wrong_source_the_field_filter_cuts_the_open_loop_error():
     spec["filter"]["members"] = 20
     spec["noise"]["source_levels"] = [0.00025]
     spec["monte_carlo"]["runs"] = 1
-    rows, _, figure = dipole_field.run_point(parse_data(spec, "t.yaml", "t"), (0, 0, 0))
+    rows, _, figure, _ = dipole_field.run_point(parse_data(spec, "t.yaml", "t"), (0, 0, 0))
     rows = pd.DataFrame(rows)
     assert {"E|truth", "H|KF error"} <= set(figure)
     rel = rows.pivot_table(index=["zone", "field_component"], columns="estimator",

@@ -36,9 +36,8 @@ def gaussian_smoother(n: int, length: float) -> np.ndarray:
 
 def smooth_noise(rng: np.random.Generator, count: int, n: int, K: np.ndarray) -> np.ndarray:
     """``count`` fields ``(count, n^3)`` of unit-variance noise smoothed by ``K`` along x, y
-    and z (drawn and smoothed in single precision: it is noise)."""
-    K = K.astype(np.float32)
-    z = rng.standard_normal((count, n, n, n), dtype=np.float32) @ K.T   # along z
+    and z."""
+    z = rng.standard_normal((count, n, n, n)) @ K.T          # along z
     z = K @ z                                                # along y
     z = K @ z.reshape(count, n, n * n)                       # along x
     return z.reshape(count, n**3)
