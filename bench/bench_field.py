@@ -4,9 +4,11 @@ the grid size N (16, 24, 32, 48), as ratios to N = 16 run in the same process.
 Run on demand (not part of the tests):  python bench/bench_field.py
 
 Per N: one leapfrog/Mur step of the plain simulation (1 member), one step of a 50-member
-ensemble, and one ETKF analysis of that ensemble (2 % of the points as sensors, six field
-components each). The work per step grows as N^3; the printed ratios say how close the code
-comes to that (8x from 16 to 32, 27x to 48).
+ensemble, one global ETKF analysis of that ensemble (the source-only filter) and one LETKF
+analysis (the field filter: cubes of 4 points, Gaspari-Cohn half-width one wavelength,
+transforms and their application), 2 % of the points as sensors, six field components each.
+The work per step grows as N^3 (the LETKF's as cubes x sensors within reach); the printed
+ratios say how close the code comes to that (8x from 16 to 32, 27x to 48).
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ import time
 import numpy as np
 
 from estim.analyses.dipole_field import _observe, sensor_operators
-from estim.fields import etkf
+from estim.fields import etkf, letkf
 from estim.fields.dipole import Dipole
 from estim.fields.fdtd import Grid, Simulation
 
@@ -47,22 +49,34 @@ def case(n: int, members: int = 50) -> dict:
     X = nxt.reshape(members, -1)
     y = Y.mean(axis=0)
     R = np.full(Y.shape[1], 1e-4)
+    local = letkf.localisation(n, grid.xyz, grid.xyz[sensors], 4, 1.0)
+    Ys = Y.reshape(members, 6, -1).transpose(0, 2, 1)
+    Xs = nxt.reshape(members, 4, -1)
+    dy = 0.01 * rng.standard_normal(Ys.shape[1:])
+
+    def local_analysis():
+        W = letkf.transforms(Ys - Ys.mean(axis=0), dy, R.reshape(-1, 6), local.taper)
+        return letkf.analyse(Xs, local, W)
+
     return {"N": n, "states": 4 * grid.size,
             "plain_s": timed(lambda: sim.step(one, 0.0, np.ones(1))),
             "ensemble_s": timed(lambda: sim.step(ens, 0.0, amps)),
-            "etkf_s": timed(lambda: etkf.analysis(X, Y, y, R))}
+            "etkf_s": timed(lambda: etkf.analysis(X, Y, y, R)),
+            "letkf_s": timed(local_analysis)}
 
 
 def main() -> None:
     rows = [case(n) for n in (16, 24, 32, 48)]
     base = rows[0]
     print(f"{'N':>4s} {'states':>9s} {'plain s/step':>13s} {'x N=16':>7s} "
-          f"{'50 members s/step':>18s} {'x N=16':>7s} {'ETKF s':>9s} {'x N=16':>7s}")
+          f"{'50 members s/step':>18s} {'x N=16':>7s} {'ETKF s':>9s} {'x N=16':>7s} "
+          f"{'LETKF s':>9s} {'x N=16':>7s}")
     for r in rows:
         print(f"{r['N']:4d} {r['states']:9d} {r['plain_s']:13.2e} "
               f"{r['plain_s'] / base['plain_s']:7.1f} {r['ensemble_s']:18.2e} "
               f"{r['ensemble_s'] / base['ensemble_s']:7.1f} {r['etkf_s']:9.2e} "
-              f"{r['etkf_s'] / base['etkf_s']:7.1f}")
+              f"{r['etkf_s'] / base['etkf_s']:7.1f} {r['letkf_s']:9.2e} "
+              f"{r['letkf_s'] / base['letkf_s']:7.1f}")
 
 
 if __name__ == "__main__":

@@ -153,13 +153,16 @@ def merge(configs, sources, out, runs, seed, quick, jobs, max_work, quiet) -> No
               help="Folder for results [default: the project's results/].")
 @_jobs
 @_max_work
+@click.option("--all", "everything", is_flag=True,
+              help="Also the studies of configs/studies/ (Chapter 5's field filter against "
+                   "grid, sensors and members).")
 @click.option("--quiet", is_flag=True)
-def reproduce(out, jobs, max_work, quiet) -> None:
+def reproduce(out, jobs, max_work, everything, quiet) -> None:
     """Run every config of configs/ (the thesis tables on the default settings)."""
     where = project.locate()
     if not quiet:
         click.echo(where.describe(), err=True)
-    exps = config.load_files(where.configs(), max_work=max_work)
+    exps = config.load_files(where.configs(everything), max_work=max_work)
     folder = out or where.results
     io.ensure_writable(folder)
     for exp in exps:
@@ -194,7 +197,9 @@ def table(metric, results, fmt, thesis, partial) -> None:
               help="Folder of stored results [default: the project's results/].")
 @_jobs
 @_max_work
-def check(configs, results, jobs, max_work) -> None:
+@click.option("--all", "everything", is_flag=True,
+              help="Also the studies of configs/studies/ when no CONFIGS are named.")
+def check(configs, results, jobs, max_work, everything) -> None:
     """Re-run CONFIGS (default: configs/*.yaml) as they are and compare every cell with the
     stored tables under each config's tolerances; the stored manifest must record the same
     config (runs, seed and every other value).
@@ -205,7 +210,7 @@ def check(configs, results, jobs, max_work) -> None:
     """
     where = project.locate()
     paths, overrides = config.split_arguments(configs)
-    exps = config.load_files(paths or where.configs(), overrides, max_work=max_work)
+    exps = config.load_files(paths or where.configs(everything), overrides, max_work=max_work)
     if overrides:
         click.echo("check: with overrides " + ", ".join(f"{k}={v!r}" for k, v in
                                                        overrides.items())

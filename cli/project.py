@@ -43,12 +43,18 @@ class Where:
             return self.root / "configs"
         return shipped_configs()
 
-    def configs(self) -> list[Path]:
-        return sorted(self.config_dir.glob("*.yaml"))
+    def configs(self, studies: bool = False) -> list[Path]:
+        """The default configs (``configs/*.yaml``); with ``studies`` also the studies
+        (``configs/studies/*.yaml``), which the default reproduction leaves out."""
+        found = sorted(self.config_dir.glob("*.yaml"))
+        if studies:
+            found += sorted((self.config_dir / "studies").glob("*.yaml"))
+        return found
 
     def is_own_config(self, path: Path) -> bool:
         try:
-            return path.resolve().parent == self.config_dir.resolve()
+            parent = path.resolve().parent
+            return parent in (self.config_dir.resolve(), (self.config_dir / "studies").resolve())
         except OSError:
             return False
 

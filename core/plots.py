@@ -245,6 +245,40 @@ def ensemble_rank(health) -> Figure:
     return fig
 
 
+def field_study(df, setting: str, estimators) -> Figure:
+    """Relative RMSE (real part) against the studied setting's value: one panel per zone
+    and component, one line per estimator and scenario (Chapter 5 studies)."""
+    real = df[df["part"] == "real"]
+    zones = list(dict.fromkeys(real["zone"]))
+    comps = list(dict.fromkeys(real["field_component"]))
+    fig, axes = plt.subplots(len(zones), len(comps), figsize=(4.0 * len(comps),
+                                                              3.2 * len(zones)),
+                             squeeze=False, sharex=True)
+    styles = ("-", "--", ":", "-.")
+    for i, zone in enumerate(zones):
+        for j, comp in enumerate(comps):
+            ax = axes[i, j]
+            cell = real[(real["zone"] == zone) & (real["field_component"] == comp)]
+            for k, name in enumerate(estimators):
+                for scenario, g in cell[cell["estimator"] == name].groupby("scenario",
+                                                                          sort=False):
+                    g = g.sort_values("value")
+                    ax.plot(g["value"], g["relative"], styles[k % len(styles)], marker="o",
+                            ms=3, lw=1.0, label=f"{name} ({scenario})")
+            beta = cell["beta_r"].iloc[0] if len(cell) else ""
+            ax.set_title(f"{zone} (beta r {beta}): {comp}", fontsize=9)
+            ax.set_yscale("log")
+            ax.grid(True, lw=0.3)
+            if i == len(zones) - 1:
+                ax.set_xlabel(setting)
+            if j == 0:
+                ax.set_ylabel("RMSE / field RMS")
+    axes[0, 0].legend(fontsize=7)
+    fig.suptitle(f"field filter against {setting}", fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
 def relative_error_curves(w_over_pi, curves: dict) -> Figure:
     """RE in dB against ``w / pi`` for several orders (the FIR differentiator paper's
     Fig 3); RE -> -inf at ``pi``, so the axis stops at -160 dB."""

@@ -13,7 +13,8 @@ from estim.cli.main import main
 from estim.config import parse_data
 
 ROOT = Path(__file__).resolve().parents[1]
-CONFIGS = sorted((ROOT / "configs").glob("*.yaml"))
+CONFIGS = (sorted((ROOT / "configs").glob("*.yaml"))
+           + sorted((ROOT / "configs" / "studies").glob("*.yaml")))
 
 
 def shipped(analysis: str) -> list[Path]:

@@ -24,7 +24,9 @@ from estim.config import apply_overrides, parse_data
 from estim.errors import ConfigError
 
 ROOT = Path(__file__).resolve().parents[1]
-CONFIGS = {p.stem: yaml.safe_load(p.read_text()) for p in sorted((ROOT / "configs").glob("*.yaml"))}
+CONFIGS = {p.stem: yaml.safe_load(p.read_text())
+           for p in [*sorted((ROOT / "configs").glob("*.yaml")),
+                     *sorted((ROOT / "configs" / "studies").glob("*.yaml"))]}
 
 
 def config(config_name: str, changes: dict) -> dict:
@@ -184,6 +186,11 @@ HOSTILE = [
      "scenarios[0].nominal_amplitude", "[magnitude, phase in degrees]"),
     ("dipole_field", {"filter.members": 2}, "filter.members", "integer from 3"),
     ("dipole_field", {"grid.boundary": "pml"}, "grid.boundary", "'dirichlet', 'mur'"),
+    ("dipole_field", {"filter.block": 5}, "filter.block", "divisor of grid.n"),
+    ("dipole_field", {"filter.model_error": 0.02}, "filter.model_error", "unknown key"),
+    ("field_grid", {"study.values": [16, 30]}, "study.values[1]", "grid.n = 30: filter.block"),
+    ("field_grid", {"study.setting": "grid.length"}, "study.setting", "'filter.members'"),
+    ("field_members", {"study.values": [20.5]}, "study.values[0]", "whole number"),
     ("fir_differentiator", {"bands": [1.5]}, "bands[0]", "number <= 0.999"),
     ("fir_differentiator", {"thresholds_db": [10]}, "thresholds_db[0]", "number <= -1"),
     ("fir_differentiator", {"max_taps": 5000}, "max_taps", "integer from 4 to 1024"),

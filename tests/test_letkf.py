@@ -17,8 +17,8 @@ def _no_localisation(n: int, sensors: int, block: int) -> letkf.Localisation:
     cubes = (n // block) ** 3
     full = letkf.localisation(n, np.zeros((n**3, 3)), np.zeros((sensors, 3)), block, 1.0)
     return letkf.Localisation(points=full.points, centres=full.centres,
-                              taper=np.ones((cubes, sensors)), active=np.arange(cubes),
-                              cubes=cubes)
+                              distances=full.distances, taper=np.ones((cubes, sensors)),
+                              active=np.arange(cubes), cubes=cubes)
 
 
 def test_gaspari_cohn_is_one_at_zero_continuous_and_zero_from_twice_the_half_width():

@@ -46,6 +46,7 @@ from estim.errors import ConfigError
 from estim.fields import etkf, letkf, model_error, wave
 from estim.fields.dipole import Dipole
 from estim.fields.fdtd import Grid, Simulation, fields_from, spherical
+from estim.memory import reuse_freed_memory
 from estim.schema import REQUIRED, Experiment, check_interval, integer, list_of, number, text
 from estim.settings import Settings, block, blocks, setting, settings_class
 from estim.summary import Quote
@@ -332,7 +333,10 @@ class _Setup:
     spin: int
     record: int
     local: letkf.Localisation
+    local_half_width: float
     amplitude_taper: np.ndarray
+    amplitude_half_width: float
+    source_distances: np.ndarray
     smoother: np.ndarray
     R_field: np.ndarray
     R_source: np.ndarray
@@ -355,11 +359,14 @@ def _setup(spec: dict, plan: Plan) -> _Setup:
                                f["localisation"] * wavelength)
     sigma2 = spec["sensors"]["measurement_sigma"] ** 2
     shape = (plan.sensors.size, 6)
+    distances = np.linalg.norm(where, axis=1)
+    amplitude_half_width = f["amplitude_localisation"] * wavelength
     return _Setup(sim=sim, dipole=dipole, dt=dt, per=per, quarter=quarter,
                   spin=spec["time"]["spinup_periods"] * per - quarter,
                   record=spec["time"]["periods"] * per + quarter, local=local,
-                  amplitude_taper=letkf.gaspari_cohn(np.linalg.norm(where, axis=1),
-                                                     f["amplitude_localisation"] * wavelength),
+                  local_half_width=f["localisation"] * wavelength,
+                  amplitude_taper=letkf.gaspari_cohn(distances, amplitude_half_width),
+                  amplitude_half_width=amplitude_half_width, source_distances=distances,
                   smoother=model_error.gaussian_smoother(grid.n, f["field_error_length"]),
                   R_field=np.full(shape, sigma2 + f["representation_error"] ** 2),
                   R_source=np.full(shape, sigma2 + so["representation_error"] ** 2))
@@ -439,6 +446,7 @@ def cycle(exp: Experiment, su: _Setup, nominal: complex, rng: np.random.Generato
     """One run: spin-up, then ``record`` steps of forecast, sensors and both filters'
     analyses. Returns the traces of every estimator's E and H at each step (``traces``),
     the times, the readings ``(steps, 2, 3, sensors)`` and the filters' health per step."""
+    reuse_freed_memory()
     spec, plan = exp.spec, exp.plan
     grid = plan.grid
     sim, dipole, dt = su.sim, su.dipole, su.dt

@@ -46,12 +46,13 @@ def gaspari_cohn(distance: np.ndarray, half_width: float) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Localisation:
-    """The cubes' grid points ``(cubes, block^3)``, each cube's centre ``(cubes, 3)`` and the
-    taper of every sensor for every cube ``(cubes, sensors)``, for the cubes some sensor
-    reaches (``active``: their numbers among all cubes)."""
+    """The cubes' grid points ``(cubes, block^3)``, each cube's centre ``(cubes, 3)``, the
+    distance and the taper of every sensor for every cube ``(cubes, sensors)``, for the
+    cubes some sensor reaches (``active``: their numbers among all cubes)."""
 
     points: np.ndarray
     centres: np.ndarray
+    distances: np.ndarray
     taper: np.ndarray
     active: np.ndarray
     cubes: int
@@ -71,8 +72,9 @@ def localisation(n: int, xyz: np.ndarray, sensors_xyz: np.ndarray, block: int,
     dist = np.linalg.norm(centres[:, None, :] - sensors_xyz[None], axis=-1)
     taper = gaspari_cohn(dist, half_width)
     active = np.flatnonzero(taper.max(axis=1) > 0)
-    return Localisation(points=points[active], centres=centres[active], taper=taper[active],
-                        active=active, cubes=nb**3)
+    return Localisation(points=points[active], centres=centres[active],
+                        distances=dist[active], taper=taper[active], active=active,
+                        cubes=nb**3)
 
 
 def transforms(Yp: np.ndarray, innovation: np.ndarray, R: np.ndarray, taper: np.ndarray,
