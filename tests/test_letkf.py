@@ -174,9 +174,9 @@ def _twin_run(exp, su, bump: float, nominal: complex, steps: int = 8):
         field_next = sim.step(field, t, af)
         src_next = sim.step(src, t, asrc)
         free = sim.step(free, t, np.array([nominal]))
-        jit = exp.spec["filter"]["field_error"] * model_error.smooth_noise(
-            rng, 2 * m, grid.n, su.smoother)
-        field_next = model_error.perturb(field_next, su.dipole.omega * dt, jit[:m], jit[m:])
+        jit = model_error.smooth_noise(rng, 2 * m, grid.n, su.smoother)
+        field_next = model_error.perturb(field_next, su.dipole.omega * dt, jit[:m], jit[m:],
+                                         su.error_scale)
         y = df._sensor_rows(grid, truth, truth_next, dt, mu0, plan.sensor_ops)[0]
         y = y + 1e-3 * rng.standard_normal(y.shape)
         Y = df._sensor_rows(grid, field, field_next, dt, mu0, plan.sensor_ops)
@@ -186,7 +186,8 @@ def _twin_run(exp, su, bump: float, nominal: complex, steps: int = 8):
             exact = (truth_next[0, 1, 0] - truth[0, 0, 0]) / (2 * dt)
             ours = (X[:, 3].mean(0) - X[:, 0].mean(0)) / (2 * dt)
             mixed = (X[:, 3].mean(0) - forecast_before[:, 0, 0].mean(0)) / (2 * dt)
-            out["first"] = (np.linalg.norm(ours - exact), np.linalg.norm(mixed - exact))
+            out["first"] = (np.linalg.norm(ours - exact) / np.linalg.norm(exact),
+                            np.linalg.norm(mixed - exact) / np.linalg.norm(exact))
         Ys = df._sensor_rows(grid, src, src_next, dt, mu0, plan.sensor_ops)
         src, asrc, _, _, _ = df.source_analysis(su, src, src_next, asrc, y, Ys, 1.0)
         truth = truth_next
@@ -215,12 +216,12 @@ def test_a_local_bump_the_source_cannot_explain_is_removed_by_the_field_filter_o
 def test_first_step_dA_dt_comes_from_one_analysis(twin):
     """Told 0.7 at 20 deg, the first analysis moves A(t) and A(t + dt) a long way; dA/dt
     from the three analysed levels is close to the truth's centred difference, the old mix
-    (analysed A(t + dt), forecast A(t - dt)) is not. Measured: 0.02 against 0.7 of the
-    truth's norm."""
+    (analysed A(t + dt), forecast A(t - dt)) is not. Measured: 0.002 against 0.55
+    of the truth's norm."""
     exp, su = twin
     out, _ = _twin_run(exp, su, bump=0.0, nominal=0.7 * np.exp(0.35j), steps=1)
     ours, mixed = out["first"]
-    assert ours < 0.3 * mixed, (ours, mixed)
+    assert ours < 0.02 and mixed > 0.2, (ours, mixed)
 
 
 def test_the_field_filters_ensemble_has_rank_above_two_and_the_source_only_has_two():
@@ -229,3 +230,24 @@ def test_the_field_filters_ensemble_has_rank_above_two_and_the_source_only_has_t
     by = {name: [h["effective_rank_min"] for h in health if h["estimator"] == name]
           for name in (df.KF, df.SOURCE_ONLY)}
     assert min(by[df.KF]) > 2 and max(by[df.SOURCE_ONLY]) == 2, by
+
+
+def test_the_truncation_profile_is_the_leapfrogs_own_error_per_step():
+    """filter.field_error_profile: truncation gives each point the per-step relative error
+    of the analytic potentials in the leapfrog, by radial shell: about 0.3 % beyond half a
+    wavelength, 1 % (A_z) and 3-4 % (Phi) at 0.25-0.45 wavelengths (bench/field_truncation.py
+    prints the same numbers)."""
+    spec = yaml.safe_load(open("configs/dipole_field.yaml"))
+    spec.pop("check", None)
+    spec["filter"]["field_error_profile"] = "truncation"
+    exp = parse_data(spec, "t.yaml", "t")
+    su = df._setup(exp.spec, exp.plan)
+    r = exp.plan.grid.r
+    far = (r >= 1.2) & (r < 1.9)
+    near = (r >= 0.25) & (r < 0.45)
+    assert np.allclose(su.error_scale[:, far].mean(axis=1), 0.0031, rtol=0.05)
+    A, Phi = su.error_scale[:, near].mean(axis=1)
+    assert 0.006 < A < 0.012 and 0.025 < Phi < 0.045, (A, Phi)
+    spec["filter"]["field_error_profile"] = "uniform"
+    su = df._setup(parse_data(spec, "t.yaml", "t").spec, exp.plan)
+    assert np.all(su.error_scale == spec["filter"]["field_error"])

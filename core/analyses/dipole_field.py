@@ -109,6 +109,11 @@ class FilterSettings(Settings):
     field_error: float = setting(0.003, number(minimum=0.0, maximum=0.5),
                                  doc="model error per step: std of the relative amplitude and "
                                      "of the phase (rad) of each member's local phasor")
+    field_error_profile: str = setting("uniform", text({"truncation", "uniform"}),
+                                       doc="truncation: per point and potential the larger "
+                                           "of field_error and the leapfrog's own relative "
+                                           "error per step in its radial shell; uniform: "
+                                           "field_error everywhere")
     field_error_length: float = setting(3.0, number(positive=True, maximum=100.0),
                                         unit="cells",
                                         doc="Gaussian correlation length of the model error")
@@ -338,6 +343,7 @@ class _Setup:
     amplitude_half_width: float
     source_distances: np.ndarray
     smoother: np.ndarray
+    error_scale: np.ndarray
     R_field: np.ndarray
     R_source: np.ndarray
 
@@ -360,6 +366,13 @@ def _setup(spec: dict, plan: Plan) -> _Setup:
     sigma2 = spec["sensors"]["measurement_sigma"] ** 2
     shape = (plan.sensors.size, 6)
     distances = np.linalg.norm(where, axis=1)
+    scale = np.full((2, grid.size), f["field_error"])
+    if f["field_error_profile"] == "truncation":
+        ph = dipole.phasors(grid.r, grid.theta)
+        A_z = ph["A_r"] * np.cos(grid.theta) - ph["A_theta"] * np.sin(grid.theta)
+        bins = np.arange(0.0, grid.r.max() + grid.spacing, grid.spacing)
+        profile = model_error.truncation_profile(sim, (A_z, ph["Phi"]), bins)
+        scale = np.clip(profile, f["field_error"], ERROR_CAP)
     amplitude_half_width = f["amplitude_localisation"] * wavelength
     return _Setup(sim=sim, dipole=dipole, dt=dt, per=per, quarter=quarter,
                   spin=spec["time"]["spinup_periods"] * per - quarter,
@@ -368,8 +381,14 @@ def _setup(spec: dict, plan: Plan) -> _Setup:
                   amplitude_taper=letkf.gaspari_cohn(distances, amplitude_half_width),
                   amplitude_half_width=amplitude_half_width, source_distances=distances,
                   smoother=model_error.gaussian_smoother(grid.n, f["field_error_length"]),
+                  error_scale=scale,
                   R_field=np.full(shape, sigma2 + f["representation_error"] ** 2),
                   R_source=np.full(shape, sigma2 + so["representation_error"] ** 2))
+
+
+ERROR_CAP = 0.1
+"""The truncation profile's per-step error is capped at 10 %: inside the source's own cells
+the analytic potentials are not the grid's solution at all."""
 
 
 def _levels(X: np.ndarray) -> np.ndarray:
@@ -477,8 +496,9 @@ def cycle(exp: Experiment, su: _Setup, nominal: complex, rng: np.random.Generato
         both = sim.step(np.concatenate([src, free]), t, np.concatenate([amp_src, free_amps]))
         src_next, free_next = both[:m], both[m:]
         field_next = sim.step(field, t, amp_field)
-        jitter = fcfg["field_error"] * model_error.smooth_noise(rng, 2 * m, grid.n, su.smoother)
-        field_next = model_error.perturb(field_next, omega_dt, jitter[:m], jitter[m:])
+        jitter = model_error.smooth_noise(rng, 2 * m, grid.n, su.smoother)
+        field_next = model_error.perturb(field_next, omega_dt, jitter[:m], jitter[m:],
+                                         su.error_scale)
         truth = _analytic_cartesian(grid, phasors, np.exp(1j * dipole.omega * t), plan.sensors)
         y = truth + sigma_obs * rng.standard_normal(truth.shape)
         y_rows = y.reshape(6, -1).T                      # (sensors, 6)

@@ -25,6 +25,7 @@ from estim.errors import ConfigError
 from estim.schema import REQUIRED, Experiment, list_of, number, text
 from estim.settings import Settings, block, settings_class
 from estim.settings import setting as declare
+from estim.summary import Quote
 
 SETTINGS = {"grid.n": int, "sensors.fraction": float, "filter.members": int}
 """The settings a study may vary, and their type."""
@@ -58,6 +59,7 @@ TABLES = {
                             "studied setting"),
     "claims": claims.TABLE,
 }
+QUOTES = (Quote("relative RMSE (RMSE / field RMS)", "rmse", "relative", by="estimator"),)
 CLAIMS = ((field.KF, field.FIT), (field.KF, field.PLAIN), (field.KF, field.SOURCE_ONLY))
 """At each value: the field filter against the amplitude-only fit, the plain simulation and
 the source-only ETKF."""
