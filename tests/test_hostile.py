@@ -21,7 +21,7 @@ from estim import io
 from estim.analyses import ANALYSES
 from estim.cli.main import main
 from estim.config import apply_overrides, parse_data
-from estim.errors import ConfigError
+from estim.errors import ConfigError, ConfigErrors
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = {p.stem: yaml.safe_load(p.read_text())
@@ -350,7 +350,11 @@ def fuzz(n: int, seed: int) -> tuple[list[str], list[tuple[str, dict, str]]]:
                 parse_data(spec, "fuzz.yaml", "fuzz")
                 accepted.append((name, spec, what))
             except ConfigError as exc:
-                if "\n" in str(exc) or not str(exc).startswith("fuzz.yaml: "):
+                # one line per problem (several problems of one file: one line each), every
+                # line naming the file
+                lines = str(exc).split("\n")
+                if len(lines) > 1 and not isinstance(exc, ConfigErrors) or \
+                        not all(line.startswith("fuzz.yaml: ") for line in lines):
                     problems.append(f"{name} {what}: message {str(exc)[:100]!r}")
             except _Hang:
                 problems.append(f"{name} {what}: hangs")
