@@ -51,6 +51,12 @@ def simulation(rtol: float, atol: float) -> type:
     return Simulation
 
 
+def _source_names(v):
+    ok = isinstance(v, str) and v or (isinstance(v, list) and v and all(
+        isinstance(i, str) and i for i in v))
+    return None if ok else "a source name or a list of them"
+
+
 @settings_class
 class Model(Settings):
     """A registered model, its variant and its parameter overrides."""
@@ -59,7 +65,16 @@ class Model(Settings):
     variant: str | None = setting(None, text(), doc="one of the model's variants; none: its "
                                                     "first (the completed circuit)")
     params: dict = setting({}, mapping, doc="parameter overrides (estim settings --models "
-                                            "lists them)")
+                                            "lists them; for a netlist its .param values)")
+    netlist: str | None = setting(None, text(), doc="a SPICE netlist file instead of a "
+                                                    "registered model (beside the config or "
+                                                    "in the folder above it); name is then "
+                                                    "netlist:<file stem>")
+    input: list | str | None = setting(None, _source_names, doc="with netlist: the voltage "
+                                                                  "source(s) the model input "
+                                                                  "drives")
+    output: str | None = setting(None, text(), doc="with netlist: v(node), v(node,node) or "
+                                                   "i(inductor)")
 
 
 @settings_class

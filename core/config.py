@@ -19,7 +19,7 @@ from typing import Any
 
 import yaml
 
-from estim import registry, tables
+from estim import registry, spice, tables
 from estim.analyses import ANALYSES
 from estim.errors import ConfigError, UsageError
 from estim.schema import (
@@ -200,6 +200,7 @@ def parse_data(data: dict, source: str, default_name: str,
     data = copy.deepcopy(data)
     sweep = data.pop("sweep", None) if isinstance(data, dict) else None
     load_plugins(data.get("plugins") if isinstance(data, dict) else None, source)
+    spice.resolve_model_block(data, source)
     analysis = data.get("analysis") or "estimation"
     validate(analysis, text(ANALYSES), source, "analysis")
     spec = validate(data, schema_of(analysis), source, "")

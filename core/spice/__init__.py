@@ -1,0 +1,78 @@
+"""SPICE netlists as estim models: :mod:`estim.spice.parser` reads the netlist,
+:mod:`estim.spice.circuit` builds the model by nodal analysis, :mod:`estim.spice.ngspice`
+runs the same circuit in ngspice to compare. A config names a netlist in its model block,
+
+    model: {netlist: circuits/diffamp_em.cir, input: [VB1, VB2], output: "v(c1,c2)"}
+
+and :func:`resolve_model_block` registers the model as ``netlist:<file stem>`` before the
+config is validated, so every analysis takes it as it takes a hand-written model.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from estim import registry
+from estim.errors import ConfigError
+from estim.spice.circuit import Circuit, build_model_class
+from estim.spice.parser import NetlistError, read
+
+__all__ = ["NetlistError", "find_netlist", "model_class", "resolve_model_block"]
+
+
+def find_netlist(name: str, source: str) -> Path | None:
+    """``name`` as given (absolute), beside the config ``source``, or in the folder above it
+    (a project's ``circuits/`` beside its ``configs/``)."""
+    p = Path(name)
+    if p.is_absolute():
+        return p if p.is_file() else None
+    here = Path(source).resolve().parent
+    for folder in (here, here.parent, Path.cwd()):
+        if (folder / p).is_file():
+            return folder / p
+    return None
+
+
+def model_class(path: Path, inputs, output: str, name: str | None = None) -> type:
+    """The model class of the netlist at ``path`` (registered under ``name``, default
+    ``netlist:<stem>``)."""
+    inputs = (inputs,) if isinstance(inputs, str) else tuple(inputs)
+    circuit = Circuit(read(path), tuple(i.lower() for i in inputs), output)
+    name = name or f"netlist:{path.stem}"
+    cls = build_model_class(circuit, name)
+    cls.name = name
+    registry.MODELS.register(name, cls)
+    return cls
+
+
+def resolve_model_block(data: dict, source: str) -> None:
+    """If ``data["model"]`` names a ``netlist``, build and register its model and set the
+    block's ``name`` to it; a netlist that cannot be used is a config error naming the
+    netlist's file and line."""
+    block = data.get("model") if isinstance(data, dict) else None
+    if not isinstance(block, dict) or block.get("netlist") is None:
+        return
+    if block.get("name") is not None:
+        raise ConfigError(source, "model.name", "give either a registered model's name or a "
+                          "netlist, not both")
+    netlist = block["netlist"]
+    if not isinstance(netlist, str):
+        raise ConfigError(source, "model.netlist", f"expected a file name, got {netlist!r}")
+    path = find_netlist(netlist, source)
+    if path is None:
+        raise ConfigError(source, "model.netlist", f"no file {netlist!r} beside the config or "
+                          "in the folder above it")
+    inputs = block.get("input")
+    if not inputs or not (isinstance(inputs, str) or (
+            isinstance(inputs, list) and all(isinstance(i, str) for i in inputs))):
+        raise ConfigError(source, "model.input", "expected the name of the voltage source the "
+                          "model input drives, or a list of them")
+    output = block.get("output")
+    if not isinstance(output, str):
+        raise ConfigError(source, "model.output", "expected v(node), v(node,node) or "
+                          "i(inductor)")
+    try:
+        cls = model_class(path, inputs, output)
+    except NetlistError as exc:
+        raise ConfigError(source, "model.netlist", str(exc)) from None
+    block["name"] = cls.name

@@ -1,0 +1,489 @@
+"""A parsed netlist as an estim model (:class:`estim.models.base.Model`) by nodal analysis.
+
+States: the voltage of every node that no voltage source fixes, and the current of every
+inductor. Nodes fixed by a voltage source (from ground or from another fixed node) carry the
+source's value: the model's inputs (the sources named in ``inputs``, their values the model
+input ``u``) or the source's own waveform at time ``t``. A voltage-controlled voltage source
+(``E``) from a fixed node fixes its node to a function of the others (evaluated before the
+currents). KCL at the state nodes, with the nodal capacitance matrix ``C``,
+
+    C v' = - sum of the currents leaving each node through R, D, Q, M, G, I and L
+           + (capacitor currents driven by the fixed nodes' slopes),
+
+gives ``f``; inductors add ``L i' = v(n1) - v(n2)``. ``C`` must be invertible: every state
+node needs a capacitive path. Where one has none the builder refuses and names the nodes
+(the choice of this first version, over solving the algebraic nodes by Newton inside
+``f``: a shunt capacitor, as the hand-written models carry ``C_par``, keeps ``f`` explicit
+and its Jacobian exact). A capacitor to a node the model input drives would need the
+input's slope and is refused too.
+
+Device laws and their ``.model`` parameters: Shockley diodes with series resistance
+(``d``: ``is n rs``; closed form by the Lambert W function), Ebers-Moll NPN/PNP (``npn``,
+``pnp``: ``ies alpha_f alpha_r vt``, ``I_CS`` by reciprocity; :mod:`estim.devices.ebers_moll`,
+the thesis' law), EKV NMOS (``nmos``: ``u_t v_t0 eta i_0 w_l``; the law of
+:mod:`estim.models.mosfet_ekv`). Jacobians are analytic, chained through the
+E sources. ``F``/``H`` (current-controlled) sources are refused for now.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+
+import numpy as np
+from scipy.special import lambertw
+
+from estim.devices import ebers_moll
+from estim.models.base import Model, param
+from estim.spice.parser import Element, Netlist, NetlistError
+
+GROUND = ("0", "gnd")
+
+
+def source_value(waveform: tuple, t: float) -> tuple[float, float]:
+    """A source's value and slope at time ``t`` (SPICE's DC, SIN, PULSE, PWL)."""
+    kind, *a = waveform
+    if kind == "dc":
+        return a[0], 0.0
+    if kind == "sin":
+        vo, va, freq = a[:3]
+        td, theta, phase = (a[3:] + [0.0, 0.0, 0.0])[:3]
+        if t < td:
+            return vo + va * np.sin(np.radians(phase)), 0.0
+        s = t - td
+        w = 2 * np.pi * freq
+        damp = np.exp(-theta * s)
+        arg = w * s + np.radians(phase)
+        return (vo + va * damp * np.sin(arg),
+                va * damp * (w * np.cos(arg) - theta * np.sin(arg)))
+    if kind == "pulse":
+        v1, v2, td, tr, tf, pw, per = (a + [0.0, 0.0, 0.0, np.inf, np.inf])[:7]
+        tr, tf = tr or 1e-12, tf or 1e-12
+        s = t - td
+        if s < 0:
+            return v1, 0.0
+        if np.isfinite(per) and per > 0:
+            s = s % per
+        if s < tr:
+            return v1 + (v2 - v1) * s / tr, (v2 - v1) / tr
+        if s < tr + pw:
+            return v2, 0.0
+        if s < tr + pw + tf:
+            return v2 + (v1 - v2) * (s - tr - pw) / tf, (v1 - v2) / tf
+        return v1, 0.0
+    times, values = np.array(a[0::2]), np.array(a[1::2])
+    if t <= times[0]:
+        return values[0], 0.0
+    if t >= times[-1]:
+        return values[-1], 0.0
+    k = int(np.searchsorted(times, t, side="right")) - 1
+    slope = (values[k + 1] - values[k]) / (times[k + 1] - times[k])
+    return values[k] + slope * (t - times[k]), slope
+
+
+DIODE = {"is": 1e-14, "n": 1.0, "rs": 0.0}
+BJT = {"ies": 1e-14, "alpha_f": 0.99, "alpha_r": 0.5, "vt": 0.025852}
+EKV = {"u_t": 0.0256, "v_t0": 0.5, "eta": 1.0, "i_0": 1e-9, "w_l": 1.0}
+DEFAULTS = {"d": DIODE, "npn": BJT, "pnp": BJT, "nmos": EKV}
+
+
+@dataclasses.dataclass
+class Circuit:
+    """The nodal-analysis structure of a netlist: which nodes are states, fixed or derived,
+    the capacitance matrix and the element lists, in index form."""
+
+    netlist: Netlist
+    inputs: tuple[str, ...]
+    output: str
+
+    def __post_init__(self) -> None:
+        net, src = self.netlist, self.netlist.source
+        for e in net.elements:
+            if e.kind in "fh":
+                raise NetlistError(src, e.line, f"{e.name}: current-controlled sources (F, H) "
+                                   "are not supported yet")
+        for e in net.elements:
+            if e.kind in "vi" and e.waveform[0] != "dc" and e.name not in self.inputs:
+                raise NetlistError(src, e.line, f"{e.name}: a {e.waveform[0].upper()} source "
+                                   "that is not a model input; estim drives a circuit through "
+                                   "its inputs (name it in model.input) and holds the other "
+                                   "sources at their DC value")
+        for name in self.inputs:
+            e = net.element(name)
+            if e is None or e.kind != "v":
+                raise NetlistError(src, 0, f"input {name!r} is not a voltage source of the "
+                                   "netlist")
+        nodes = sorted({n for e in net.elements for n in e.nodes} - set(GROUND))
+        if not nodes:
+            raise NetlistError(src, 0, "no node but ground")
+        # fixed nodes: voltage sources from ground or from fixed nodes, E sources likewise
+        fixed: dict[str, tuple] = {g: ("ground",) for g in GROUND}
+        pending = [e for e in net.elements if e.kind in "ve"]
+        while pending:
+            progress = False
+            for e in list(pending):
+                p, m = e.nodes[:2]
+                if p in fixed and m in fixed:
+                    raise NetlistError(src, e.line, f"{e.name}: a loop of voltage sources "
+                                       f"(both {p} and {m} are already fixed)")
+                if m in fixed or p in fixed:
+                    node, other, sign = (p, m, 1.0) if m in fixed else (m, p, -1.0)
+                    fixed[node] = (e, other, sign)
+                    pending.remove(e)
+                    progress = True
+            if not progress:
+                e = pending[0]
+                raise NetlistError(src, e.line, f"{e.name}: a voltage source between two "
+                                   "nodes no other source fixes is not supported; tie one "
+                                   "end to ground or to a fixed node")
+        self.fixed = {n: v for n, v in fixed.items() if n not in GROUND}
+        self.state_nodes = [n for n in nodes if n not in fixed]
+        self.inductors = [e for e in net.elements if e.kind == "l"]
+        names = [f"v({n})" for n in self.state_nodes] + [f"i({e.name})" for e in self.inductors]
+        self.state_names = tuple(names)
+        index = {n: i for i, n in enumerate(self.state_nodes)}
+        self.index = index
+        # a floating node: connected to only one element terminal
+        touches: dict[str, int] = {}
+        for e in net.elements:
+            for n in e.nodes:
+                touches[n] = touches.get(n, 0) + 1
+        lonely = sorted(n for n in self.state_nodes if touches.get(n, 0) < 2)
+        if lonely:
+            raise NetlistError(src, 0, f"floating node(s) {', '.join(lonely)}: connected to "
+                               "one terminal only")
+        k = len(self.state_nodes)
+        C = np.zeros((k, k))
+        self.cap_to_fixed = []          # (state index, fixed node, capacitance)
+        for e in net.elements:
+            if e.kind != "c":
+                continue
+            a, b = e.nodes
+            ia, ib = index.get(a), index.get(b)
+            for i, j, other in ((ia, ib, b), (ib, ia, a)):
+                if i is None:
+                    continue
+                C[i, i] += e.value
+                if j is not None:
+                    C[i, j] -= e.value
+                elif other not in GROUND:
+                    if self._driven_by_input(other):
+                        raise NetlistError(src, e.line, f"{e.name}: a capacitor to node "
+                                           f"{other}, which the model input drives; the "
+                                           "model would need the input's slope (put the "
+                                           "source behind a resistor)")
+                    self.cap_to_fixed.append((i, other, e.value))
+        missing = [self.state_nodes[i] for i in range(k) if C[i, i] == 0]
+        if missing:
+            raise NetlistError(src, 0, f"node(s) {', '.join(missing)} have no capacitive path: "
+                               "add a small shunt capacitor (e.g. 1p to ground) to each")
+        if k and np.linalg.matrix_rank(C) < k:
+            raise NetlistError(src, 0, "the nodal capacitance matrix is singular (a group of "
+                               "nodes joined only by capacitors with no capacitor to the "
+                               "rest): add a shunt capacitor")
+        self.C_inv = np.linalg.inv(C) if k else np.zeros((0, 0))
+        for e in net.elements:
+            if e.kind in "dqm":
+                model = net.models.get(e.ref)
+                if model is None:
+                    raise NetlistError(src, e.line, f"{e.name}: no .model {e.ref}")
+                want = {"d": ("d",), "q": ("npn", "pnp"), "m": ("nmos",)}[e.kind]
+                if model.type not in want:
+                    raise NetlistError(src, model.line, f".model {model.name}: type "
+                                       f"{model.type!r} for {e.name}; expected "
+                                       f"{' or '.join(want)}")
+                unknown = set(model.params) - set(DEFAULTS[model.type])
+                if unknown:
+                    raise NetlistError(src, model.line, f".model {model.name}: unknown "
+                                       f"parameter(s) {sorted(unknown)}; expected "
+                                       f"{sorted(DEFAULTS[model.type])}")
+        self.output_terms = self._output(self.output)
+
+    def _driven_by_input(self, node: str) -> bool:
+        seen = set()
+        while node in self.fixed and node not in seen:
+            seen.add(node)
+            e, other, _ = self.fixed[node]
+            if e.kind == "v" and e.name in self.inputs:
+                return True
+            if e.kind == "e":
+                return True
+            node = other
+        return False
+
+    def _output(self, text: str) -> tuple:
+        m = re.fullmatch(r"\s*([vi])\(\s*([^,()\s]+)\s*(?:,\s*([^,()\s]+)\s*)?\)\s*",
+                         text.lower())
+        if not m:
+            raise NetlistError(self.netlist.source, 0, f"output {text!r}: expected v(node), "
+                               "v(node,node) or i(inductor)")
+        if m.group(1) == "i":
+            names = [e.name for e in self.inductors]
+            if m.group(2) not in names or m.group(3):
+                raise NetlistError(self.netlist.source, 0, f"output {text!r}: i() of an "
+                                   f"inductor, one of {names}")
+            return ("i", len(self.state_nodes) + names.index(m.group(2)))
+        for n in (m.group(2), m.group(3)):
+            if n and n not in self.index:
+                raise NetlistError(self.netlist.source, 0, f"output {text!r}: node {n} is "
+                                   f"not a state node ({', '.join(self.state_nodes)})")
+        return ("v", self.index[m.group(2)], self.index.get(m.group(3)) if m.group(3) else None)
+
+
+def build_model_class(circuit: Circuit, name: str) -> type:
+    """A :class:`Model` subclass for ``circuit``: its ``Params`` are the netlist's ``.param``
+    values (overridable in a config's ``model.params``), re-evaluated into element values
+    when they change."""
+    net = circuit.netlist
+    fields = [(k, float, param(float(v), "-", "netlist .param")) for k, v in net.params.items()]
+    Params = dataclasses.make_dataclass(f"{name}_params", fields, frozen=True)
+    attrs = {"state_names": circuit.state_names, "input_names": tuple(circuit.inputs),
+             "output_names": (circuit.output,), "Params": Params, "variants": {},
+             "circuit": circuit, "__doc__": f"Netlist model of {net.source} ({net.title})."}
+    clean = re.sub(r"\W", "_", name)
+    return type(f"Netlist_{clean}", (NetlistModel,), attrs)
+
+
+class NetlistModel(Model):
+    """Base of the netlist model classes :func:`build_model_class` makes."""
+
+    circuit: Circuit
+
+    def __init__(self, variant: str | None = None, **overrides) -> None:
+        super().__init__(variant, **overrides)
+        net = self.circuit.netlist
+        if any(getattr(self.params, k) != v for k, v in net.params.items()):
+            from estim.spice.parser import parse
+            text = self._source_text()
+            values = dataclasses.asdict(self.params)
+            lines = [f".param {k}={v!r}" for k, v in values.items()]
+            net = parse(_with_params(text, lines), net.source)
+            self.circuit = Circuit(net, self.circuit.inputs, self.circuit.output)
+        self._prepare()
+
+    def _source_text(self) -> str:
+        from pathlib import Path
+        return Path(self.circuit.netlist.source).read_text()
+
+    def _prepare(self) -> None:
+        c = self.circuit
+        self._elements = [e for e in c.netlist.elements if e.kind not in "c"]
+        self._models = c.netlist.models
+        self._ic = c.netlist.ic
+
+    # node voltages -------------------------------------------------------------------
+    def _voltages(self, x: np.ndarray, u: np.ndarray, t: float) -> tuple[dict, dict]:
+        """Every node's voltage ``(...)`` and its derivative w.r.t. the states ``(..., n)``."""
+        c = self.circuit
+        n = self.n_states
+        lead = x.shape[:-1]
+        zero = np.zeros(lead)
+        dzero = np.zeros(lead + (n,))
+        v = {g: zero for g in GROUND}
+        dv = {g: dzero for g in GROUND}
+        for i, node in enumerate(c.state_nodes):
+            v[node] = x[..., i]
+            d = np.zeros(lead + (n,))
+            d[..., i] = 1.0
+            dv[node] = d
+        todo = list(c.fixed)
+        guard = 0
+        while todo:
+            guard += 1
+            node = todo.pop(0)
+            e, other, sign = c.fixed[node]
+            if other not in v:
+                todo.append(node)
+                continue
+            if e.kind == "v":
+                if e.name in c.inputs:
+                    value = u[..., c.inputs.index(e.name)]
+                else:
+                    value = np.full(lead, source_value(e.waveform, t)[0])
+                v[node] = v[other] + sign * value
+                dv[node] = dv[other]
+            else:                                  # E: v(p) - v(m) = gain (v(cp) - v(cm))
+                cp, cm = e.nodes[2:]
+                if cp not in v or cm not in v:
+                    if guard > 10 * len(c.fixed) + 10:
+                        raise NetlistError(c.netlist.source, e.line, f"{e.name}: its "
+                                           "controlling nodes depend on it")
+                    todo.append(node)
+                    continue
+                ctrl = v[cp] - v[cm]
+                v[node] = v[other] + sign * e.value * ctrl
+                dv[node] = dv[other] + sign * e.value * (dv[cp] - dv[cm])
+        return v, dv
+
+    def f_and_jacobian(self, x, u, t: float = 0.0):
+        x = np.asarray(x, float)
+        u = np.asarray(u, float)
+        lead = np.broadcast_shapes(x.shape[:-1], u.shape[:-1])
+        x = np.broadcast_to(x, lead + x.shape[-1:])
+        u = np.broadcast_to(u, lead + (self.n_inputs,))
+        c = self.circuit
+        k, n = len(c.state_nodes), self.n_states
+        v, dv = self._voltages(x, u, t)
+        out = np.zeros(lead + (k,))                     # current leaving each state node
+        d_out = np.zeros(lead + (k, n))
+        dxdt = np.zeros(lead + (n,))
+        J = np.zeros(lead + (n, n))
+
+        def leave(node, cur, dcur):
+            i = c.index.get(node)
+            if i is not None:
+                out[..., i] += cur
+                d_out[..., i, :] += dcur
+
+        for e in self._elements:
+            kind = e.kind
+            if kind == "r":
+                a, b = e.nodes
+                cur = (v[a] - v[b]) / e.value
+                dcur = (dv[a] - dv[b]) / e.value
+                leave(a, cur, dcur)
+                leave(b, -cur, -dcur)
+            elif kind == "i":                          # current from n+ through it to n-
+                a, b = e.nodes
+                val = source_value(e.waveform, t)[0]
+                leave(a, np.full(lead, val), 0.0)
+                leave(b, np.full(lead, -val), 0.0)
+            elif kind == "g":
+                a, b, cp, cm = e.nodes
+                cur = e.value * (v[cp] - v[cm])
+                dcur = e.value * (dv[cp] - dv[cm])
+                leave(a, cur, dcur)
+                leave(b, -cur, -dcur)
+            elif kind == "l":
+                j = k + self._inductor_index(e)
+                a, b = e.nodes
+                cur = x[..., j]
+                dcur = np.zeros(lead + (n,))
+                dcur[..., j] = 1.0
+                leave(a, cur, dcur)
+                leave(b, -cur, -dcur)
+                dxdt[..., j] = (v[a] - v[b]) / e.value
+                J[..., j, :] = (dv[a] - dv[b]) / e.value
+            elif kind == "d":
+                a, b = e.nodes
+                cur, g = _diode(v[a] - v[b], {**DIODE, **self._models[e.ref].params})
+                dcur = g[..., None] * (dv[a] - dv[b])
+                leave(a, cur, dcur)
+                leave(b, -cur, -dcur)
+            elif kind == "q":
+                col, base, emi = e.nodes
+                p = {**BJT, **self._models[e.ref].params}
+                sign = -1.0 if self._models[e.ref].type == "pnp" else 1.0
+                aF, aR = p["alpha_f"], p["alpha_r"]
+                vbe, vbc = sign * (v[base] - v[emi]), sign * (v[base] - v[col])
+                tc = ebers_moll.currents(vbe, vbc, p["ies"], aF * p["ies"] / aR, aF, aR,
+                                         p["vt"])
+                dbe, dbc = sign * (dv[base] - dv[emi]), sign * (dv[base] - dv[col])
+                for node, cur, d_be, d_bc in ((col, tc.I_C, tc.dIC_be, tc.dIC_bc),
+                                              (emi, tc.I_E, tc.dIE_be, tc.dIE_bc),
+                                              (base, tc.I_B, tc.dIB_be, tc.dIB_bc)):
+                    # terminal current flows into the device: it leaves the node
+                    leave(node, sign * cur, sign * (d_be[..., None] * dbe
+                                                    + d_bc[..., None] * dbc))
+            elif kind == "m":
+                d_, g_, s_, b_ = e.nodes
+                cur, dd, dg, ds, db = _ekv(v[d_], v[g_], v[s_], v[b_],
+                                           {**EKV, **self._models[e.ref].params})
+                dcur = (dd[..., None] * dv[d_] + dg[..., None] * dv[g_]
+                        + ds[..., None] * dv[s_] + db[..., None] * dv[b_])
+                leave(d_, cur, dcur)
+                leave(s_, -cur, -dcur)
+        rhs = -out
+        for i, node, cap in c.cap_to_fixed:
+            e, other, sign = c.fixed[node]
+            slope = 0.0
+            while True:
+                if e.kind == "v":
+                    slope += sign * source_value(e.waveform, t)[1]
+                if other in GROUND:
+                    break
+                e, other, sign = c.fixed[other]
+            rhs[..., i] += cap * slope
+        dxdt[..., :k] = rhs @ c.C_inv.T
+        J[..., :k, :] = -np.einsum("ij,...jn->...in", c.C_inv, d_out)
+        return dxdt, J
+
+    def source_to_input(self, source: np.ndarray, dt: float) -> np.ndarray:
+        """Source voltages on each interval: the mean of the samples at its two ends (a
+        netlist's inputs are source voltages, as the hand-written diffamp_em's are)."""
+        return 0.5 * (source[..., 1:, :] + source[..., :-1, :])
+
+    def _inductor_index(self, e: Element) -> int:
+        return next(i for i, L in enumerate(self.circuit.inductors) if L.name == e.name)
+
+    def h(self, x):
+        term = self.circuit.output_terms
+        x = np.asarray(x, float)
+        if term[0] == "i" or term[2] is None:
+            return x[..., term[1]:term[1] + 1]
+        return (x[..., term[1]] - x[..., term[2]])[..., None]
+
+    def h_jacobian(self, x):
+        term = self.circuit.output_terms
+        x = np.asarray(x, float)
+        H = np.zeros(x.shape[:-1] + (1, self.n_states))
+        H[..., 0, term[1]] = 1.0
+        if term[0] == "v" and term[2] is not None:
+            H[..., 0, term[2]] = -1.0
+        return H
+
+    def initial_state(self) -> np.ndarray:
+        """``.ic`` values where given, zero elsewhere."""
+        x = np.zeros(self.n_states)
+        for node, value in self._ic.items():
+            if node in self.circuit.index:
+                x[self.circuit.index[node]] = value
+        return x
+
+
+def _with_params(text: str, lines: list[str]) -> str:
+    """The netlist ``text`` with its ``.param`` lines replaced by ``lines`` (after the
+    title)."""
+    rows = text.splitlines()
+    kept = [r for r in rows[1:] if not r.strip().lower().startswith(".param")]
+    return "\n".join([rows[0], *lines, *kept])
+
+
+def _diode(vd, p):
+    """Shockley diode with series resistance: current and conductance. With ``rs > 0`` the
+    junction voltage is eliminated in closed form: ``i = a W(b e^{(v + Is rs)/a}) / rs - Is``
+    with ``a = n V_T``, ``b = Is rs / a`` (Lambert W)."""
+    vt = 0.025852
+    a = p["n"] * vt
+    Is, rs = p["is"], p["rs"]
+    if rs <= 0:
+        with np.errstate(over="ignore"):
+            e = np.exp(vd / a)
+        return Is * (e - 1), Is * e / a
+    z = np.log(Is * rs / a) + (vd + Is * rs) / a           # log of W's argument
+    w = np.where(z < 500, np.real(lambertw(np.exp(np.minimum(z, 500)))),
+                 z - np.log(np.maximum(z, 1.0)))
+    i = a * w / rs - Is
+    g = (i + Is) / (a + rs * (i + Is))
+    return i, g
+
+
+def _ekv(vd, vg, vs, vb, p):
+    """The EKV drain-to-source current (:meth:`estim.models.mosfet_ekv.MosfetEKV.drain_current`,
+    law ``ekv``) and its derivatives w.r.t. the drain, gate, source and bulk voltages."""
+    from estim.models.mosfet_ekv import _sigmoid, _softplus
+
+    ut, vt0, eta = p["u_t"], p["v_t0"], p["eta"]
+    Is = p["i_0"] * p["w_l"]
+    vp = (vg - vb - vt0) / eta
+    a_s = (vp - (vs - vb)) / (2 * ut)
+    a_d = (vp - (vd - vb)) / (2 * ut)
+    Fs, Fd = _softplus(a_s) ** 2, _softplus(a_d) ** 2
+    dFs = 2 * _softplus(a_s) * _sigmoid(a_s) / (2 * ut)
+    dFd = 2 * _softplus(a_d) * _sigmoid(a_d) / (2 * ut)
+    cur = Is * (Fs - Fd)
+    dg = Is * (dFs - dFd) / eta
+    db = Is * (dFs - dFd) * (1 - 1 / eta)
+    ds = -Is * dFs
+    dd = Is * dFd
+    return cur, dd, dg, ds, db
