@@ -187,6 +187,18 @@ HOSTILE = [
     ("dipole_field", {"filter.members": 2}, "filter.members", "integer from 3"),
     ("dipole_field", {"grid.boundary": "pml"}, "grid.boundary", "'dirichlet', 'mur'"),
     ("dipole_field", {"filter.block": 5}, "filter.block", "divisor of grid.n"),
+    ("dipole_field", {"filter.field_error": -0.1}, "filter.field_error", "number >= 0"),
+    ("dipole_field", {"filter.field_error_profile": "shell"}, "filter.field_error_profile",
+     "'truncation', 'uniform'"),
+    ("dipole_field", {"filter.field_error_length": 0}, "filter.field_error_length",
+     "positive number"),
+    ("dipole_field", {"filter.localisation": 0}, "filter.localisation", "positive number"),
+    ("dipole_field", {"filter.amplitude_localisation": "far"},
+     "filter.amplitude_localisation", "number"),
+    ("dipole_field", {"filter.representation_error": -1}, "filter.representation_error",
+     "number >= 0"),
+    ("dipole_field", {"source_only.representation_error": "x"},
+     "source_only.representation_error", "number"),
     ("dipole_field", {"filter.model_error": 0.02}, "filter.model_error", "unknown key"),
     ("field_grid", {"study.values": [16, 30]}, "study.values[1]", "grid.n = 30: filter.block"),
     ("field_grid", {"study.setting": "grid.length"}, "study.setting", "'filter.members'"),
@@ -257,6 +269,37 @@ HOSTILE = [
 def test_hostile_config_is_one_line_and_exit_2(tmp_path, name, changes, key, expected):
     path, result = validate_text(tmp_path, yaml.safe_dump(config(name, changes)))
     assert_one_line_exit_2(result, path, key or None, expected)
+
+
+DIFFAMP_NETLIST = str(ROOT / "circuits" / "diffamp_em.cir")
+GOOD_BLOCK = {"netlist": DIFFAMP_NETLIST, "input": ["VB1", "VB2"], "output": "v(c1,c2)"}
+
+
+@pytest.mark.parametrize("block, key, expected", [
+    ({**GOOD_BLOCK, "netlist": "nope.cir"}, "model.netlist", "no file 'nope.cir'"),
+    ({**GOOD_BLOCK, "netlist": 3}, "model.netlist", "expected a file name"),
+    ({**GOOD_BLOCK, "input": 5}, "model.input", "the name of the voltage source"),
+    ({**GOOD_BLOCK, "output": 7}, "model.output", "v(node)"),
+    ({**GOOD_BLOCK, "output": "v(zz)"}, "model.netlist", "node zz is not a state node"),
+    ({**GOOD_BLOCK, "input": ["VX"]}, "model.netlist", "input 'vx' is not a voltage source"),
+    ({**GOOD_BLOCK, "name": "diffamp_em"}, "model.name", "either a registered model"),
+    ({**GOOD_BLOCK, "netlist": "BAD"}, "model.netlist", "bad.cir:3: unknown element 'z1'"),
+], ids=lambda v: v if isinstance(v, str) else None)
+def test_a_bad_netlist_model_block_is_one_line_and_exit_2(tmp_path, block, key, expected):
+    if block["netlist"] == "BAD":
+        (tmp_path / "bad.cir").write_text("title\nV1 a 0 DC 1\nZ1 a 0 1k\n")
+        block = {**block, "netlist": str(tmp_path / "bad.cir")}
+    spec = config("diffamp_em_distortion", {})
+    spec["model"] = block
+    path, result = validate_text(tmp_path, yaml.safe_dump(spec))
+    assert_one_line_exit_2(result, path, key, expected)
+
+
+def test_a_netlist_model_block_validates(tmp_path):
+    spec = config("diffamp_em_distortion", {})
+    spec["model"] = GOOD_BLOCK
+    path, result = validate_text(tmp_path, yaml.safe_dump(spec))
+    assert result.exit_code == 0, result.output
 
 
 @pytest.mark.parametrize("text, expected", [

@@ -35,7 +35,7 @@ from scipy.special import lambertw
 
 from estim.devices import ebers_moll
 from estim.models.base import Model, param
-from estim.spice.parser import Element, Netlist, NetlistError
+from estim.spice.parser import Netlist, NetlistError
 
 GROUND = ("0", "gnd")
 
@@ -154,7 +154,6 @@ class Circuit:
                                "one terminal only")
         k = len(self.state_nodes)
         C = np.zeros((k, k))
-        self.cap_to_fixed = []          # (state index, fixed node, capacitance)
         for e in net.elements:
             if e.kind != "c":
                 continue
@@ -169,10 +168,9 @@ class Circuit:
                 elif other not in GROUND:
                     if self._driven_by_input(other):
                         raise NetlistError(src, e.line, f"{e.name}: a capacitor to node "
-                                           f"{other}, which the model input drives; the "
-                                           "model would need the input's slope (put the "
-                                           "source behind a resistor)")
-                    self.cap_to_fixed.append((i, other, e.value))
+                                           f"{other}, which the model input (or an E "
+                                           "source) drives; the model would need its slope "
+                                           "(put the source behind a resistor)")
         missing = [self.state_nodes[i] for i in range(k) if C[i, i] == 0]
         if missing:
             raise NetlistError(src, 0, f"node(s) {', '.join(missing)} have no capacitive path: "
@@ -266,145 +264,128 @@ class NetlistModel(Model):
         return Path(self.circuit.netlist.source).read_text()
 
     def _prepare(self) -> None:
+        """Everything linear, once: every node's voltage as ``V = P x + Q u + r`` (states,
+        inputs, DC sources and E sources are affine), the linear branches (R, G, I, L) as
+        matrices, and the devices (D, Q, M) left for the per-call loop."""
         c = self.circuit
-        self._elements = [e for e in c.netlist.elements if e.kind not in "c"]
-        self._models = c.netlist.models
         self._ic = c.netlist.ic
+        nodes = ["0", *c.state_nodes, *c.fixed]
+        self._node = {n: i for i, n in enumerate(nodes)}
+        self._node["gnd"] = 0
+        n, p, k = self.n_states, self.n_inputs, len(c.state_nodes)
+        r = self._affine(np.zeros(n), np.zeros(p))
+        self._r = r
+        self._P = np.stack([self._affine(e, np.zeros(p)) - r for e in np.eye(n)], axis=-1)
+        self._Q = np.stack([self._affine(np.zeros(n), e) - r for e in np.eye(p)], axis=-1) \
+            if p else np.zeros((len(nodes), 0))
+        G = np.zeros((k, len(nodes)))               # current leaving each state node
+        K = np.zeros((k, n))
+        i0 = np.zeros(k)
+        L = np.zeros((n, len(nodes)))                # inductor rows of dx/dt
+        self._devices = []
 
-    # node voltages -------------------------------------------------------------------
-    def _voltages(self, x: np.ndarray, u: np.ndarray, t: float) -> tuple[dict, dict]:
-        """Every node's voltage ``(...)`` and its derivative w.r.t. the states ``(..., n)``."""
+        def leave(node, row, value, where):
+            i = c.index.get(node)
+            if i is not None:
+                where[i, row] += value
+
+        for e in c.netlist.elements:
+            if e.kind == "r" or e.kind == "g":
+                a, b = e.nodes[:2]
+                cp, cm = (a, b) if e.kind == "r" else e.nodes[2:]
+                g = 1 / e.value if e.kind == "r" else e.value
+                for node, sign in ((a, 1.0), (b, -1.0)):
+                    leave(node, self._node[cp], sign * g, G)
+                    leave(node, self._node[cm], -sign * g, G)
+            elif e.kind == "i":
+                for node, sign in ((e.nodes[0], 1.0), (e.nodes[1], -1.0)):
+                    if node in c.index:
+                        i0[c.index[node]] += sign * e.waveform[1]
+            elif e.kind == "l":
+                j = k + [x.name for x in c.inductors].index(e.name)
+                a, b = e.nodes
+                leave(a, j, 1.0, K)
+                leave(b, j, -1.0, K)
+                L[j, self._node[a]] += 1 / e.value
+                L[j, self._node[b]] -= 1 / e.value
+            elif e.kind in "dqm":
+                model = c.netlist.models[e.ref]
+                self._devices.append((model.type, {**DEFAULTS[model.type], **model.params},
+                                      [self._node[x] for x in e.nodes]))
+        self._G, self._K, self._i0, self._L = G, K, i0, L
+        self._linear = G @ self._P + K                # d(linear currents)/dx
+
+    def _affine(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Every node's voltage (in ``self._node`` order) at states ``x``, inputs ``u``."""
         c = self.circuit
-        n = self.n_states
-        lead = x.shape[:-1]
-        zero = np.zeros(lead)
-        dzero = np.zeros(lead + (n,))
-        v = {g: zero for g in GROUND}
-        dv = {g: dzero for g in GROUND}
-        for i, node in enumerate(c.state_nodes):
-            v[node] = x[..., i]
-            d = np.zeros(lead + (n,))
-            d[..., i] = 1.0
-            dv[node] = d
+        v = {"0": 0.0, "gnd": 0.0}
+        v.update(zip(c.state_nodes, x[:len(c.state_nodes)], strict=True))
         todo = list(c.fixed)
         guard = 0
         while todo:
             guard += 1
             node = todo.pop(0)
             e, other, sign = c.fixed[node]
-            if other not in v:
+            ready = other in v and (e.kind == "v" or (e.nodes[2] in v and e.nodes[3] in v))
+            if not ready:
+                if guard > 10 * len(c.fixed) + 10:
+                    raise NetlistError(c.netlist.source, e.line, f"{e.name}: its controlling "
+                                       "nodes depend on it")
                 todo.append(node)
                 continue
             if e.kind == "v":
-                if e.name in c.inputs:
-                    value = u[..., c.inputs.index(e.name)]
-                else:
-                    value = np.full(lead, source_value(e.waveform, t)[0])
-                v[node] = v[other] + sign * value
-                dv[node] = dv[other]
+                value = u[c.inputs.index(e.name)] if e.name in c.inputs else e.waveform[1]
             else:                                  # E: v(p) - v(m) = gain (v(cp) - v(cm))
-                cp, cm = e.nodes[2:]
-                if cp not in v or cm not in v:
-                    if guard > 10 * len(c.fixed) + 10:
-                        raise NetlistError(c.netlist.source, e.line, f"{e.name}: its "
-                                           "controlling nodes depend on it")
-                    todo.append(node)
-                    continue
-                ctrl = v[cp] - v[cm]
-                v[node] = v[other] + sign * e.value * ctrl
-                dv[node] = dv[other] + sign * e.value * (dv[cp] - dv[cm])
-        return v, dv
+                value = e.value * (v[e.nodes[2]] - v[e.nodes[3]])
+            v[node] = v[other] + sign * value
+        nodes = sorted(self._node, key=self._node.get)
+        return np.array([v[n] for n in nodes if n != "gnd"])
 
     def f_and_jacobian(self, x, u, t: float = 0.0):
         x = np.asarray(x, float)
         u = np.asarray(u, float)
         lead = np.broadcast_shapes(x.shape[:-1], u.shape[:-1])
-        x = np.broadcast_to(x, lead + x.shape[-1:])
-        u = np.broadcast_to(u, lead + (self.n_inputs,))
         c = self.circuit
-        k, n = len(c.state_nodes), self.n_states
-        v, dv = self._voltages(x, u, t)
-        out = np.zeros(lead + (k,))                     # current leaving each state node
-        d_out = np.zeros(lead + (k, n))
-        dxdt = np.zeros(lead + (n,))
-        J = np.zeros(lead + (n, n))
-
-        def leave(node, cur, dcur):
-            i = c.index.get(node)
-            if i is not None:
-                out[..., i] += cur
-                d_out[..., i, :] += dcur
-
-        for e in self._elements:
-            kind = e.kind
-            if kind == "r":
-                a, b = e.nodes
-                cur = (v[a] - v[b]) / e.value
-                dcur = (dv[a] - dv[b]) / e.value
-                leave(a, cur, dcur)
-                leave(b, -cur, -dcur)
-            elif kind == "i":                          # current from n+ through it to n-
-                a, b = e.nodes
-                val = source_value(e.waveform, t)[0]
-                leave(a, np.full(lead, val), 0.0)
-                leave(b, np.full(lead, -val), 0.0)
-            elif kind == "g":
-                a, b, cp, cm = e.nodes
-                cur = e.value * (v[cp] - v[cm])
-                dcur = e.value * (dv[cp] - dv[cm])
-                leave(a, cur, dcur)
-                leave(b, -cur, -dcur)
-            elif kind == "l":
-                j = k + self._inductor_index(e)
-                a, b = e.nodes
-                cur = x[..., j]
-                dcur = np.zeros(lead + (n,))
-                dcur[..., j] = 1.0
-                leave(a, cur, dcur)
-                leave(b, -cur, -dcur)
-                dxdt[..., j] = (v[a] - v[b]) / e.value
-                J[..., j, :] = (dv[a] - dv[b]) / e.value
-            elif kind == "d":
-                a, b = e.nodes
-                cur, g = _diode(v[a] - v[b], {**DIODE, **self._models[e.ref].params})
-                dcur = g[..., None] * (dv[a] - dv[b])
-                leave(a, cur, dcur)
-                leave(b, -cur, -dcur)
-            elif kind == "q":
-                col, base, emi = e.nodes
-                p = {**BJT, **self._models[e.ref].params}
-                sign = -1.0 if self._models[e.ref].type == "pnp" else 1.0
+        k = len(c.state_nodes)
+        V = x @ self._P.T + u @ self._Q.T + self._r          # every node's voltage
+        out = V @ self._G.T + x @ self._K.T + self._i0        # current leaving state nodes
+        d_out = np.broadcast_to(self._linear, lead + self._linear.shape).copy()
+        for kind, p, idx in self._devices:
+            if kind == "d":
+                a, b = idx
+                cur, g = _diode(V[..., a] - V[..., b], p)
+                terms = ((a, cur, g[..., None] * (self._P[a] - self._P[b])),)
+                terms += ((b, -cur, -terms[0][2]),)
+            elif kind in ("npn", "pnp"):
+                col, base, emi = idx
+                sign = -1.0 if kind == "pnp" else 1.0
                 aF, aR = p["alpha_f"], p["alpha_r"]
-                vbe, vbc = sign * (v[base] - v[emi]), sign * (v[base] - v[col])
-                tc = ebers_moll.currents(vbe, vbc, p["ies"], aF * p["ies"] / aR, aF, aR,
-                                         p["vt"])
-                dbe, dbc = sign * (dv[base] - dv[emi]), sign * (dv[base] - dv[col])
-                for node, cur, d_be, d_bc in ((col, tc.I_C, tc.dIC_be, tc.dIC_bc),
-                                              (emi, tc.I_E, tc.dIE_be, tc.dIE_bc),
-                                              (base, tc.I_B, tc.dIB_be, tc.dIB_bc)):
-                    # terminal current flows into the device: it leaves the node
-                    leave(node, sign * cur, sign * (d_be[..., None] * dbe
-                                                    + d_bc[..., None] * dbc))
-            elif kind == "m":
-                d_, g_, s_, b_ = e.nodes
-                cur, dd, dg, ds, db = _ekv(v[d_], v[g_], v[s_], v[b_],
-                                           {**EKV, **self._models[e.ref].params})
-                dcur = (dd[..., None] * dv[d_] + dg[..., None] * dv[g_]
-                        + ds[..., None] * dv[s_] + db[..., None] * dv[b_])
-                leave(d_, cur, dcur)
-                leave(s_, -cur, -dcur)
-        rhs = -out
-        for i, node, cap in c.cap_to_fixed:
-            e, other, sign = c.fixed[node]
-            slope = 0.0
-            while True:
-                if e.kind == "v":
-                    slope += sign * source_value(e.waveform, t)[1]
-                if other in GROUND:
-                    break
-                e, other, sign = c.fixed[other]
-            rhs[..., i] += cap * slope
-        dxdt[..., :k] = rhs @ c.C_inv.T
+                tc = ebers_moll.currents(sign * (V[..., base] - V[..., emi]),
+                                         sign * (V[..., base] - V[..., col]), p["ies"],
+                                         aF * p["ies"] / aR, aF, aR, p["vt"])
+                dbe = sign * (self._P[base] - self._P[emi])
+                dbc = sign * (self._P[base] - self._P[col])
+                # a terminal current flows into the device: it leaves the node
+                terms = tuple((node, sign * cur, sign * (d_be[..., None] * dbe
+                                                         + d_bc[..., None] * dbc))
+                              for node, cur, d_be, d_bc in (
+                                  (col, tc.I_C, tc.dIC_be, tc.dIC_bc),
+                                  (emi, tc.I_E, tc.dIE_be, tc.dIE_bc),
+                                  (base, tc.I_B, tc.dIB_be, tc.dIB_bc)))
+            else:
+                d_, g_, s_, b_ = idx
+                cur, dd, dg, ds, db = _ekv(V[..., d_], V[..., g_], V[..., s_], V[..., b_], p)
+                dcur = (dd[..., None] * self._P[d_] + dg[..., None] * self._P[g_]
+                        + ds[..., None] * self._P[s_] + db[..., None] * self._P[b_])
+                terms = ((d_, cur, dcur), (s_, -cur, -dcur))
+            for node, cur, dcur in terms:
+                i = node - 1                               # state nodes follow ground
+                if 0 <= i < k:
+                    out[..., i] += cur
+                    d_out[..., i, :] += dcur
+        dxdt = V @ self._L.T
+        dxdt[..., :k] = -out @ c.C_inv.T
+        J = np.broadcast_to(self._L @ self._P, lead + (self.n_states, self.n_states)).copy()
         J[..., :k, :] = -np.einsum("ij,...jn->...in", c.C_inv, d_out)
         return dxdt, J
 
@@ -412,9 +393,6 @@ class NetlistModel(Model):
         """Source voltages on each interval: the mean of the samples at its two ends (a
         netlist's inputs are source voltages, as the hand-written diffamp_em's are)."""
         return 0.5 * (source[..., 1:, :] + source[..., :-1, :])
-
-    def _inductor_index(self, e: Element) -> int:
-        return next(i for i, L in enumerate(self.circuit.inductors) if L.name == e.name)
 
     def h(self, x):
         term = self.circuit.output_terms
