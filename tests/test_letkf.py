@@ -242,6 +242,7 @@ def test_the_truncation_profile_is_the_leapfrogs_own_error_per_step():
     spec["filter"]["field_error_profile"] = "truncation"
     exp = parse_data(spec, "t.yaml", "t")
     su = df._setup(exp.spec, exp.plan)
+    assert len(su.local.points) == su.local.cubes == 512     # every cube has a sensor in reach
     r = exp.plan.grid.r
     far = (r >= 1.2) & (r < 1.9)
     near = (r >= 0.25) & (r < 0.45)
