@@ -252,3 +252,16 @@ def test_the_truncation_profile_is_the_leapfrogs_own_error_per_step():
     spec["filter"]["field_error_profile"] = "uniform"
     su = df._setup(parse_data(spec, "t.yaml", "t").spec, exp.plan)
     assert np.all(su.error_scale == spec["filter"]["field_error"])
+
+
+def test_the_field_cycle_does_not_depend_on_the_blas_thread_count():
+    """A multi-threaded BLAS splits the ensemble products by its thread count; the cycle
+    runs BLAS on one thread, so the tables are the same whatever the machine allows."""
+    from threadpoolctl import threadpool_limits
+
+    exp = _spec(n=16, length=2.0, fraction=0.05, members=50, sensors_r=(0.2, 0.9))
+    with threadpool_limits(limits=1):
+        one = df.run_point(exp, (0, 0, 0))[0]
+    with threadpool_limits(limits=4):
+        many = df.run_point(exp, (0, 0, 0))[0]
+    assert [r["rmse"] for r in one] == [r["rmse"] for r in many]

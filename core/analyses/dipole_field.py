@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 from scipy.spatial import cKDTree
+from threadpoolctl import threadpool_limits
 
 from estim import claims, metrics, plots
 from estim.analyses import dipole as literal
@@ -464,7 +465,19 @@ def cycle(exp: Experiment, su: _Setup, nominal: complex, rng: np.random.Generato
           euler: bool = False) -> dict:
     """One run: spin-up, then ``record`` steps of forecast, sensors and both filters'
     analyses. Returns the traces of every estimator's E and H at each step (``traces``),
-    the times, the readings ``(steps, 2, 3, sensors)`` and the filters' health per step."""
+    the times, the readings ``(steps, 2, 3, sensors)`` and the filters' health per step.
+
+    BLAS runs on one thread here: a multi-threaded BLAS splits the ensemble-sized products
+    and eigen-decompositions by its thread count, and the tables' last digits followed the
+    machine's core count (measured: a run with OMP_NUM_THREADS unset and one with it at 1
+    differed at 2e-12). With one thread they are the same whatever the machine or
+    ``--jobs``, and the runs here were timed so."""
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _cycle(exp, su, nominal, rng, euler)
+
+
+def _cycle(exp: Experiment, su: _Setup, nominal: complex, rng: np.random.Generator,
+           euler: bool) -> dict:
     reuse_freed_memory()
     spec, plan = exp.spec, exp.plan
     grid = plan.grid
