@@ -252,7 +252,10 @@ def listing(only: str | None = None) -> str:
             parts.append(f"### analysis `{name}`\n\n{doc}\n\n"
                          + _table(describe(Common) + describe(module.Config), head))
     def own(cls: type) -> bool:
-        return not cls.__module__.startswith(registry.PLUGIN_PREFIX)
+        """estim's declarations: not a plugin's, not a model built from a config's netlist
+        (its parameters are the netlist's .param lines, not settings)."""
+        return not (cls.__module__.startswith(registry.PLUGIN_PREFIX)
+                    or getattr(cls, "from_netlist", False))
 
     for name in registry.ESTIMATORS:
         if only in (None, name) and own(registry.ESTIMATORS[name]):

@@ -246,6 +246,7 @@ class NetlistModel(Model):
     """Base of the netlist model classes :func:`build_model_class` makes."""
 
     circuit: Circuit
+    from_netlist = True
 
     def __init__(self, variant: str | None = None, **overrides) -> None:
         super().__init__(variant, **overrides)
