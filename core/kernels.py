@@ -6,6 +6,9 @@ builds it). The integrator in :mod:`estim.compiled` calls :func:`evaluate` with 
 number, so every compiled function is a module-level function that numba can cache on disk:
 a kernel passed as a function argument was compiled anew in every process (10 s each).
 Adding a kernel is one function here, one number and one branch in :func:`evaluate`.
+numba's disk cache of the integrator (:mod:`estim.compiled`) is keyed on that file only and
+does not notice a change here: after editing a kernel, delete the caches (``find . -name
+'*.nb[ic]' -delete``) or the cached integrator keeps calling the old kernel.
 """
 
 from __future__ import annotations
@@ -25,7 +28,7 @@ def jit(fn):
     where numba is installed, else the plain function."""
     return numba.njit(cache=True, error_model="numpy")(fn) if AVAILABLE else fn
 
-MOSFET, DIFFAMP, EXPANDED = 0, 1, 2
+MOSFET, DIFFAMP, EXPANDED, NETLIST = 0, 1, 2, 3
 
 
 def _mosfet(x, u, P, f, J):
@@ -156,9 +159,165 @@ def _expanded(x, u, P, f, J):
         f[n + a] = f1 + 0.5 * q
 
 
+def _lambertw_exp(z):
+    """``W(e^z)`` (the principal branch of Lambert's W at ``e^z``) by Newton's method on
+    ``w + ln w = z``, to rounding; no overflow for large ``z``."""
+    w = z - np.log(z) if z > 1.0 else np.exp(z) / (1.0 + np.exp(z)) * (1.0 + max(z, 0.0))
+    if w <= 0.0:
+        w = np.exp(z)
+        if w == 0.0:
+            return 0.0
+    for _ in range(60):
+        step = (w + np.log(w) - z) * w / (w + 1.0)
+        w_new = w - step
+        if w_new <= 0.0:
+            w_new = 0.5 * w
+        if abs(w_new - w) <= 1e-16 * w_new:
+            return w_new
+        w = w_new
+    return w
+
+
+def _netlist(x, u, P, f, J):
+    """A netlist model (``estim.spice.circuit.NetlistModel``) in scalar form, in the numpy
+    path's order: the currents leaving the state nodes, linear part ``Y x + W u + c`` (R, G,
+    I and the sources), plus each device (D, Q, M) from its terminal voltages
+    ``V = Pm x + Qm u + r``; then ``f = -C^-1 (currents)`` on the node states and the inductor
+    drift (the last rows of ``Y, W, c``) as is. The currents are summed before ``C^-1`` is
+    applied: folding ``C^-1`` (entries 1/C_par ~ 1e12) into the coefficients made sums of
+    1e9-sized terms that left a rounding bias in ``f`` which the slow load capacitor
+    integrated into 1e-10 V over 3 ms. One kernel for every netlist: the circuit is data in
+    ``P``, so numba compiles it once and caches it.
+
+    ``P = [n, k, p, N, devices, Y (n n), W (n p), c (n), Pm (N n), Qm (N p), r (N),
+    -C^-1 (k k), device rows (10 each)]``; a device row is ``[type, four node indices (-1:
+    none), five parameters]``: type 0 a diode (``a, b``; ``I_s, n V_T, r_s``), 1/2 an
+    NPN/PNP (``c, b, e``; ``I_ES, I_CS, alpha_F, alpha_R, V_T``), 3 an EKV NMOS
+    (``d, g, s, b``; ``U_T, V_T0, eta, I_s``)."""
+    n, k, p, N, nd = int(P[0]), int(P[1]), int(P[2]), int(P[3]), int(P[4])
+    oA = 5
+    oB = oA + n * n
+    oc = oB + n * p
+    oP = oc + n
+    oQ = oP + N * n
+    orr = oQ + N * p
+    oM = orr + N
+    odev = oM + k * k
+    for a in range(n):
+        s = P[oc + a]
+        for b in range(n):
+            s += P[oA + a * n + b] * x[b]
+            J[a, b] = P[oA + a * n + b]
+        for c in range(p):
+            s += P[oB + a * p + c] * u[c]
+        f[a] = s
+    scratch = np.empty(19 + n + k * (n + 1))            # one allocation per call
+    v = scratch[0:4]
+    term = scratch[4:7]
+    dterm = scratch[7:19].reshape(3, 4)
+    grad = scratch[19:19 + n]
+    cur = scratch[19 + n:].reshape(k, n + 1)
+    for d in range(nd):
+        row = odev + 10 * d
+        kind = P[row]
+        for c in range(4):
+            node = int(P[row + 1 + c])
+            if node >= 0:
+                s = P[orr + node]
+                for b in range(n):
+                    s += P[oP + node * n + b] * x[b]
+                for q in range(p):
+                    s += P[oQ + node * p + q] * u[q]
+                v[c] = s
+        dterm[:, :] = 0.0
+        term[:] = 0.0
+        if kind == 0.0:
+            Is, a_, rs = P[row + 5], P[row + 6], P[row + 7]
+            vd = v[0] - v[1]
+            if rs <= 0.0:
+                e = np.exp(vd / a_)
+                i_d, g = Is * (e - 1.0), Is * e / a_
+            else:
+                w = lambertw_exp(np.log(Is * rs / a_) + (vd + Is * rs) / a_)
+                i_d = a_ * w / rs - Is
+                g = (i_d + Is) / (a_ + rs * (i_d + Is))
+            term[0], term[1] = i_d, -i_d
+            dterm[0, 0], dterm[0, 1] = g, -g
+            dterm[1, 0], dterm[1, 1] = -g, g
+            t0, t1, t2 = 0, 1, -1
+        elif kind == 1.0 or kind == 2.0:
+            sign = 1.0 if kind == 1.0 else -1.0
+            I_ES, I_CS, aF, aR, VT = P[row + 5], P[row + 6], P[row + 7], P[row + 8], P[row + 9]
+            eF = np.exp(sign * (v[1] - v[2]) / VT)
+            eR = np.exp(sign * (v[1] - v[0]) / VT)
+            fF, fR = I_ES * (eF - 1.0), I_CS * (eR - 1.0)
+            gF, gR = I_ES * eF / VT, I_CS * eR / VT
+            # currents into collector, base and emitter; by (v_c, v_b, v_e) through
+            # v_be = sign (v_b - v_e) and v_bc = sign (v_b - v_c): the signs cancel
+            term[0] = sign * (aF * fF - fR)
+            term[1] = sign * ((1.0 - aF) * fF + (1.0 - aR) * fR)
+            term[2] = sign * (-fF + aR * fR)
+            dterm[0, 0], dterm[0, 1], dterm[0, 2] = gR, aF * gF - gR, -aF * gF
+            dterm[1, 0] = -(1.0 - aR) * gR
+            dterm[1, 1] = (1.0 - aF) * gF + (1.0 - aR) * gR
+            dterm[1, 2] = -(1.0 - aF) * gF
+            dterm[2, 0], dterm[2, 1], dterm[2, 2] = -aR * gR, -gF + aR * gR, gF
+            t0, t1, t2 = 0, 1, 2
+        else:
+            UT, VT0, eta, Is = P[row + 5], P[row + 6], P[row + 7], P[row + 8]
+            vp = (v[1] - v[3] - VT0) / eta
+            a_s = (vp - (v[2] - v[3])) / (2 * UT)
+            a_d = (vp - (v[0] - v[3])) / (2 * UT)
+            sp_s = max(a_s, 0.0) + np.log1p(np.exp(-abs(a_s)))
+            sp_d = max(a_d, 0.0) + np.log1p(np.exp(-abs(a_d)))
+            dFs = 2 * sp_s * 0.5 * (1.0 + np.tanh(0.5 * a_s)) / (2 * UT)
+            dFd = 2 * sp_d * 0.5 * (1.0 + np.tanh(0.5 * a_d)) / (2 * UT)
+            i_ds = Is * (sp_s * sp_s - sp_d * sp_d)
+            term[0], term[1] = i_ds, -i_ds
+            dterm[0, 0], dterm[0, 1] = Is * dFd, Is * (dFs - dFd) / eta
+            dterm[0, 2], dterm[0, 3] = -Is * dFs, Is * (dFs - dFd) * (1 - 1 / eta)
+            for c in range(4):
+                dterm[1, c] = -dterm[0, c]
+            t0, t1, t2 = 0, 2, -1
+        for t_ in range(3):
+            slot = t0 if t_ == 0 else (t1 if t_ == 1 else t2)
+            if slot < 0:
+                continue
+            i = int(P[row + 1 + slot]) - 1                 # state nodes follow ground
+            if i < 0 or i >= k:
+                continue
+            for b in range(n):
+                grad[b] = 0.0
+            for c in range(4):
+                g = dterm[t_, c]
+                node = int(P[row + 1 + c])
+                if g == 0.0 or node < 0:
+                    continue
+                for b in range(n):
+                    grad[b] += g * P[oP + node * n + b]
+            f[i] += term[t_]
+            for b in range(n):
+                J[i, b] += grad[b]
+    for i in range(k):
+        cur[i, n] = f[i]
+        for b in range(n):
+            cur[i, b] = J[i, b]
+    for a in range(k):
+        s = 0.0
+        for i in range(k):
+            s += P[oM + a * k + i] * cur[i, n]
+        f[a] = s
+        for b in range(n):
+            s = 0.0
+            for i in range(k):
+                s += P[oM + a * k + i] * cur[i, b]
+            J[a, b] = s
+
 mosfet = jit(_mosfet)
 diffamp = jit(_diffamp)
 expanded = jit(_expanded)
+lambertw_exp = jit(_lambertw_exp)
+netlist = jit(_netlist)
 
 
 def _evaluate(kind, x, u, P, f, J):
@@ -166,8 +325,10 @@ def _evaluate(kind, x, u, P, f, J):
         mosfet(x, u, P, f, J)
     elif kind == DIFFAMP:
         diffamp(x, u, P, f, J)
-    else:
+    elif kind == EXPANDED:
         expanded(x, u, P, f, J)
+    else:
+        netlist(x, u, P, f, J)
 
 
 evaluate = jit(_evaluate)

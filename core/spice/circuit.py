@@ -33,6 +33,7 @@ import re
 import numpy as np
 from scipy.special import lambertw
 
+from estim import kernels
 from estim.devices import ebers_moll
 from estim.models.base import Model, param
 from estim.spice.parser import Netlist, NetlistError
@@ -81,6 +82,8 @@ def source_value(waveform: tuple, t: float) -> tuple[float, float]:
     return values[k] + slope * (t - times[k]), slope
 
 
+DIODE_VT = 0.025852
+"""The diode's thermal voltage (300 K), as the BJT model's default ``vt``."""
 DIODE = {"is": 1e-14, "n": 1.0, "rs": 0.0}
 BJT = {"ies": 1e-14, "alpha_f": 0.99, "alpha_r": 0.5, "vt": 0.025852}
 EKV = {"u_t": 0.0256, "v_t0": 0.5, "eta": 1.0, "i_0": 1e-9, "w_l": 1.0}
@@ -153,7 +156,9 @@ class Circuit:
             raise NetlistError(src, 0, f"floating node(s) {', '.join(lonely)}: connected to "
                                "one terminal only")
         k = len(self.state_nodes)
+        self.slope = self._input_mode()
         C = np.zeros((k, k))
+        B = np.zeros((k, len(self.inputs)))
         for e in net.elements:
             if e.kind != "c":
                 continue
@@ -165,6 +170,8 @@ class Circuit:
                 C[i, i] += e.value
                 if j is not None:
                     C[i, j] -= e.value
+                elif other in self.input_nodes:
+                    B[i, self.input_nodes.index(other)] += e.value
                 elif other not in GROUND:
                     if self._driven_by_input(other):
                         raise NetlistError(src, e.line, f"{e.name}: a capacitor to node "
@@ -180,6 +187,7 @@ class Circuit:
                                "nodes joined only by capacitors with no capacitor to the "
                                "rest): add a shunt capacitor")
         self.C_inv = np.linalg.inv(C) if k else np.zeros((0, 0))
+        self.B = B
         for e in net.elements:
             if e.kind in "dqm":
                 model = net.models.get(e.ref)
@@ -196,6 +204,35 @@ class Circuit:
                                        f"parameter(s) {sorted(unknown)}; expected "
                                        f"{sorted(DEFAULTS[model.type])}")
         self.output_terms = self._output(self.output)
+
+    def _input_mode(self) -> bool:
+        """Whether the model input is the sources' slope (True) or their value. An input
+        whose node reaches the circuit only through capacitors (a coupling capacitor, as the
+        MOSFET's C_GX) drives it by its slope ``C dv/dt``; one that reaches it only through
+        other elements drives it by its value. A node with both is refused (the model would
+        need value and slope), as are inputs of both kinds in one netlist."""
+        net, src = self.netlist, self.netlist.source
+        self.input_nodes = []
+        kinds = set()
+        for name in self.inputs:
+            e = net.element(name)
+            node = next(n for n, v in self.fixed.items() if v[0] is e)
+            self.input_nodes.append(node)
+            others = [x for x in net.elements if x is not e and node in x.nodes]
+            caps = [x for x in others if x.kind == "c"]
+            if caps and len(caps) < len(others):
+                rest = next(x for x in others if x.kind != "c")
+                raise NetlistError(src, caps[0].line, f"{caps[0].name}: input {e.name} "
+                                   f"drives node {node} through this capacitor and through "
+                                   f"{rest.name}; estim takes an input by its slope "
+                                   "(capacitors only) or by its value (no capacitor): put a "
+                                   "resistor in series with the capacitor")
+            kinds.add(bool(caps))
+        if len(kinds) > 1:
+            raise NetlistError(src, 0, "inputs driving through capacitors (by their slope) "
+                               "and inputs driving by their value in one netlist: not "
+                               "supported")
+        return kinds == {True}
 
     def _driven_by_input(self, node: str) -> bool:
         seen = set()
@@ -235,7 +272,10 @@ def build_model_class(circuit: Circuit, name: str) -> type:
     net = circuit.netlist
     fields = [(k, float, param(float(v), "-", "netlist .param")) for k, v in net.params.items()]
     Params = dataclasses.make_dataclass(f"{name}_params", fields, frozen=True)
-    attrs = {"state_names": circuit.state_names, "input_names": tuple(circuit.inputs),
+    inputs = tuple(f"d({i})/dt" for i in circuit.inputs) if circuit.slope \
+        else tuple(circuit.inputs)
+    attrs = {"state_names": circuit.state_names, "input_names": inputs,
+             "input_is_source_slope": circuit.slope, "input_affine": circuit.slope,
              "output_names": (circuit.output,), "Params": Params, "variants": {},
              "circuit": circuit, "__doc__": f"Netlist model of {net.source} ({net.title})."}
     clean = re.sub(r"\W", "_", name)
@@ -314,6 +354,7 @@ class NetlistModel(Model):
                 self._devices.append((model.type, {**DEFAULTS[model.type], **model.params},
                                       [self._node[x] for x in e.nodes]))
         self._G, self._K, self._i0, self._L = G, K, i0, L
+        self._U = -c.B                                 # a slope input's capacitor current
         self._linear = G @ self._P + K                # d(linear currents)/dx
 
     def _affine(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
@@ -334,8 +375,10 @@ class NetlistModel(Model):
                                        "nodes depend on it")
                 todo.append(node)
                 continue
-            if e.kind == "v":
-                value = u[c.inputs.index(e.name)] if e.name in c.inputs else e.waveform[1]
+            if e.kind == "v" and e.name in c.inputs:
+                value = 0.0 if c.slope else u[c.inputs.index(e.name)]
+            elif e.kind == "v":
+                value = e.waveform[1]
             else:                                  # E: v(p) - v(m) = gain (v(cp) - v(cm))
                 value = e.value * (v[e.nodes[2]] - v[e.nodes[3]])
             v[node] = v[other] + sign * value
@@ -349,7 +392,7 @@ class NetlistModel(Model):
         c = self.circuit
         k = len(c.state_nodes)
         V = x @ self._P.T + u @ self._Q.T + self._r          # every node's voltage
-        out = V @ self._G.T + x @ self._K.T + self._i0        # current leaving state nodes
+        out = V @ self._G.T + x @ self._K.T + self._i0 + u @ self._U.T   # leaving state nodes
         d_out = np.broadcast_to(self._linear, lead + self._linear.shape).copy()
         for kind, p, idx in self._devices:
             if kind == "d":
@@ -390,9 +433,40 @@ class NetlistModel(Model):
         J[..., :k, :] = -np.einsum("ij,...jn->...in", c.C_inv, d_out)
         return dxdt, J
 
+    def kernel(self):
+        """The compiled drift for :mod:`estim.compiled`: the one netlist kernel of
+        :mod:`estim.kernels` (``_netlist``) with this circuit laid out as data."""
+        n, p = self.n_states, self.n_inputs
+        k, N = len(self.circuit.state_nodes), self._P.shape[0]
+        rows = []
+        for kind, prm, idx in self._devices:
+            nodes = [*idx, -1, -1, -1][:4]
+            if kind == "d":
+                values = [prm["is"], prm["n"] * DIODE_VT, prm["rs"], 0.0, 0.0]
+                code = 0.0
+            elif kind in ("npn", "pnp"):
+                values = [prm["ies"], prm["alpha_f"] * prm["ies"] / prm["alpha_r"],
+                          prm["alpha_f"], prm["alpha_r"], prm["vt"]]
+                code = 1.0 if kind == "npn" else 2.0
+            else:
+                values = [prm["u_t"], prm["v_t0"], prm["eta"], prm["i_0"] * prm["w_l"], 0.0]
+                code = 3.0
+            rows.append([code, *nodes, *values])
+        Y = np.vstack([self._linear[:k], (self._L @ self._P)[k:]])
+        W = np.vstack([self._G @ self._Q + self._U, (self._L @ self._Q)[k:]])
+        c = np.concatenate([self._G @ self._r + self._i0, (self._L @ self._r)[k:]])
+        P = np.concatenate([[n, k, p, N, len(rows)], Y.ravel(), W.ravel(), c, self._P.ravel(),
+                            self._Q.ravel(), self._r, (-self.circuit.C_inv).ravel(),
+                            np.ravel(rows)]).astype(float)
+        return kernels.NETLIST, P
+
     def source_to_input(self, source: np.ndarray, dt: float) -> np.ndarray:
         """Source voltages on each interval: the mean of the samples at its two ends (a
-        netlist's inputs are source voltages, as the hand-written diffamp_em's are)."""
+        netlist's inputs are source voltages, as the hand-written diffamp_em's are), or, for
+        inputs that drive through capacitors, the slope of the piecewise-linear source (as
+        the hand-written MOSFET's, eq 3.26)."""
+        if self.circuit.slope:
+            return np.diff(source, axis=-2) / dt
         return 0.5 * (source[..., 1:, :] + source[..., :-1, :])
 
     def h(self, x):
@@ -424,7 +498,14 @@ def _with_params(text: str, lines: list[str]) -> str:
     """The netlist ``text`` with its ``.param`` lines replaced by ``lines`` (after the
     title)."""
     rows = text.splitlines()
-    kept = [r for r in rows[1:] if not r.strip().lower().startswith(".param")]
+    kept, in_param = [], False
+    for r in rows[1:]:
+        s = r.strip().lower()
+        if s.startswith(".param") or (in_param and s.startswith("+")):
+            in_param = True
+            continue
+        in_param = False
+        kept.append(r)
     return "\n".join([rows[0], *lines, *kept])
 
 
@@ -432,8 +513,7 @@ def _diode(vd, p):
     """Shockley diode with series resistance: current and conductance. With ``rs > 0`` the
     junction voltage is eliminated in closed form: ``i = a W(b e^{(v + Is rs)/a}) / rs - Is``
     with ``a = n V_T``, ``b = Is rs / a`` (Lambert W)."""
-    vt = 0.025852
-    a = p["n"] * vt
+    a = p["n"] * DIODE_VT
     Is, rs = p["is"], p["rs"]
     if rs <= 0:
         with np.errstate(over="ignore"):
