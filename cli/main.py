@@ -154,8 +154,8 @@ def merge(configs, sources, out, runs, seed, quick, jobs, max_work, quiet) -> No
 @_jobs
 @_max_work
 @click.option("--all", "everything", is_flag=True,
-              help="Also the studies of configs/studies/ (Chapter 5's field filter against "
-                   "grid, sensors and members).")
+              help="Also configs/studies/ (Chapter 5's field filter against grid, sensors "
+                   "and members) and configs/netlist/ (circuits from SPICE netlists).")
 @click.option("--quiet", is_flag=True)
 def reproduce(out, jobs, max_work, everything, quiet) -> None:
     """Run every config of configs/ (the thesis tables on the default settings)."""
@@ -198,7 +198,7 @@ def table(metric, results, fmt, thesis, partial) -> None:
 @_jobs
 @_max_work
 @click.option("--all", "everything", is_flag=True,
-              help="Also the studies of configs/studies/ when no CONFIGS are named.")
+              help="Also configs/studies/ and configs/netlist/ when no CONFIGS are named.")
 def check(configs, results, jobs, max_work, everything) -> None:
     """Re-run CONFIGS (default: configs/*.yaml) as they are and compare every cell with the
     stored tables under each config's tolerances; the stored manifest must record the same

@@ -43,18 +43,26 @@ class Where:
             return self.root / "configs"
         return shipped_configs()
 
+    EXTRA = ("studies", "netlist")
+    """Config folders the default reproduction leaves out (``--all`` adds them): the studies
+    of Chapter 5's field filter, and the netlist configs (the thesis circuits and a new one
+    from SPICE netlists, circuits/)."""
+
     def configs(self, studies: bool = False) -> list[Path]:
-        """The default configs (``configs/*.yaml``); with ``studies`` also the studies
-        (``configs/studies/*.yaml``), which the default reproduction leaves out."""
+        """The default configs (``configs/*.yaml``); with ``studies`` also those of the
+        :attr:`EXTRA` folders (``configs/studies/``, ``configs/netlist/``)."""
         found = sorted(self.config_dir.glob("*.yaml"))
         if studies:
-            found += sorted((self.config_dir / "studies").glob("*.yaml"))
+            for extra in self.EXTRA:
+                found += sorted((self.config_dir / extra).glob("*.yaml"))
         return found
 
     def is_own_config(self, path: Path) -> bool:
         try:
             parent = path.resolve().parent
-            return parent in (self.config_dir.resolve(), (self.config_dir / "studies").resolve())
+            own = [self.config_dir.resolve()]
+            own += [(self.config_dir / extra).resolve() for extra in self.EXTRA]
+            return parent in own
         except OSError:
             return False
 

@@ -22,7 +22,8 @@ DIFFAMP = ROOT / "circuits" / "diffamp_em.cir"
 def test_values_take_si_suffixes_units_and_expressions():
     where = ("t.cir", 1)
     assert evaluate("4.7k", {}, where) == 4700.0
-    assert evaluate("10uF", {}, where) == pytest.approx(1e-5)
+    assert evaluate("10uF", {}, where) == 1e-5           # read as 10e-6, not 10 * 1e-6
+    assert evaluate("4.7n", {}, where) == 4.7e-9 and evaluate("1meg", {}, where) == 1e6
     assert evaluate("2meg", {}, where) == 2e6
     assert evaluate("1.5e-3", {}, where) == 1.5e-3
     assert evaluate("{2*r1 + 1k}", {"r1": 1e3}, where) == 3000.0
@@ -337,3 +338,26 @@ def test_ngspice_agrees_with_the_netlist_model():
     assert np.all(np.abs(ours - theirs).max(axis=0) <= 5.5e-6 * np.abs(theirs).max(axis=0))
     y_ours, y_theirs = model.h(ours)[:, 0], model.h(theirs)[:, 0]
     assert np.abs(y_ours - y_theirs).max() <= 1e-3 * np.abs(y_theirs).max()
+
+
+@pytest.mark.parametrize("hand, netlist", [
+    ("diffamp_em_distortion", "diffamp_em_netlist_distortion"),
+    ("mosfet_distortion", "mosfet_netlist_distortion"),
+])
+def test_netlist_configs_remake_the_hand_written_tables(hand, netlist):
+    """configs/netlist/ re-makes the stored tables of its hand-written twin within the twin's
+    check tolerances (every column, every row): results/<netlist config>/ against
+    results/<hand config>/ (estim check keeps each reproducible on its own)."""
+    import yaml
+
+    from estim import io
+    from estim.config import load_file
+
+    tol = load_file(ROOT / "configs" / f"{hand}.yaml").spec["check"]["tolerances"]
+    spec = yaml.safe_load((ROOT / "configs" / "netlist" / f"{hand}.yaml").read_text())
+    assert spec["name"] == netlist and "netlist" in spec["model"]
+    for table in ("distortion", "claims"):
+        ours = io.read_table(ROOT / "results" / netlist / f"{table}.csv")
+        theirs = io.read_table(ROOT / "results" / hand / f"{table}.csv")
+        assert list(ours.columns) == list(theirs.columns) and len(ours) == len(theirs)
+        assert io.compare_tables(theirs, ours, tol) == []

@@ -21,15 +21,29 @@ __all__ = ["NetlistError", "find_netlist", "model_class", "resolve_model_block"]
 
 
 def find_netlist(name: str, source: str) -> Path | None:
-    """``name`` as given (absolute), beside the config ``source``, or in the folder above it
-    (a project's ``circuits/`` beside its ``configs/``)."""
+    """``name`` as given (absolute); else relative to the config ``source``'s folder or any
+    folder above it (a project's ``circuits/`` beside its ``configs/``, also from
+    ``configs/netlist/``), or to the working folder; else, for ``circuits/NAME``, the
+    netlists installed with estim (``estim.circuits``)."""
     p = Path(name)
     if p.is_absolute():
         return p if p.is_file() else None
     here = Path(source).resolve().parent
-    for folder in (here, here.parent, Path.cwd()):
+    for folder in (here, *here.parents, Path.cwd()):
         if (folder / p).is_file():
             return folder / p
+    if p.parts[:1] == ("circuits",):
+        shipped = Path(__file__).resolve().parents[1] / "circuits"
+        try:
+            import importlib.util
+
+            spec = importlib.util.find_spec("estim.circuits")
+            if spec is not None and spec.submodule_search_locations:
+                shipped = Path(list(spec.submodule_search_locations)[0])
+        except ModuleNotFoundError:
+            pass
+        if (shipped / Path(*p.parts[1:])).is_file():
+            return shipped / Path(*p.parts[1:])
     return None
 
 
@@ -41,8 +55,18 @@ def model_class(path: Path, inputs, output: str, name: str | None = None) -> typ
     name = name or f"netlist:{path.stem}"
     cls = build_model_class(circuit, name)
     cls.name = name
+    cls.origin = (str(path), inputs, output, name)
     registry.MODELS.register(name, cls)
     return cls
+
+
+def rebuild(origin: tuple) -> type:
+    """The model class of ``origin`` (:attr:`NetlistModel.origin`): how a netlist model class
+    crosses to a worker process (pickled as the arguments of :func:`model_class`)."""
+    known = registry.MODELS.get(origin[3]) if origin[3] in registry.MODELS else None
+    if known is not None and getattr(known, "origin", None) == origin:
+        return known
+    return model_class(Path(origin[0]), origin[1], origin[2], origin[3])
 
 
 def resolve_model_block(data: dict, source: str) -> None:

@@ -27,6 +27,7 @@ E sources. ``F``/``H`` (current-controlled) sources are refused for now.
 
 from __future__ import annotations
 
+import copyreg
 import dataclasses
 import re
 
@@ -282,7 +283,31 @@ def build_model_class(circuit: Circuit, name: str) -> type:
     return type(f"Netlist_{clean}", (NetlistModel,), attrs)
 
 
-class NetlistModel(Model):
+class _NetlistClass(type):
+    """The type of the netlist model classes: they are made at run time, so a worker
+    process cannot import them by name; pickled, a class is the arguments that build it
+    again (:func:`estim.spice.rebuild`)."""
+
+
+def _rebuild(origin: tuple) -> type:
+    from estim.spice import rebuild
+
+    return rebuild(origin)
+
+
+def _rebuild_instance(cls: type, variant, overrides: dict):
+    return cls(variant, **overrides)
+
+
+def _reduce_class(cls: type):
+    origin = getattr(cls, "origin", None)
+    return (_rebuild, (origin,)) if origin is not None else cls.__qualname__
+
+
+copyreg.pickle(_NetlistClass, _reduce_class)
+
+
+class NetlistModel(Model, metaclass=_NetlistClass):
     """Base of the netlist model classes :func:`build_model_class` makes."""
 
     circuit: Circuit
@@ -290,6 +315,7 @@ class NetlistModel(Model):
 
     def __init__(self, variant: str | None = None, **overrides) -> None:
         super().__init__(variant, **overrides)
+        self._made_with = (variant, overrides)
         net = self.circuit.netlist
         if any(getattr(self.params, k) != v for k, v in net.params.items()):
             from estim.spice.parser import parse
@@ -299,6 +325,12 @@ class NetlistModel(Model):
             net = parse(_with_params(text, lines), net.source)
             self.circuit = Circuit(net, self.circuit.inputs, self.circuit.output)
         self._prepare()
+
+    def __reduce__(self):
+        """Pickled as its class and the arguments that made it (its ``Params`` class is made
+        at run time too, and cannot be imported by name in a worker)."""
+        variant, overrides = self._made_with
+        return (_rebuild_instance, (type(self), variant, overrides))
 
     def _source_text(self) -> str:
         from pathlib import Path

@@ -92,6 +92,14 @@ class Netlist:
         return next((e for e in self.elements if e.name == name.lower()), None)
 
 
+def _scaled(number: str, suffix: str | None) -> float:
+    """``number`` times its SI ``suffix``, rounded once: ``10u`` is read as ``10e-6`` (the
+    double nearest 1e-5), not as ``10 * 1e-6`` (one unit in the last place below it)."""
+    if suffix and suffix != "mil" and "e" not in number:
+        return float(f"{number}e{round(math.log10(SUFFIXES[suffix]))}")
+    return float(number) * SUFFIXES.get(suffix or "", 1.0)
+
+
 def evaluate(text: str, params: dict, where: tuple[str, int]) -> float:
     """A number with an SI suffix, or an expression of numbers, ``params`` and the
     functions of :data:`_FUNCTIONS`."""
@@ -100,11 +108,11 @@ def evaluate(text: str, params: dict, where: tuple[str, int]) -> float:
         text = text[1:-1]
     m = _NUMBER.match(text)
     if m:
-        return float(m.group(1)) * SUFFIXES.get(m.group(2) or "", 1.0)
+        return _scaled(m.group(1), m.group(2))
     if text in params:
         return params[text]
     expr = re.sub(r"(?<![\w.])((?:\d+\.?\d*|\.\d+)(?:e[+-]?\d+)?)(meg|mil|[fpnumkgt])(?![\w(])",
-                  lambda mm: repr(float(mm.group(1)) * SUFFIXES[mm.group(2)]), text)
+                  lambda mm: repr(_scaled(mm.group(1), mm.group(2))), text)
     expr = expr.replace("^", "**")
     try:
         tree = ast.parse(expr, mode="eval")
