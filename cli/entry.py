@@ -24,6 +24,7 @@ SHORT_HELP = {
     "reproduce": "Run every config of configs/ (the thesis tables on the default settings).",
     "run": "Run the experiment(s) of CONFIGS and write OUT/<config name>/.",
     "settings": "List every setting a config can give: analyses, estimators, models.",
+    "spice": "Simulate CONFIG's netlist circuit in estim and in ngspice and compare.",
     "summary": "Print each experiment's claim verdicts and quoted ranges from RESULTS.",
     "table": "Print the METRIC tables of every experiment found under RESULTS.",
     "tune": "Fit the Q (and R) of one estimator of CONFIG by maximum likelihood.",

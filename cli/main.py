@@ -264,6 +264,43 @@ def tune(config, label, new_label, runs, fit_r, out, max_work) -> None:
 
 
 @main.command()
+@click.argument("config", type=click.Path(path_type=Path))
+@click.option("--ngspice", "executable", help="The ngspice executable [default: ngspice on "
+              "PATH].")
+@click.option("--reltol", type=click.FloatRange(1e-14, 1e-3), default=1e-8, show_default=True,
+              help="ngspice's relative tolerance (tighter: slower, closer).")
+@click.option("--format", "fmt", type=click.Choice(["text", "csv", "markdown"]),
+              default="text", show_default=True)
+def spice(config, executable, reltol, fmt) -> None:
+    """Simulate CONFIG's netlist circuit in estim and in ngspice on the config's own input and
+    report the largest relative differences (DC point, every state and the output over the
+    run, AC gain), each against its bar; exit 1 if any is above it."""
+    from estim.spice import compare
+    from estim.spice.ngspice import NgspiceError
+
+    exp = estim.config.load_files([config])[0]
+    try:
+        table_ = compare.compare(exp, executable, reltol=reltol)
+    except NgspiceError as exc:
+        fail(str(exc))
+    shown = table_.assign(difference=table_["difference"].map("{:.2e}".format),
+                          own_scale=table_["own_scale"].map("{:.2e}".format),
+                          bar=table_["bar"].map("{:.1e}".format))
+    if fmt == "csv":
+        click.echo(table_.to_csv(index=False), nl=False)
+    elif fmt == "markdown":
+        click.echo(shown.to_markdown(index=False))
+    else:
+        click.echo(shown.to_string(index=False))
+    bad = table_[~table_["holds"]]
+    if len(bad):
+        fail(f"{exp.name}: {len(bad)} of {len(table_)} differences from ngspice above their "
+             "bars")
+    click.echo(f"{exp.name}: all {len(table_)} differences from ngspice within their bars",
+               err=True)
+
+
+@main.command()
 @click.argument("configs", nargs=-1, required=True)
 @_max_work
 def validate(configs, max_work) -> None:

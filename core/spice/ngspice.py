@@ -10,8 +10,9 @@ the DC point too. Its exit code is unreliable (circuit-facts.md): the log is rea
 Translations: an ``npn``/``pnp`` model (``ies alpha_f alpha_r vt``) becomes SPICE's
 transport form, ``IS = alpha_f ies``, ``BF = alpha_f / (1 - alpha_f)``, ``BR = alpha_r /
 (1 - alpha_r)`` (the Gummel-Poon model with no other effects is Ebers-Moll), at the
-temperature whose ``kT/q`` is ``vt``; a diode keeps ``is n rs`` (at the same temperature);
-EKV ``nmos`` models are not translated yet.
+temperature whose ``kT/q`` is ``vt``; a diode keeps ``is n rs`` (at the same temperature, or
+at the one whose ``kT/q`` is estim's diode ``V_T`` where no transistor sets it); an EKV
+``nmos`` device becomes a behavioural current source (``B``) with the EKV law written out.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from estim.errors import EstimError
+from estim.spice.circuit import DIODE_VT, EKV
 from estim.spice.parser import Netlist
 
 K_OVER_Q = 1.38064852e-23 / 1.6021766208e-19
@@ -38,6 +40,8 @@ class NgspiceError(EstimError, RuntimeError):
 
 def find(executable: str | None = None) -> str:
     path = shutil.which(executable or "ngspice")
+    if path is None and executable:
+        raise NgspiceError(f"ngspice executable {executable!r} not found (or not executable)")
     if path is None:
         raise NgspiceError("ngspice not found on PATH (Debian: apt-get install ngspice)")
     return path
@@ -47,17 +51,38 @@ def _models(net: Netlist) -> tuple[list[str], float | None]:
     lines, vt = [], None
     for m in net.models.values():
         p = m.params
+        if m.type == "nmos":
+            continue                    # EKV devices become B sources (:func:`_ekv_source`)
         if m.type in ("npn", "pnp"):
             aF, aR = p.get("alpha_f", 0.99), p.get("alpha_r", 0.5)
             vt = p.get("vt", 0.025852)
             lines.append(f".model {m.name} {m.type}(is={aF * p.get('ies', 1e-14)!r} "
                          f"bf={aF / (1 - aF)!r} br={aR / (1 - aR)!r})")
         elif m.type == "d":
+            vt = vt or DIODE_VT
             lines.append(f".model {m.name} d(is={p.get('is', 1e-14)!r} n={p.get('n', 1.0)!r} "
                          f"rs={p.get('rs', 0.0)!r})")
         else:
             raise NgspiceError(f".model {m.name}: type {m.type} has no ngspice translation yet")
     return lines, vt
+
+
+def _ekv_source(e, net: Netlist) -> str:
+    """An EKV NMOS as an ngspice B source from drain to source: the law of
+    :func:`estim.spice.circuit._ekv` written out, the softplus as ``max(a, 0) +
+    ln(1 + exp(-abs(a)))`` (no overflow, no loss for negative ``a``)."""
+    p = {**EKV, **net.models[e.ref].params}
+    d, g, s, b = (f"v({n})" if n not in ("0", "gnd") else "0" for n in e.nodes)
+    vp = f"(({g} - {b} - ({p['v_t0']!r})) / {p['eta']!r})"
+
+    def softplus(a: str) -> str:
+        return f"(max({a}, 0) + ln(1 + exp(-abs({a}))))"
+
+    a_s = f"(({vp} - ({s} - {b})) / {2 * p['u_t']!r})"
+    a_d = f"(({vp} - ({d} - {b})) / {2 * p['u_t']!r})"
+    Is = p["i_0"] * p["w_l"]
+    return (f"B{e.name} {e.nodes[0]} {e.nodes[2]} I={Is!r} * ({softplus(a_s)}^2 - "
+            f"{softplus(a_d)}^2)")
 
 
 def staircase(t: np.ndarray, held: np.ndarray, first: float, edge: float = 1e-6) -> tuple:
@@ -75,10 +100,12 @@ def staircase(t: np.ndarray, held: np.ndarray, first: float, edge: float = 1e-6)
     return times, values
 
 
-def netlist_text(net: Netlist, t: np.ndarray, inputs: dict[str, np.ndarray]) -> str:
+def netlist_text(net: Netlist, t: np.ndarray, inputs: dict[str, np.ndarray],
+                 dc: dict[str, float] | None = None, ac_source: str | None = None) -> str:
     """ngspice's netlist: every element as parsed (values resolved), the sources named in
     ``inputs`` as PWL of the samples at times ``t`` (or, for a pair ``(times, values)``, of
-    those corners)."""
+    those corners), those in ``dc`` at the given value, ``ac_source`` with unit AC
+    amplitude."""
     out = [f"* {net.title} (written by estim for ngspice)"]
     for e in net.elements:
         nodes = " ".join(e.nodes)
@@ -91,12 +118,16 @@ def netlist_text(net: Netlist, t: np.ndarray, inputs: dict[str, np.ndarray]) -> 
             out.append(f"{e.name} {nodes} PWL({pairs})")
         elif e.kind in "vi":
             kind, *args = e.waveform
-            if kind == "dc":
-                out.append(f"{e.name} {nodes} DC {float(args[0])!r}")
+            if kind == "dc" or (dc and e.name in dc):
+                value = dc[e.name] if dc and e.name in dc else args[0]
+                ac_part = " AC 1" if e.name == ac_source else ""
+                out.append(f"{e.name} {nodes} DC {float(value)!r}{ac_part}")
             else:
                 out.append(f"{e.name} {nodes} {kind.upper()}"
                            f"({' '.join(repr(float(a)) for a in args)})")
-        elif e.kind in "dqm":
+        elif e.kind == "m":
+            out.append(_ekv_source(e, net))
+        elif e.kind in "dq":
             out.append(f"{e.name} {nodes} {e.ref}")
         else:
             out.append(f"{e.name} {nodes} {float(e.value)!r}")
@@ -107,40 +138,87 @@ def netlist_text(net: Netlist, t: np.ndarray, inputs: dict[str, np.ndarray]) -> 
     return "\n".join(out)
 
 
+def vector(name: str) -> str:
+    """ngspice's name of a quantity: ``v(a)``, ``v(a,b)`` as they are, ``i(l1)`` as the
+    inductor's branch current ``l1#branch``, a bare node ``a`` as ``v(a)``."""
+    name = name.strip().lower()
+    if name.startswith("i(") and name.endswith(")"):
+        return f"{name[2:-1].strip()}#branch"
+    return name if name.startswith("v(") else f"v({name})"
+
+
+def _run(deck: str, tmp: Path, executable: str | None) -> None:
+    exe = find(executable)
+    path = tmp / "deck.cir"
+    path.write_text(deck)
+    run = subprocess.run([exe, "-b", str(path)], capture_output=True, text=True, timeout=600)
+    log = run.stdout + run.stderr
+    bad = re.search(r"(?im)^.*(error|aborted|timestep too small).*$", log)
+    if bad:
+        raise NgspiceError(f"ngspice failed: {bad.group(0).strip()}")
+
+
+def _read(path: Path) -> np.ndarray:
+    if not path.is_file():
+        raise NgspiceError("ngspice failed: no output written")
+    return np.loadtxt(path, skiprows=1, ndmin=2)
+
+
+OPTIONS = ".options reltol={reltol!r} method=gear gmin=1e-30 abstol=1e-15 vntol=1e-12"
+
+
 def transient(net: Netlist, t: np.ndarray, inputs: dict[str, np.ndarray], nodes: list[str],
               executable: str | None = None, reltol: float = 1e-6,
               max_step: float | None = None) -> np.ndarray:
-    """Node voltages ``(len(t), len(nodes))`` from ngspice's transient analysis of ``net``
-    driven by ``inputs`` (source name -> samples at ``t``, or PWL corners ``(times,
+    """The quantities ``nodes`` (node names, ``v(..)`` or ``i(inductor)``, :func:`vector`)
+    at the times ``t``, ``(len(t), len(nodes))``, from ngspice's transient analysis of
+    ``net`` driven by ``inputs`` (source name -> samples at ``t``, or PWL corners ``(times,
     values)``, :func:`staircase`), from its own DC point."""
-    exe = find(executable)
     dt = float(t[1] - t[0])
     step = max_step or dt / 4
+    names = " ".join(vector(n) for n in nodes)
     with tempfile.TemporaryDirectory() as tmp:
         data = Path(tmp) / "out.txt"
-        deck = netlist_text(net, t, inputs) + f"""
-.options reltol={reltol!r} method=gear gmin=1e-30 abstol=1e-15 vntol=1e-12
+        deck = netlist_text(net, t, inputs) + "\n" + OPTIONS.format(reltol=reltol) + f"""
 .control
 set wr_singlescale
 set wr_vecnames
 option numdgt=15
 tran {step!r} {float(t[-1])!r} 0 {step!r}
-linearize {" ".join(f"v({n})" for n in nodes)}
-wrdata {data} {" ".join(f"v({n})" for n in nodes)}
+linearize {names}
+wrdata {data} {names}
 quit 0
 .endc
 .end
 """
-        path = Path(tmp) / "deck.cir"
-        path.write_text(deck)
-        run = subprocess.run([exe, "-b", str(path)], capture_output=True, text=True,
-                             timeout=600)
-        log = run.stdout + run.stderr
-        bad = re.search(r"(?im)^.*(error|aborted|timestep too small).*$", log)
-        if bad or not data.is_file():
-            line = bad.group(0).strip() if bad else "no output written"
-            raise NgspiceError(f"ngspice failed: {line}")
-        table = np.loadtxt(data, skiprows=1, ndmin=2)
+        _run(deck, Path(tmp), executable)
+        table = _read(data)
     times, values = table[:, 0], table[:, 1:]
     return np.stack([np.interp(t, times, values[:, k]) for k in range(values.shape[1])],
                     axis=-1)
+
+
+def ac(net: Netlist, bias: dict[str, float], source: str, frequencies: list[float],
+       output: str, executable: str | None = None, reltol: float = 1e-9) -> np.ndarray:
+    """The small-signal gain from the voltage source ``source`` to ``output`` at each of
+    ``frequencies`` (complex), from ngspice's AC analysis about its DC point with the model
+    inputs held at ``bias`` (source name -> volts)."""
+    out = vector(output)
+    with tempfile.TemporaryDirectory() as tmp:
+        files = [Path(tmp) / f"ac{k}.txt" for k in range(len(frequencies))]
+        text = netlist_text(net, np.zeros(1), {}, dc=bias, ac_source=source)
+        sweeps = "\n".join(f"ac lin 1 {float(f)!r} {float(f)!r}\nwrdata {path} {out}"
+                           for f, path in zip(frequencies, files, strict=True))
+        deck = text + "\n" + OPTIONS.format(reltol=reltol) + f"""
+.control
+set wr_singlescale
+set wr_vecnames
+option numdgt=15
+{sweeps}
+quit 0
+.endc
+.end
+"""
+        _run(deck, Path(tmp), executable)
+        rows = [_read(path)[0] for path in files]
+    return np.array([r[1] + 1j * r[2] for r in rows])
