@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from estim import claims, metrics, plots, registry, signals
+from estim import claims, metrics, plots, registry, signals, tables
 from estim.analyses.base import Result, TableSpec, map_tasks
 from estim.blocks import VOLTS, simulation
 from estim.blocks import Model as ModelBlock
@@ -81,7 +81,8 @@ class Row(Settings):
 class Tables(Settings):
     """The thesis table the rows join."""
 
-    distortion: str = setting(REQUIRED, text(), doc="2.1, 2.2, 2.3 or 2.4")
+    distortion: str = setting(REQUIRED, text(), doc="2.1, 2.2, 2.3 or 2.4, or ours (a "
+                              "circuit the thesis did not have)")
 
 
 @settings_class
@@ -286,7 +287,8 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     of one row (deterministic: no seed)."""
     results = map_tasks(_evaluate, [(exp, row) for row in exp.spec["rows"]], jobs, on_done)
     df = pd.DataFrame([summary_row for summary_row, _ in results])
-    df.insert(0, "table_id", exp.spec["tables"]["distortion"])
+    table_id = exp.spec["tables"]["distortion"]
+    df.insert(0, "table_id", "" if table_id == tables.OWN_TABLE else table_id)
     cells = [(claims.cell(s_no=int(row["s_no"]), amplitude_v=row["amplitude_v"],
                           frequency_hz=row["frequency_hz"], params=row["row_params"] or None),
               {FIRST: claims.Losses([row["err_first_order_rms"]]),

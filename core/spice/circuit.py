@@ -418,6 +418,21 @@ class NetlistModel(Model, metaclass=_NetlistClass):
         return np.array([v[n] for n in nodes if n != "gnd"])
 
     def f_and_jacobian(self, x, u, t: float = 0.0):
+        """``f = -C^-1 (currents leaving the state nodes)`` on the node states and
+        ``L^-1 (v(n1) - v(n2))`` on the inductor currents, and its Jacobian."""
+        out, d_out, V = self._currents(x, u)
+        c = self.circuit
+        k = len(c.state_nodes)
+        lead = out.shape[:-1]
+        dxdt = V @ self._L.T
+        dxdt[..., :k] = -out @ c.C_inv.T
+        J = np.broadcast_to(self._L @ self._P, lead + (self.n_states, self.n_states)).copy()
+        J[..., :k, :] = -np.einsum("ij,...jn->...in", c.C_inv, d_out)
+        return dxdt, J
+
+    def _currents(self, x, u):
+        """The currents leaving each state node (KCL), their Jacobian w.r.t. the states, and
+        every node's voltage."""
         x = np.asarray(x, float)
         u = np.asarray(u, float)
         lead = np.broadcast_shapes(x.shape[:-1], u.shape[:-1])
@@ -459,11 +474,33 @@ class NetlistModel(Model, metaclass=_NetlistClass):
                 if 0 <= i < k:
                     out[..., i] += cur
                     d_out[..., i, :] += dcur
-        dxdt = V @ self._L.T
-        dxdt[..., :k] = -out @ c.C_inv.T
-        J = np.broadcast_to(self._L @ self._P, lead + (self.n_states, self.n_states)).copy()
-        J[..., :k, :] = -np.einsum("ij,...jn->...in", c.C_inv, d_out)
-        return dxdt, J
+        return out, d_out, V
+
+    def operating_point(self, x_guess: np.ndarray | None = None,
+                        u: np.ndarray | None = None) -> np.ndarray:
+        """DC point as SPICE finds it: Newton on KCL itself (the currents, not ``C^-1`` times
+        them, whose rows differ by the ratio of the largest to the smallest capacitor) with
+        inductors as shorts, each step limited to 0.1 V per node (junction limiting: a
+        transistor's exponential cannot overshoot); then the default polish on ``f``."""
+        u0 = np.zeros(self.n_inputs) if u is None else np.asarray(u, float)
+        x = np.zeros(self.n_states) if x_guess is None else np.array(x_guess, float)
+        k = len(self.circuit.state_nodes)
+        LP = self._L @ self._P
+        for _ in range(2000):
+            out, d_out, V = self._currents(x, u0)
+            g = np.concatenate([out, (V @ self._L.T)[k:]])
+            G = np.vstack([d_out, LP[k:]])
+            try:
+                step = np.linalg.solve(G, -g)
+            except np.linalg.LinAlgError:
+                break
+            big = np.abs(step[:k]).max(initial=0.0)
+            if big > 0.1:
+                step = step * (0.1 / big)
+            x = x + step
+            if big <= 1e-13 * max(1.0, np.abs(x[:k]).max(initial=0.0)):
+                break
+        return super().operating_point(x, u0)
 
     def kernel(self):
         """The compiled drift for :mod:`estim.compiled`: the one netlist kernel of
