@@ -267,8 +267,9 @@ def tune(config, label, new_label, runs, fit_r, out, max_work) -> None:
 @click.argument("config", type=click.Path(path_type=Path))
 @click.option("--ngspice", "executable", help="The ngspice executable [default: ngspice on "
               "PATH].")
-@click.option("--reltol", type=click.FloatRange(1e-14, 1e-3), default=1e-8, show_default=True,
-              help="ngspice's relative tolerance (tighter: slower, closer).")
+@click.option("--reltol", type=click.FloatRange(1e-14, 1e-3), default=1e-7, show_default=True,
+              help="ngspice's relative tolerance to start at; a case with a difference above "
+                   "its bar is run again at 10x and 100x tighter.")
 @click.option("--format", "fmt", type=click.Choice(["text", "csv", "markdown"]),
               default="text", show_default=True)
 def spice(config, executable, reltol, fmt) -> None:
@@ -284,6 +285,7 @@ def spice(config, executable, reltol, fmt) -> None:
     except NgspiceError as exc:
         fail(str(exc))
     shown = table_.assign(difference=table_["difference"].map("{:.2e}".format),
+                          reltol=table_["reltol"].map("{:.0e}".format),
                           own_scale=table_["own_scale"].map("{:.2e}".format),
                           bar=table_["bar"].map("{:.1e}".format))
     if fmt == "csv":

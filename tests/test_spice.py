@@ -361,3 +361,49 @@ def test_netlist_configs_remake_the_hand_written_tables(hand, netlist):
         theirs = io.read_table(ROOT / "results" / hand / f"{table}.csv")
         assert list(ours.columns) == list(theirs.columns) and len(ours) == len(theirs)
         assert io.compare_tables(theirs, ours, tol) == []
+
+
+def test_estim_spice_refuses_a_config_without_a_netlist():
+    from click.testing import CliRunner
+
+    from estim.cli.main import main
+
+    result = CliRunner().invoke(main, ["spice", str(ROOT / "configs" / "diffamp_ekf.yaml")])
+    assert result.exit_code == 2 and result.output.count("\n") == 1
+    assert "model.netlist: estim spice compares a netlist model with ngspice" in result.output
+
+
+NGSPICE = pytest.mark.skipif(__import__("shutil").which("ngspice") is None,
+                             reason="ngspice is not installed here (Debian: apt-get install "
+                                    "ngspice); CI installs it")
+
+
+@NGSPICE
+def test_estim_spice_holds_on_the_new_circuit():
+    """Every case of configs/netlist/ce_amp_distortion.yaml within its bars (CI runs estim
+    spice on every shipped netlist config)."""
+    from estim.config import load_file
+    from estim.spice.compare import compare
+
+    table = compare(load_file(ROOT / "configs" / "netlist" / "ce_amp_distortion.yaml"))
+    assert set(table["check"]) == {"dc", "transient", "ac"}
+    assert table["holds"].all(), table[~table["holds"]].to_string()
+
+
+@NGSPICE
+def test_a_small_swing_node_shows_ngspice_tolerance_not_a_disagreement():
+    """compare.py's docstring: the MOSFET bulk (a few uV of swing) differs from
+    ngspice by a large fraction of its own swing, and that fraction shrinks as ngspice's
+    reltol is tightened; against the circuit's node scale it is within the bar."""
+    from estim.config import load_file
+    from estim.spice import compare
+
+    exp = load_file(ROOT / "configs" / "netlist" / "mosfet_distortion.yaml")
+    label, model, source, dt = compare.cases(exp)[5]          # row 6, 10 kHz
+    own = []
+    for reltol in (1e-8, 1e-9):
+        rows = compare.compare_case(label, model, source, dt, None, reltol=reltol)
+        bulk = next(r for r in rows if r["quantity"] == "v(b)")
+        assert bulk["difference"] <= compare.BARS["transient"]
+        own.append(bulk["own_scale"])
+    assert own[0] > compare.BARS["transient"] and own[1] < own[0] / 2

@@ -147,11 +147,19 @@ def vector(name: str) -> str:
     return name if name.startswith("v(") else f"v({name})"
 
 
+TIMEOUT = 300
+"""Seconds one ngspice run may take."""
+
+
 def _run(deck: str, tmp: Path, executable: str | None) -> None:
     exe = find(executable)
     path = tmp / "deck.cir"
     path.write_text(deck)
-    run = subprocess.run([exe, "-b", str(path)], capture_output=True, text=True, timeout=600)
+    try:
+        run = subprocess.run([exe, "-b", str(path)], capture_output=True, text=True,
+                             timeout=TIMEOUT)
+    except subprocess.TimeoutExpired:
+        raise NgspiceError(f"ngspice took more than {TIMEOUT} s") from None
     log = run.stdout + run.stderr
     bad = re.search(r"(?im)^.*(error|aborted|timestep too small).*$", log)
     if bad:
