@@ -248,6 +248,7 @@ BAD = [
     (RC + "V3 a 0 SIN(0 1)\n", 5, "SIN takes 3 to 6 values"),
     (RC + "C2 a 0 (1u\n", 5, "unbalanced parentheses"),
     (RC + "F1 a 0 V1 2\n", 5, "current-controlled sources"),
+    (RC + "C2 a b 1n\nI1 0 b 1m\nC3 b 0 1n\n", 0, "node(s) b have no DC path to ground"),
     (RC + "C2 in a 1n\n", 5, "c2: input v1 drives node in through this capacitor and "
                             "through r1"),
 ]

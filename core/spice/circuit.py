@@ -189,6 +189,7 @@ class Circuit:
                                "rest): add a shunt capacitor")
         self.C_inv = np.linalg.inv(C) if k else np.zeros((0, 0))
         self.B = B
+        self._check_dc_paths()
         for e in net.elements:
             if e.kind in "dqm":
                 model = net.models.get(e.ref)
@@ -205,6 +206,32 @@ class Circuit:
                                        f"parameter(s) {sorted(unknown)}; expected "
                                        f"{sorted(DEFAULTS[model.type])}")
         self.output_terms = self._output(self.output)
+
+    def _check_dc_paths(self) -> None:
+        """Refuse nodes with no DC path to ground or a fixed node (through R, L, D, Q, M):
+        a group reached only through capacitors and current sources (a cut-set of current
+        sources) has no DC point, and its voltage would drift with any current put in."""
+        reached = set(GROUND) | set(self.fixed)
+        edges = []
+        for e in self.netlist.elements:
+            if e.kind in "rld":
+                edges.append(e.nodes[:2])
+            elif e.kind == "q":
+                edges += [(e.nodes[0], e.nodes[1]), (e.nodes[1], e.nodes[2])]
+            elif e.kind == "m":
+                edges.append((e.nodes[0], e.nodes[2]))
+        grew = True
+        while grew:
+            grew = False
+            for a, b in edges:
+                if (a in reached) != (b in reached):
+                    reached |= {a, b}
+                    grew = True
+        cut = sorted(n for n in self.state_nodes if n not in reached)
+        if cut:
+            raise NetlistError(self.netlist.source, 0, f"node(s) {', '.join(cut)} have no DC "
+                               "path to ground (only capacitors and current sources reach "
+                               "them): add a resistor to ground")
 
     def _input_mode(self) -> bool:
         """Whether the model input is the sources' slope (True) or their value. An input
