@@ -67,8 +67,9 @@ class Model(Settings):
     params: dict = setting({}, mapping, doc="parameter overrides (estim settings --models "
                                             "lists them; for a netlist its .param values)")
     netlist: str | None = setting(None, text(), doc="a SPICE netlist file instead of a "
-                                                    "registered model (beside the config or "
-                                                    "in the folder above it); name is then "
+                                                    "registered model (beside the config, in "
+                                                    "a folder above it, or circuits/NAME "
+                                                    "installed with estim); name is then "
                                                     "netlist:<file stem>")
     input: list | str | None = setting(None, _source_names, doc="with netlist: the voltage "
                                                                   "source(s) the model input "

@@ -222,9 +222,11 @@ def build_model(model_cls, variant, params: dict, source: str, path: str):
     fields = {f.name: f for f in dataclasses.fields(model_cls.Params)}
     for key, value in params.items():
         if key not in fields:
+            where = (" (a netlist model's parameters are its .param names)"
+                     if getattr(model_cls, "from_netlist", False) else "")
             raise ConfigError(source, f"{path}.{key}",
                               f"unknown parameter of {model_cls.name}; expected one of "
-                              f"{sorted(fields)}")
+                              f"{sorted(fields)}{where}")
         default = fields[key].default
         expected = type(default)
         if expected is float:

@@ -284,6 +284,11 @@ GOOD_BLOCK = {"netlist": DIFFAMP_NETLIST, "input": ["VB1", "VB2"], "output": "v(
     ({**GOOD_BLOCK, "input": ["VX"]}, "model.netlist", "input 'vx' is not a voltage source"),
     ({**GOOD_BLOCK, "name": "diffamp_em"}, "model.name", "either a registered model"),
     ({**GOOD_BLOCK, "netlist": "BAD"}, "model.netlist", "bad.cir:3: unknown element 'z1'"),
+    ({**GOOD_BLOCK, "input": ["VB1", "VB1"]}, "model.netlist", "input 'vb1' named more than"),
+    ({**GOOD_BLOCK, "params": {"zz": 1}}, "model.params.zz", "its .param names"),
+    ({**GOOD_BLOCK, "params": {"rl": -5}}, "model.params",
+     "diffamp_em.cir:12: rl: the value must be positive"),
+    ({**GOOD_BLOCK, "params": {"cl": "x"}}, "model.params.cl", ""),
 ], ids=lambda v: v if isinstance(v, str) else None)
 def test_a_bad_netlist_model_block_is_one_line_and_exit_2(tmp_path, block, key, expected):
     if block["netlist"] == "BAD":

@@ -84,8 +84,9 @@ def resolve_model_block(data: dict, source: str) -> None:
         raise ConfigError(source, "model.netlist", f"expected a file name, got {netlist!r}")
     path = find_netlist(netlist, source)
     if path is None:
-        raise ConfigError(source, "model.netlist", f"no file {netlist!r} beside the config or "
-                          "in the folder above it")
+        raise ConfigError(source, "model.netlist", f"no file {netlist!r} beside the config, "
+                          "in a folder above it, in the working folder or (circuits/NAME) "
+                          "among the netlists installed with estim")
     inputs = block.get("input")
     if not inputs or not (isinstance(inputs, str) or (
             isinstance(inputs, list) and all(isinstance(i, str) for i in inputs))):

@@ -112,6 +112,9 @@ class Circuit:
                                    "that is not a model input; estim drives a circuit through "
                                    "its inputs (name it in model.input) and holds the other "
                                    "sources at their DC value")
+        twice = sorted({n for n in self.inputs if self.inputs.count(n) > 1})
+        if twice:
+            raise NetlistError(src, 0, f"input {twice[0]!r} named more than once")
         for name in self.inputs:
             e = net.element(name)
             if e is None or e.kind != "v":
@@ -673,18 +676,25 @@ class NetlistModel(Model, metaclass=_NetlistClass):
 
 
 def _with_params(text: str, lines: list[str]) -> str:
-    """The netlist ``text`` with its ``.param`` lines replaced by ``lines`` (after the
-    title)."""
+    """The netlist ``text`` with its ``.param`` values replaced by those of ``lines``: all of
+    them on one line where the first ``.param`` was (after the title if there was none), the
+    other ``.param`` lines and their continuations blanked, so that every element keeps its
+    line number for the messages."""
     rows = text.splitlines()
-    kept, in_param = [], False
+    merged = ".param " + " ".join(line.split(None, 1)[1] for line in lines)
+    out, in_param, placed = [rows[0]], False, False
     for r in rows[1:]:
         s = r.strip().lower()
         if s.startswith(".param") or (in_param and s.startswith("+")):
             in_param = True
+            out.append("*" if placed else merged)
+            placed = True
             continue
         in_param = False
-        kept.append(r)
-    return "\n".join([rows[0], *lines, *kept])
+        out.append(r)
+    if not placed:
+        out.insert(1, merged)
+    return "\n".join(out)
 
 
 def _diode(vd, p):
