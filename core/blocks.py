@@ -76,6 +76,11 @@ class Model(Settings):
                                                                   "drives")
     output: str | None = setting(None, text(), doc="with netlist: v(node), v(node,node) or "
                                                    "i(inductor)")
+    hold: str | None = setting(None, text({"mean", "start", "end"}),
+                               doc="with netlist: the source over an interval held at the "
+                                   "mean of its two end samples (default, as the "
+                                   "hand-written amplifiers), its first (zero-order hold) or "
+                                   "its last (as cco)")
 
 
 @settings_class

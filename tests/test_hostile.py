@@ -289,9 +289,12 @@ GOOD_BLOCK = {"netlist": DIFFAMP_NETLIST, "input": ["VB1", "VB2"], "output": "v(
     ({**GOOD_BLOCK, "params": {"rl": -5}}, "model.params",
      "diffamp_em.cir:12: rl: the value must be positive"),
     ({**GOOD_BLOCK, "params": {"cl": "x"}}, "model.params.cl", ""),
+    ({**GOOD_BLOCK, "hold": "middle"}, "model.hold", "mean, start or end"),
+    ({"name": "diffamp_em", "hold": "start"}, "model.hold", "only with model.netlist"),
+    ({"name": "diffamp_em", "output": "v(x)"}, "model.output", "only with model.netlist"),
 ], ids=lambda v: v if isinstance(v, str) else None)
 def test_a_bad_netlist_model_block_is_one_line_and_exit_2(tmp_path, block, key, expected):
-    if block["netlist"] == "BAD":
+    if block.get("netlist") == "BAD":
         (tmp_path / "bad.cir").write_text("title\nV1 a 0 DC 1\nZ1 a 0 1k\n")
         block = {**block, "netlist": str(tmp_path / "bad.cir")}
     spec = config("diffamp_em_distortion", {})

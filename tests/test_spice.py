@@ -148,6 +148,42 @@ def test_the_netlist_mosfet_is_the_hand_written_model():
     assert np.abs(hand.h(a) - net.h(b)).max() < 1e-9 * np.abs(hand.h(a)).max()
 
 
+def test_the_netlist_cco_is_the_hand_written_model():
+    """circuits/cco.cir (inductor currents as states, the supply as the model input, held at
+    the interval's last sample with hold "end", as cco holds it) against estim's cco: drift and Jacobian to
+    rounding, and a trajectory after a supply step through both compiled kernels at rtol
+    1e-10: states within 1e-9 of their largest value."""
+    from estim.models.cco import CrossCoupledOscillator
+
+    net = model_class(ROOT / "circuits" / "cco.cir", "VCC", "v(c1)", name="netlist:test_cco",
+                      hold="end")()
+    hand = CrossCoupledOscillator()
+    names = ["v(c1)", "v(c2)", "v(b1)", "v(b2)", "v(e1)", "v(e2)", "i(l1)", "i(l4)"]
+    order = [net.state_names.index(n) for n in names]
+    x0 = hand.operating_point(u=np.array([5.0]))
+    rng = np.random.default_rng(4)
+    for _ in range(5):
+        xh = x0 + rng.normal(0, 1e-3, 8)
+        u = np.array([5.0 + rng.normal(0, 0.1)])
+        fh, Jh = hand.f_and_jacobian(xh, u)
+        xn = np.empty(8)
+        xn[order] = xh
+        fn, Jn = net.f_and_jacobian(xn, u)
+        np.testing.assert_allclose(fn[order], fh, rtol=1e-9, atol=1e-9 * np.abs(fh).max())
+        np.testing.assert_allclose(Jn[np.ix_(order, order)], Jh, rtol=1e-9,
+                                   atol=1e-9 * np.abs(Jh).max())
+    dt, steps = 2e-10, 400
+    src = np.full((1, steps + 1, 1), 5.5)
+    src[:, 0] = 5.0
+    u = hand.source_to_input(src, dt)
+    np.testing.assert_array_equal(net.source_to_input(src, dt), u)
+    xn0 = np.empty(8)
+    xn0[order] = x0
+    a = simulate(hand, x0, u, dt, rtol=1e-10, atol=1e-13)
+    b = simulate(net, xn0, u, dt, rtol=1e-10, atol=1e-13)
+    assert np.all(np.abs(a - b[..., order]).max(axis=(0, 1)) <= 1e-9 * np.abs(a).max(axis=(0, 1)))
+
+
 def test_netlist_params_override_including_continuation_lines():
     """A config's model.params replace the netlist's .param values, also those on a
     continuation line (``rd`` is on the ``+`` line of circuits/mosfet_ekv.cir)."""
@@ -344,11 +380,13 @@ def test_ngspice_agrees_with_the_netlist_model():
 @pytest.mark.parametrize("hand, netlist", [
     ("diffamp_em_distortion", "diffamp_em_netlist_distortion"),
     ("mosfet_distortion", "mosfet_netlist_distortion"),
+    ("cco_distortion", "cco_netlist_distortion"),
 ])
 def test_netlist_configs_remake_the_hand_written_tables(hand, netlist):
     """configs/netlist/ re-makes the stored tables of its hand-written twin within the twin's
-    check tolerances (every column, every row): results/<netlist config>/ against
-    results/<hand config>/ (estim check keeps each reproducible on its own)."""
+    check tolerances (every column, every row; a row's parameter names may differ in case and
+    underscores only): results/<netlist config>/ against results/<hand config>/ (estim check
+    keeps each reproducible on its own)."""
     import yaml
 
     from estim import io
@@ -361,7 +399,11 @@ def test_netlist_configs_remake_the_hand_written_tables(hand, netlist):
         ours = io.read_table(ROOT / "results" / netlist / f"{table}.csv")
         theirs = io.read_table(ROOT / "results" / hand / f"{table}.csv")
         assert list(ours.columns) == list(theirs.columns) and len(ours) == len(theirs)
-        assert io.compare_tables(theirs, ours, tol) == []
+        differing = io.compare_tables(theirs, ours, tol)
+        # a row's parameters are named as its model names them: L_1 by cco, l1 by cco.cir
+        named = [d for d in differing if d["column"] == "row_params"
+                 and d["expected"].lower().replace("_", "") == d["obtained"]]
+        assert [d for d in differing if d not in named] == []
 
 
 def test_estim_spice_refuses_a_config_without_a_netlist():

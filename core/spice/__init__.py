@@ -47,15 +47,18 @@ def find_netlist(name: str, source: str) -> Path | None:
     return None
 
 
-def model_class(path: Path, inputs, output: str, name: str | None = None) -> type:
+def model_class(path: Path, inputs, output: str, name: str | None = None,
+                hold: str | None = None) -> type:
     """The model class of the netlist at ``path`` (registered under ``name``, default
-    ``netlist:<stem>``)."""
+    ``netlist:<stem>``); ``hold`` is how its value inputs hold a sample (``"mean"``, the
+    default, ``"start"`` or ``"end"``: :meth:`NetlistModel.source_to_input`)."""
     inputs = (inputs,) if isinstance(inputs, str) else tuple(inputs)
     circuit = Circuit(read(path), tuple(i.lower() for i in inputs), output)
     name = name or f"netlist:{path.stem}"
     cls = build_model_class(circuit, name)
     cls.name = name
-    cls.origin = (str(path), inputs, output, name)
+    cls.hold = hold or "mean"
+    cls.origin = (str(path), inputs, output, name, hold)
     registry.MODELS.register(name, cls)
     return cls
 
@@ -66,7 +69,7 @@ def rebuild(origin: tuple) -> type:
     known = registry.MODELS.get(origin[3]) if origin[3] in registry.MODELS else None
     if known is not None and getattr(known, "origin", None) == origin:
         return known
-    return model_class(Path(origin[0]), origin[1], origin[2], origin[3])
+    return model_class(Path(origin[0]), origin[1], origin[2], origin[3], origin[4])
 
 
 def resolve_model_block(data: dict, source: str) -> None:
@@ -74,11 +77,20 @@ def resolve_model_block(data: dict, source: str) -> None:
     block's ``name`` to it; a netlist that cannot be used is a config error naming the
     netlist's file and line."""
     block = data.get("model") if isinstance(data, dict) else None
-    if not isinstance(block, dict) or block.get("netlist") is None:
+    if not isinstance(block, dict):
+        return
+    if block.get("netlist") is None:
+        for key in ("input", "output", "hold"):
+            if block.get(key) is not None:
+                raise ConfigError(source, f"model.{key}", "only with model.netlist (a "
+                                  "registered model declares its own inputs and outputs)")
         return
     if block.get("name") is not None:
         raise ConfigError(source, "model.name", "give either a registered model's name or a "
                           "netlist, not both")
+    if block.get("hold") not in (None, "mean", "start", "end"):
+        raise ConfigError(source, "model.hold", f"expected mean, start or end, got "
+                          f"{block['hold']!r}")
     netlist = block["netlist"]
     if not isinstance(netlist, str):
         raise ConfigError(source, "model.netlist", f"expected a file name, got {netlist!r}")
@@ -97,7 +109,7 @@ def resolve_model_block(data: dict, source: str) -> None:
         raise ConfigError(source, "model.output", "expected v(node), v(node,node) or "
                           "i(inductor)")
     try:
-        cls = model_class(path, inputs, output)
+        cls = model_class(path, inputs, output, hold=block.get("hold"))
     except NetlistError as exc:
         raise ConfigError(source, "model.netlist", str(exc)) from None
     block["name"] = cls.name

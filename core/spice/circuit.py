@@ -342,6 +342,7 @@ class NetlistModel(Model, metaclass=_NetlistClass):
 
     circuit: Circuit
     from_netlist = True
+    hold = "mean"
 
     def __init__(self, variant: str | None = None, **overrides) -> None:
         super().__init__(variant, **overrides)
@@ -563,9 +564,13 @@ class NetlistModel(Model, metaclass=_NetlistClass):
         """Source voltages on each interval: the mean of the samples at its two ends (a
         netlist's inputs are source voltages, as the hand-written diffamp_em's are), or, for
         inputs that drive through capacitors, the slope of the piecewise-linear source (as
-        the hand-written MOSFET's, eq 3.26)."""
+        the hand-written MOSFET's, eq 3.26); with ``model.hold`` ``start`` or ``end`` the
+        sample at the interval's start (zero-order hold) or end (as the hand-written cco)."""
         if self.circuit.slope:
             return np.diff(source, axis=-2) / dt
+        if self.hold in ("start", "end"):
+            source = np.asarray(source)
+            return source[..., :-1, :] if self.hold == "start" else source[..., 1:, :]
         return 0.5 * (source[..., 1:, :] + source[..., :-1, :])
 
     def _device_derivatives(self, V: np.ndarray):
