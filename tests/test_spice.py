@@ -116,35 +116,50 @@ def _mosfet_twin(**params):
     return net, MosfetEKV(), order
 
 
+def _assert_twins(net, hand, order, x0, state_sd, draw_u, rng, rtol, src, dt, atol=1e-12):
+    """``net`` (a netlist model, states in its own order; ``order`` maps them to ``hand``'s)
+    equals ``hand``: drift and Jacobian at five random points about ``x0`` to ``rtol``
+    relative, the same model input from the sampled source ``src``, and the trajectories
+    from ``x0`` (both at rtol 1e-10) within 1e-9 of each state's largest value."""
+    n = len(order)
+    for _ in range(5):
+        xh = x0 + rng.normal(0, state_sd, n)
+        u = draw_u()
+        fh, Jh = hand.f_and_jacobian(xh, u)
+        xn = np.empty(n)
+        xn[order] = xh
+        fn, Jn = net.f_and_jacobian(xn, u)
+        np.testing.assert_allclose(fn[order], fh, rtol=rtol, atol=rtol * np.abs(fh).max())
+        np.testing.assert_allclose(Jn[np.ix_(order, order)], Jh, rtol=rtol,
+                                   atol=rtol * np.abs(Jh).max())
+    u = hand.source_to_input(src, dt)
+    np.testing.assert_array_equal(net.source_to_input(src, dt), u)
+    xn0 = np.empty(n)
+    xn0[order] = x0
+    a = simulate(hand, x0, u, dt, rtol=1e-10, atol=atol)
+    b = simulate(net, xn0, u, dt, rtol=1e-10, atol=atol)
+    gap = np.abs(a - b[..., order]).max(axis=(0, 1))
+    assert np.all(gap <= 1e-9 * np.abs(a).max(axis=(0, 1))), gap / np.abs(a).max(axis=(0, 1))
+    return a, b
+
+
+def _noisy_sine(rng, dt, steps):
+    t = np.arange(steps + 1) * dt
+    return (0.01 * np.sin(2 * np.pi * 1e3 * t) + 0.05 * rng.standard_normal(steps + 1))[
+        None, :, None]
+
+
 def test_the_netlist_mosfet_is_the_hand_written_model():
     """circuits/mosfet_ekv.cir (the input through the coupling capacitor, so the model input
     is the source's slope) against estim's mosfet_ekv (completed, law ekv): the drift and
     Jacobian at random points to rounding, and a trajectory under a noisy 1 kHz sine through
-    both compiled kernels at rtol 1e-10: states and output within 1e-9 relative."""
+    both compiled kernels at rtol 1e-10: each state within 1e-9 of its largest value."""
     net, hand, order = _mosfet_twin()
     assert net.input_is_source_slope and net.input_names == ("d(vin)/dt",)
     rng = np.random.default_rng(1)
-    x0 = hand.operating_point()
-    for _ in range(5):
-        xh = x0 + rng.normal(0, 0.01, 4)
-        u = rng.normal(0, 1.0, 1)
-        fh, Jh = hand.f_and_jacobian(xh, u)
-        xn = np.empty(4)
-        xn[order] = xh
-        fn, Jn = net.f_and_jacobian(xn, u)
-        np.testing.assert_allclose(fn[order], fh, rtol=1e-12, atol=1e-12 * np.abs(fh).max())
-        np.testing.assert_allclose(Jn[np.ix_(order, order)], Jh, rtol=1e-12,
-                                   atol=1e-12 * np.abs(Jh).max())
-    dt, steps = 1e-4, 200
-    t = np.arange(steps + 1) * dt
-    src = (0.01 * np.sin(2 * np.pi * 1e3 * t) + 0.05 * rng.standard_normal(steps + 1))[:, None]
-    u = hand.source_to_input(src[None], dt)
-    np.testing.assert_array_equal(net.source_to_input(src[None], dt), u)
-    xn0 = np.empty(4)
-    xn0[order] = x0
-    a = simulate(hand, x0, u, dt, rtol=1e-10, atol=1e-12)
-    b = simulate(net, xn0, u, dt, rtol=1e-10, atol=1e-12)
-    assert np.abs(a - b[..., order]).max() < 1e-9 * np.abs(a).max()
+    a, b = _assert_twins(net, hand, order, hand.operating_point(), 0.01,
+                         lambda: rng.normal(0, 1.0, 1), rng, 1e-12,
+                         _noisy_sine(rng, 1e-4, 200), 1e-4)
     assert np.abs(hand.h(a) - net.h(b)).max() < 1e-9 * np.abs(hand.h(a)).max()
 
 
@@ -160,28 +175,12 @@ def test_the_netlist_cco_is_the_hand_written_model():
     hand = CrossCoupledOscillator()
     names = ["v(c1)", "v(c2)", "v(b1)", "v(b2)", "v(e1)", "v(e2)", "i(l1)", "i(l4)"]
     order = [net.state_names.index(n) for n in names]
-    x0 = hand.operating_point(u=np.array([5.0]))
     rng = np.random.default_rng(4)
-    for _ in range(5):
-        xh = x0 + rng.normal(0, 1e-3, 8)
-        u = np.array([5.0 + rng.normal(0, 0.1)])
-        fh, Jh = hand.f_and_jacobian(xh, u)
-        xn = np.empty(8)
-        xn[order] = xh
-        fn, Jn = net.f_and_jacobian(xn, u)
-        np.testing.assert_allclose(fn[order], fh, rtol=1e-9, atol=1e-9 * np.abs(fh).max())
-        np.testing.assert_allclose(Jn[np.ix_(order, order)], Jh, rtol=1e-9,
-                                   atol=1e-9 * np.abs(Jh).max())
-    dt, steps = 2e-10, 400
-    src = np.full((1, steps + 1, 1), 5.5)
+    src = np.full((1, 401, 1), 5.5)
     src[:, 0] = 5.0
-    u = hand.source_to_input(src, dt)
-    np.testing.assert_array_equal(net.source_to_input(src, dt), u)
-    xn0 = np.empty(8)
-    xn0[order] = x0
-    a = simulate(hand, x0, u, dt, rtol=1e-10, atol=1e-13)
-    b = simulate(net, xn0, u, dt, rtol=1e-10, atol=1e-13)
-    assert np.all(np.abs(a - b[..., order]).max(axis=(0, 1)) <= 1e-9 * np.abs(a).max(axis=(0, 1)))
+    _assert_twins(net, hand, order, hand.operating_point(u=np.array([5.0])), 1e-3,
+                  lambda: np.array([5.0 + rng.normal(0, 0.1)]), rng, 1e-9, src, 2e-10,
+                  atol=1e-13)
 
 
 def test_the_netlist_darlington_is_the_hand_written_model():
@@ -196,27 +195,10 @@ def test_the_netlist_darlington_is_the_hand_written_model():
     hand = MosfetDarlington()
     where = {"g": "x{}.g", "b": "x{}.b", "s": "s{}", "d": "d{}"}
     order = [net.state_names.index(f"v({where[v].format(i)})") for i in (1, 2) for v in "gbsd"]
-    x0 = hand.operating_point()
     rng = np.random.default_rng(5)
-    for _ in range(5):
-        xh = x0 + rng.normal(0, 0.01, 8)
-        u = rng.normal(0, 1.0, 1)
-        fh, Jh = hand.f_and_jacobian(xh, u)
-        xn = np.empty(8)
-        xn[order] = xh
-        fn, Jn = net.f_and_jacobian(xn, u)
-        np.testing.assert_allclose(fn[order], fh, rtol=1e-9, atol=1e-9 * np.abs(fh).max())
-        np.testing.assert_allclose(Jn[np.ix_(order, order)], Jh, rtol=1e-9,
-                                   atol=1e-9 * np.abs(Jh).max())
-    dt, steps = 1e-4, 100
-    t = np.arange(steps + 1) * dt
-    src = (0.01 * np.sin(2 * np.pi * 1e3 * t) + 0.05 * rng.standard_normal(steps + 1))[:, None]
-    u = hand.source_to_input(src[None], dt)
-    xn0 = np.empty(8)
-    xn0[order] = x0
-    a = simulate(hand, x0, u, dt, rtol=1e-10, atol=1e-13)
-    b = simulate(net, xn0, u, dt, rtol=1e-10, atol=1e-13)
-    assert np.abs(a - b[..., order]).max() <= 1e-9 * np.abs(a).max()
+    _assert_twins(net, hand, order, hand.operating_point(), 0.01,
+                  lambda: rng.normal(0, 1.0, 1), rng, 1e-9, _noisy_sine(rng, 1e-4, 100), 1e-4,
+                  atol=1e-13)
 
 
 def test_netlist_params_override_including_continuation_lines():
