@@ -6,6 +6,7 @@ Exit codes: 0 ok, 1 a check found differences, 2 a usage or config error, 3 a ru
 
 from __future__ import annotations
 
+import os
 import sys
 import tempfile
 import time
@@ -34,8 +35,18 @@ def main() -> None:
     """
 
 
-_jobs = click.option("--jobs", type=click.IntRange(1, 256), default=1, show_default=True,
-                     help="Worker processes over work units.")
+def usable_cores() -> int:
+    """The cores this process may run on (its CPU affinity), the default of ``--jobs``."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:                              # no affinity on this platform
+        return os.cpu_count() or 1
+
+
+_jobs = click.option("--jobs", type=click.IntRange(1, 256), default=usable_cores,
+                     show_default="the usable cores",
+                     help="Worker processes over work units (never more than a config's "
+                          "work units).")
 _max_work = click.option("--max-work", type=click.IntRange(1), default=MAX_WORK,
                          show_default=True,
                          help="Refuse a config whose work (state-samples) exceeds this.")

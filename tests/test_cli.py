@@ -866,3 +866,16 @@ def test_a_sweep_holds_one_cells_figures_at_a_time(tmp_path, monkeypatch):
     per_cell = len(open_counts) // 4
     assert per_cell >= 1 and max(open_counts) <= per_cell
     assert len(list((tmp_path / "r" / "tiny" / "figures").glob("*_sweep4.png"))) == per_cell
+
+
+def test_jobs_defaults_to_the_usable_cores():
+    """issue 27: --jobs defaults to the cores the process may run on (its affinity)."""
+    import os
+
+    import click
+
+    for name in ("run", "reproduce", "check"):
+        command = main.commands[name]
+        option = next(p for p in command.params if p.name == "jobs")
+        ctx = click.Context(command)
+        assert option.get_default(ctx) == len(os.sched_getaffinity(0))
