@@ -72,7 +72,7 @@ def _ekv_source(e, net: Netlist) -> str:
     :func:`estim.spice.circuit._ekv` written out, the softplus as ``max(a, 0) +
     ln(1 + exp(-abs(a)))`` (no overflow, no loss for negative ``a``)."""
     p = {**EKV, **net.models[e.ref].params}
-    d, g, s, b = (f"v({n})" if n not in ("0", "gnd") else "0" for n in e.nodes)
+    d, g, s, b = (f"v({flat(n)})" if n not in ("0", "gnd") else "0" for n in e.nodes)
     vp = f"(({g} - {b} - ({p['v_t0']!r})) / {p['eta']!r})"
 
     def softplus(a: str) -> str:
@@ -81,7 +81,8 @@ def _ekv_source(e, net: Netlist) -> str:
     a_s = f"(({vp} - ({s} - {b})) / {2 * p['u_t']!r})"
     a_d = f"(({vp} - ({d} - {b})) / {2 * p['u_t']!r})"
     Is = p["i_0"] * p["w_l"]
-    return (f"B{e.name} {e.nodes[0]} {e.nodes[2]} I={Is!r} * ({softplus(a_s)}^2 - "
+    return (f"B{flat(e.name)} {flat(e.nodes[0])} {flat(e.nodes[2])} I={Is!r} * "
+            f"({softplus(a_s)}^2 - "
             f"{softplus(a_d)}^2)")
 
 
@@ -108,29 +109,30 @@ def netlist_text(net: Netlist, t: np.ndarray, inputs: dict[str, np.ndarray],
     amplitude."""
     out = [f"* {net.title} (written by estim for ngspice)"]
     for e in net.elements:
-        nodes = " ".join(e.nodes)
+        nodes = " ".join(flat(n) for n in e.nodes)
+        name = flat(e.name, e.kind)
         if e.name in inputs:
             given = inputs[e.name]
             times, values = given if isinstance(given, tuple) else (t, given)
             pairs = " ".join(f"{a!r} {b!r}" for a, b in zip(np.asarray(times, float).tolist(),
                                                           np.asarray(values, float).tolist(),
                                                           strict=True))
-            out.append(f"{e.name} {nodes} PWL({pairs})")
+            out.append(f"{name} {nodes} PWL({pairs})")
         elif e.kind in "vi":
             kind, *args = e.waveform
             if kind == "dc" or (dc and e.name in dc):
                 value = dc[e.name] if dc and e.name in dc else args[0]
                 ac_part = " AC 1" if e.name == ac_source else ""
-                out.append(f"{e.name} {nodes} DC {float(value)!r}{ac_part}")
+                out.append(f"{name} {nodes} DC {float(value)!r}{ac_part}")
             else:
-                out.append(f"{e.name} {nodes} {kind.upper()}"
+                out.append(f"{name} {nodes} {kind.upper()}"
                            f"({' '.join(repr(float(a)) for a in args)})")
         elif e.kind == "m":
             out.append(_ekv_source(e, net))
         elif e.kind in "dq":
-            out.append(f"{e.name} {nodes} {e.ref}")
+            out.append(f"{name} {nodes} {e.ref}")
         else:
-            out.append(f"{e.name} {nodes} {float(e.value)!r}")
+            out.append(f"{name} {nodes} {float(e.value)!r}")
     models, vt = _models(net)
     out += models
     if vt is not None:
@@ -138,13 +140,23 @@ def netlist_text(net: Netlist, t: np.ndarray, inputs: dict[str, np.ndarray],
     return "\n".join(out)
 
 
+def flat(name: str, kind: str | None = None) -> str:
+    """A node's or an element's name for ngspice: a subcircuit's ``x1.g`` as ``x1_g``, and an
+    element flattened out of a subcircuit (``x1.r1``) with its kind's letter in front
+    (``r_x1_r1``): ngspice reads an element's kind from its first letter."""
+    out = name.replace(".", "_")
+    return out if kind is None or name[:1] == kind else f"{kind}_{out}"
+
+
 def vector(name: str) -> str:
     """ngspice's name of a quantity: ``v(a)``, ``v(a,b)`` as they are, ``i(l1)`` as the
-    inductor's branch current ``l1#branch``, a bare node ``a`` as ``v(a)``."""
+    inductor's branch current ``l1#branch``, a bare node ``a`` as ``v(a)`` (names through
+    :func:`flat`)."""
     name = name.strip().lower()
     if name.startswith("i(") and name.endswith(")"):
-        return f"{name[2:-1].strip()}#branch"
-    return name if name.startswith("v(") else f"v({name})"
+        return f"{flat(name[2:-1].strip(), 'l')}#branch"
+    inner = name[2:-1] if name.startswith("v(") and name.endswith(")") else name
+    return "v(" + ",".join(flat(n.strip()) for n in inner.split(",")) + ")"
 
 
 TIMEOUT = 300
