@@ -62,9 +62,15 @@ def test_source_waveforms():
     assert source_value(("pwl", 0.0, 0.0, 1.0, 2.0), 0.25) == (0.5, 2.0)
 
 
-def _twin():
-    M = model_class(DIFFAMP, ["VB1", "VB2"], "v(c1,c2)", name="netlist:test_diffamp")
-    return M(), DiffAmpEbersMoll()
+def _twin(kind: str = "em"):
+    """The netlist differential amplifier and its hand-written twin: ``em`` (Ebers-Moll,
+    circuits/diffamp_em.cir) or ``exp`` (the base-emitter diode law of Chapter 2,
+    circuits/diffamp_exp.cir)."""
+    from estim.models.diffamp_exp import DiffAmpExponential
+
+    path = DIFFAMP if kind == "em" else ROOT / "circuits" / "diffamp_exp.cir"
+    M = model_class(path, ["VB1", "VB2"], "v(c1,c2)", name=f"netlist:test_diffamp_{kind}")
+    return M(), (DiffAmpEbersMoll() if kind == "em" else DiffAmpExponential())
 
 
 def _to_netlist(model, xh):
@@ -73,12 +79,14 @@ def _to_netlist(model, xh):
     return np.stack([d[n] for n in model.state_names], axis=-1)
 
 
-def test_the_netlist_diffamp_is_the_hand_written_model():
-    """circuits/diffamp_em.cir against estim's diffamp_em: the drift at random points (the
-    hand model's q_L is CL (v(m) - v(c2))), the analytic Jacobian against differences, and a
-    trajectory under a 1 kHz differential sine, both integrated at rtol 1e-10: states agree
-    to 1e-9 relative (measured 1e-14) and the output to 1e-9 (measured 3e-12 over 3 ms)."""
-    net, hand = _twin()
+@pytest.mark.parametrize("kind", ["em", "exp"])
+def test_the_netlist_diffamp_is_the_hand_written_model(kind):
+    """circuits/diffamp_em.cir against estim's diffamp_em, circuits/diffamp_exp.cir (ics=0:
+    no collector junction) against diffamp_exp: the drift at random points (the hand model's
+    q_L is CL (v(m) - v(c2))), the analytic Jacobian against differences, and a trajectory
+    under a 1 kHz differential sine, both integrated at rtol 1e-10: states and the output
+    agree to 1e-9 relative."""
+    net, hand = _twin(kind)
     rng = np.random.default_rng(0)
     x0 = hand.operating_point()
     for _ in range(5):
@@ -398,6 +406,7 @@ def test_ngspice_agrees_with_the_netlist_model():
     ("diffamp_em_distortion", "diffamp_em_netlist_distortion"),
     ("mosfet_distortion", "mosfet_netlist_distortion"),
     ("cco_distortion", "cco_netlist_distortion"),
+    ("diffamp_distortion", "diffamp_netlist_distortion"),
 ])
 def test_netlist_configs_remake_the_hand_written_tables(hand, netlist):
     """configs/netlist/ re-makes the stored tables of its hand-written twin within the twin's

@@ -2,27 +2,27 @@
 
 States: the voltage of every node that no voltage source fixes, and the current of every
 inductor. Nodes fixed by a voltage source (from ground or from another fixed node) carry the
-source's value: the model's inputs (the sources named in ``inputs``, their values the model
-input ``u``) or the source's own waveform at time ``t``. A voltage-controlled voltage source
-(``E``) from a fixed node fixes its node to a function of the others (evaluated before the
-currents). KCL at the state nodes, with the nodal capacitance matrix ``C``,
+source's value: the model's inputs (the sources named in ``inputs``) or the source's DC
+value; a voltage-controlled voltage source (``E``) from a fixed node fixes its node to a
+function of the others. Every node voltage is then affine in the states and inputs,
+``V = P x + Q u + r``. KCL at the state nodes, with the nodal capacitance matrix ``C``,
 
-    C v' = - sum of the currents leaving each node through R, D, Q, M, G, I and L
-           + (capacitor currents driven by the fixed nodes' slopes),
+    C v' = - (the currents leaving each node through R, G, I, L, D, Q and M)
+           + (a slope input's capacitor currents),
 
 gives ``f``; inductors add ``L i' = v(n1) - v(n2)``. ``C`` must be invertible: every state
-node needs a capacitive path. Where one has none the builder refuses and names the nodes
-(the choice of this first version, over solving the algebraic nodes by Newton inside
-``f``: a shunt capacitor, as the hand-written models carry ``C_par``, keeps ``f`` explicit
-and its Jacobian exact). A capacitor to a node the model input drives would need the
-input's slope and is refused too.
+node needs a capacitive path, and one without is refused by name (deviations D71: a shunt
+capacitor, as the hand-written models carry ``C_par``, keeps ``f`` explicit and its
+Jacobian exact, where a Newton solve of such nodes inside ``f`` would not). A node with no
+DC path (only capacitors and current sources reach it) is refused too. An input whose node
+reaches the circuit only through capacitors drives it by its slope (D72).
 
 Device laws and their ``.model`` parameters: Shockley diodes with series resistance
 (``d``: ``is n rs``; closed form by the Lambert W function), Ebers-Moll NPN/PNP (``npn``,
-``pnp``: ``ies alpha_f alpha_r vt``, ``I_CS`` by reciprocity; :mod:`estim.devices.ebers_moll`,
-the thesis' law), EKV NMOS (``nmos``: ``u_t v_t0 eta i_0 w_l``; the law of
-:mod:`estim.models.mosfet_ekv`). Jacobians are analytic, chained through the
-E sources. ``F``/``H`` (current-controlled) sources are refused for now.
+``pnp``: ``ies alpha_f alpha_r vt``, ``I_CS`` by reciprocity unless ``ics`` is given;
+:mod:`estim.devices.ebers_moll`, the thesis' law), EKV NMOS (``nmos``: ``u_t v_t0 eta i_0
+w_l``; the law of :mod:`estim.models.mosfet_ekv`). Jacobian, input Jacobian and Hessian are
+analytic. ``F``/``H`` (current-controlled) sources are refused for now.
 """
 
 from __future__ import annotations
@@ -86,7 +86,7 @@ def source_value(waveform: tuple, t: float) -> tuple[float, float]:
 DIODE_VT = 0.025852
 """The diode's thermal voltage (300 K), as the BJT model's default ``vt``."""
 DIODE = {"is": 1e-14, "n": 1.0, "rs": 0.0}
-BJT = {"ies": 1e-14, "alpha_f": 0.99, "alpha_r": 0.5, "vt": 0.025852}
+BJT = {"ies": 1e-14, "alpha_f": 0.99, "alpha_r": 0.5, "vt": 0.025852, "ics": None}
 EKV = {"u_t": 0.0256, "v_t0": 0.5, "eta": 1.0, "i_0": 1e-9, "w_l": 1.0}
 DEFAULTS = {"d": DIODE, "npn": BJT, "pnp": BJT, "nmos": EKV}
 
@@ -484,7 +484,7 @@ class NetlistModel(Model, metaclass=_NetlistClass):
                 aF, aR = p["alpha_f"], p["alpha_r"]
                 tc = ebers_moll.currents(sign * (V[..., base] - V[..., emi]),
                                          sign * (V[..., base] - V[..., col]), p["ies"],
-                                         aF * p["ies"] / aR, aF, aR, p["vt"])
+                                         _ics(p), aF, aR, p["vt"])
                 dbe = sign * (self._P[base] - self._P[emi])
                 dbc = sign * (self._P[base] - self._P[col])
                 # a terminal current flows into the device: it leaves the node
@@ -545,7 +545,7 @@ class NetlistModel(Model, metaclass=_NetlistClass):
                 values = [prm["is"], prm["n"] * DIODE_VT, prm["rs"], 0.0, 0.0]
                 code = 0.0
             elif kind in ("npn", "pnp"):
-                values = [prm["ies"], prm["alpha_f"] * prm["ies"] / prm["alpha_r"],
+                values = [prm["ies"], _ics(prm),
                           prm["alpha_f"], prm["alpha_r"], prm["vt"]]
                 code = 1.0 if kind == "npn" else 2.0
             else:
@@ -591,7 +591,7 @@ class NetlistModel(Model, metaclass=_NetlistClass):
                 c, b, e = idx
                 s = -1.0 if kind == "pnp" else 1.0
                 aF, aR, VT = p["alpha_f"], p["alpha_r"], p["vt"]
-                ies, ics = p["ies"], aF * p["ies"] / aR
+                ies, ics = p["ies"], _ics(p)
                 eF = np.exp(s * (V[b] - V[e]) / VT)
                 eR = np.exp(s * (V[b] - V[c]) / VT)
                 gF, gR = ies * eF / VT, ics * eR / VT
@@ -700,6 +700,13 @@ def _with_params(text: str, lines: list[str]) -> str:
     if not placed:
         out.insert(1, merged)
     return "\n".join(out)
+
+
+def _ics(p: dict) -> float:
+    """The collector junction's saturation current: the ``.model``'s ``ics`` where given
+    (``ics=0``: no collector junction, the base-emitter-diode law of eqs 2.48-2.51), else by
+    reciprocity ``alpha_f ies / alpha_r`` (eq 3.52)."""
+    return p["alpha_f"] * p["ies"] / p["alpha_r"] if p.get("ics") is None else p["ics"]
 
 
 def _diode(vd, p):

@@ -12,7 +12,8 @@ transport form, ``IS = alpha_f ies``, ``BF = alpha_f / (1 - alpha_f)``, ``BR = a
 (1 - alpha_r)`` (the Gummel-Poon model with no other effects is Ebers-Moll), at the
 temperature whose ``kT/q`` is ``vt``; a diode keeps ``is n rs`` (at the same temperature, or
 at the one whose ``kT/q`` is estim's diode ``V_T`` where no transistor sets it); an EKV
-``nmos`` device becomes a behavioural current source (``B``) with the EKV law written out.
+``nmos`` device becomes a behavioural current source (``B``) with the EKV law written out,
+and an Ebers-Moll transistor whose ``.model`` sets ``ics`` two of them.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from estim.errors import EstimError
-from estim.spice.circuit import DIODE_VT, EKV
+from estim.spice.circuit import BJT, DIODE_VT, EKV
 from estim.spice.parser import Netlist
 
 K_OVER_Q = 1.38064852e-23 / 1.6021766208e-19
@@ -53,6 +54,8 @@ def _models(net: Netlist) -> tuple[list[str], float | None]:
         p = m.params
         if m.type == "nmos":
             continue                    # EKV devices become B sources (:func:`_ekv_source`)
+        if m.type in ("npn", "pnp") and p.get("ics") is not None:
+            continue                    # B sources (:func:`_em_sources`)
         if m.type in ("npn", "pnp"):
             aF, aR = p.get("alpha_f", 0.99), p.get("alpha_r", 0.5)
             vt = p.get("vt", 0.025852)
@@ -84,6 +87,25 @@ def _ekv_source(e, net: Netlist) -> str:
     return (f"B{flat(e.name)} {flat(e.nodes[0])} {flat(e.nodes[2])} I={Is!r} * "
             f"({softplus(a_s)}^2 - "
             f"{softplus(a_d)}^2)")
+
+
+def _em_sources(e, net: Netlist) -> list[str]:
+    """An Ebers-Moll transistor whose ``.model`` gives ``ics`` (which SPICE's transport form
+    cannot: its collector junction shares ``IS``) as two behavioural current sources, the
+    collector's and the base's currents into the device, both returning through the emitter
+    (eqs 3.48-3.51 written out)."""
+    model = net.models[e.ref]
+    p = {**BJT, **model.params}
+    sign = -1.0 if model.type == "pnp" else 1.0
+    c, b, em = (f"v({flat(n)})" if n not in ("0", "gnd") else "0" for n in e.nodes)
+    vt = p["vt"]
+    fF = f"({p['ies']!r} * (exp({sign!r} * ({b} - {em}) / {vt!r}) - 1))"
+    fR = f"({p['ics']!r} * (exp({sign!r} * ({b} - {c}) / {vt!r}) - 1))"
+    aF, aR = p["alpha_f"], p["alpha_r"]
+    name = flat(e.name)
+    cn, bn, en = (flat(n) for n in e.nodes)
+    return [f"B{name}_c {cn} {en} I={sign!r} * ({aF!r} * {fF} - {fR})",
+            f"B{name}_b {bn} {en} I={sign!r} * ({1 - aF!r} * {fF} + {1 - aR!r} * {fR})"]
 
 
 def staircase(t: np.ndarray, held: np.ndarray, first: float, edge: float = 1e-6) -> tuple:
@@ -129,6 +151,8 @@ def netlist_text(net: Netlist, t: np.ndarray, inputs: dict[str, np.ndarray],
                            f"({' '.join(repr(float(a)) for a in args)})")
         elif e.kind == "m":
             out.append(_ekv_source(e, net))
+        elif e.kind == "q" and net.models[e.ref].params.get("ics") is not None:
+            out += _em_sources(e, net)
         elif e.kind in "dq":
             out.append(f"{name} {nodes} {e.ref}")
         else:
