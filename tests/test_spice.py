@@ -468,10 +468,10 @@ def test_a_small_swing_node_shows_ngspice_tolerance_not_a_disagreement():
     from estim.spice import compare
 
     exp = load_file(ROOT / "configs" / "netlist" / "mosfet_distortion.yaml")
-    label, model, source, dt = compare.cases(exp)[5]          # row 6, 10 kHz
+    label, model, source, dt, frequency = compare.cases(exp)[5]        # row 6, 10 kHz
     own = []
     for reltol in (1e-8, 1e-9):
-        rows = compare.compare_case(label, model, source, dt, None, reltol=reltol)
+        rows = compare.compare_case(label, model, source, dt, frequency, None, reltol=reltol)
         bulk = next(r for r in rows if r["quantity"] == "v(b)")
         assert bulk["difference"] <= compare.BARS["transient"]
         own.append(bulk["own_scale"])
@@ -532,7 +532,7 @@ def test_a_netlist_with_subcircuits_agrees_with_ngspice():
     model = model_class(ROOT / "circuits" / "mosfet_darlington.cir", "VIN", "v(d2)",
                         name="netlist:test_darlington_ngspice")()
     rng = np.random.default_rng(6)
-    rows = compare._tightening("1000 Hz", model, _noisy_sine(rng, 1e-4, 100)[0], 1e-4,
+    rows = compare._tightening("1 kHz", model, _noisy_sine(rng, 1e-4, 100)[0], 1e-4, 1e3,
                                None, 1e-10, 1e-7, 2)
     assert {r["check"] for r in rows} == {"dc", "transient", "ac"}
     bad = [r for r in rows if r["difference"] > compare.BARS[r["check"]]]

@@ -7,15 +7,15 @@ noise at the largest level, as the "actual" signal is made) both simulators star
 own DC point and follow the same input: estim's integrator at a tight tolerance, ngspice's
 transient analysis (gear, ``reltol`` 1e-7 by default, tightened tenfold up to twice
 while a difference is above its bar) driven by a PWL source of exactly what estim's
-model sees (the staircase of interval means, or, for an input that drives through a
-capacitor, the piecewise-linear source itself). Reported per case:
+model sees (the staircase of its held values, :meth:`source_to_input`, or, for an input that
+drives through a capacitor, the piecewise-linear source itself). Reported per case:
 
 * ``dc``: the DC point, the largest node difference over the largest node voltage;
 * ``transient``: each state and the output, the largest difference over the run divided by
   the largest node voltage of the circuit's states (the scale SPICE's own tolerances work
   against; for an inductor current, its own largest magnitude). ``own_scale`` divides by
   the quantity's own largest magnitude instead: for a node that hardly moves (the MOSFET's
-  bulk swings 15 uV) it shows ngspice's absolute tolerances, not a disagreement of the
+  bulk swings microvolts) it shows ngspice's absolute tolerances, not a disagreement of the
   circuits (it shrinks as ngspice's ``reltol`` is tightened);
 * ``ac``: the small-signal gain from each input source to the output at the case's frequency,
   estim's ``C (j w - A)^-1 B`` (times ``j w`` for a slope input) against ngspice's AC
@@ -38,8 +38,9 @@ BARS = {"dc": 1e-13, "transient": 5.5e-6, "ac": 1.7e-9}
 """Largest relative differences from ngspice that count as agreement."""
 
 
-def cases(exp) -> list[tuple[str, object, np.ndarray, float]]:
-    """``(label, model, source (steps + 1, p), dt)`` for each case of ``exp``."""
+def cases(exp) -> list[tuple[str, object, np.ndarray, float, float | None]]:
+    """``(label, model, source (steps + 1, p), dt, frequency or None)`` for each case of
+    ``exp`` (the frequency of its sine, where the AC gain is compared)."""
     from estim import signals
 
     spec = exp.spec
@@ -57,7 +58,8 @@ def cases(exp) -> list[tuple[str, object, np.ndarray, float]]:
             label = f"row {row['s_no']}: {row['amplitude_v']:g} V"
             if row.get("frequency_hz") is not None:
                 label += f", {row['frequency_hz']:g} Hz"
-            out.append((label, exp.plan.models[row["s_no"]], src[0], dt))
+            out.append((label, exp.plan.models[row["s_no"]], src[0], dt,
+                        row.get("frequency_hz")))
     elif exp.analysis == "estimation":
         from estim.analyses import estimation
 
@@ -72,16 +74,17 @@ def cases(exp) -> list[tuple[str, object, np.ndarray, float]]:
             noisy = signals.gaussian(rng, level, (steps + 1, 1)) * mix
             noisy[0] = 0.0
             out.append((f"{f:g} Hz, input noise sigma {level:g}", exp.plan.truth,
-                        clean + noisy, dt))
+                        clean + noisy, dt, f))
     else:
         raise ConfigError(exp.source, "analysis", f"estim spice compares the circuits of "
                           f"perturbation and estimation configs, not {exp.analysis!r}")
     return out
 
 
-def compare_case(label: str, model, source: np.ndarray, dt: float, executable: str | None,
-                 rtol: float = 1e-10, reltol: float = 1e-7) -> list[dict]:
-    """The rows of :func:`compare` for one case."""
+def compare_case(label: str, model, source: np.ndarray, dt: float, frequency: float | None,
+                 executable: str | None, rtol: float = 1e-10,
+                 reltol: float = 1e-7) -> list[dict]:
+    """The rows of :func:`compare` for one case (the AC gain only with a ``frequency``)."""
     circuit = model.circuit
     net = circuit.netlist
     steps = source.shape[0] - 1
@@ -114,7 +117,6 @@ def compare_case(label: str, model, source: np.ndarray, dt: float, executable: s
         scale = node_scale if name.startswith("v(") else own
         rows.append({"case": label, "check": "transient", "quantity": name,
                      "difference": gap / scale, "own_scale": gap / own if own else np.nan})
-    frequency = _frequency(label)
     if frequency is not None:
         A = model.jacobian(x0, u_op)
         B = model.input_jacobian(x0, u_op)
@@ -135,13 +137,6 @@ def compare_case(label: str, model, source: np.ndarray, dt: float, executable: s
     return rows
 
 
-def _frequency(label: str) -> float | None:
-    import re
-
-    m = re.search(r"([0-9.e+-]+) Hz", label)
-    return float(m.group(1)) if m else None
-
-
 def compare(exp, executable: str | None = None, rtol: float = 1e-10,
             reltol: float = 1e-7, tighten: int = 2) -> pd.DataFrame:
     """estim against ngspice on every case of the netlist config ``exp``: one row per
@@ -154,15 +149,17 @@ def compare(exp, executable: str | None = None, rtol: float = 1e-10,
                           "not built from a netlist")
     ngspice.find(executable)
     rows = []
-    for label, model, source, dt in cases(exp):
-        rows += _tightening(label, model, source, dt, executable, rtol, reltol, tighten)
+    for label, model, source, dt, frequency in cases(exp):
+        rows += _tightening(label, model, source, dt, frequency, executable, rtol, reltol,
+                            tighten)
     table = pd.DataFrame(rows)
     table["bar"] = table["check"].map(BARS)
     table["holds"] = table["difference"] <= table["bar"]
     return table
 
 
-def _tightening(label, model, source, dt, executable, rtol, reltol, tighten) -> list[dict]:
+def _tightening(label, model, source, dt, frequency, executable, rtol, reltol,
+                tighten) -> list[dict]:
     """One case at ngspice's ``reltol``, then, while a difference is above its bar, at a
     ten times tighter one (up to ``tighten`` times): a difference that shrinks so is
     ngspice's truncation error, not a disagreement of the circuits. Each row says the
@@ -170,7 +167,8 @@ def _tightening(label, model, source, dt, executable, rtol, reltol, tighten) -> 
     rows = None
     for k in range(tighten + 1):
         try:
-            new = compare_case(label, model, source, dt, executable, rtol, reltol / 10 ** k)
+            new = compare_case(label, model, source, dt, frequency, executable, rtol,
+                               reltol / 10 ** k)
         except ngspice.NgspiceError:
             if rows is None:
                 raise
