@@ -442,6 +442,19 @@ def test_estim_spice_refuses_a_config_without_a_netlist():
     assert "model.netlist: estim spice compares a netlist model with ngspice" in result.output
 
 
+def test_estim_spice_names_a_missing_ngspice_in_one_line():
+    from click.testing import CliRunner
+
+    from estim.cli.main import main
+
+    config = str(ROOT / "configs" / "netlist" / "ce_amp_distortion.yaml")
+    result = CliRunner().invoke(main, ["spice", config, "--ngspice", "/no/such/ngspice"])
+    assert result.exit_code == 2 and result.output.count("\n") == 1
+    assert "ngspice executable '/no/such/ngspice' not found" in result.output
+    bad = CliRunner().invoke(main, ["spice", config, "--reltol", "0"])
+    assert bad.exit_code == 2 and "--reltol" in bad.output
+
+
 NGSPICE = pytest.mark.skipif(__import__("shutil").which("ngspice") is None,
                              reason="ngspice is not installed here (Debian: apt-get install "
                                     "ngspice); CI installs it")
