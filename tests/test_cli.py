@@ -566,7 +566,9 @@ def test_an_interrupted_run_resumes_with_its_finished_cells(tmp_path, monkeypatc
 
     path = write(tmp_path, tiny_config(**{"input.frequencies_hz": [100, 1000, 10000]}))
     runner = CliRunner()
-    args = ["run", str(path), "--quiet", "--runs", "2"]
+    # one process: the interruption and the count are made in this one (--jobs defaults to
+    # the usable cores)
+    args = ["run", str(path), "--quiet", "--runs", "2", "--jobs", "1"]
     assert runner.invoke(main, [*args, "--out", str(tmp_path / "full")]).exit_code == 0
     real, calls = estimation.run_point, []
 
@@ -583,7 +585,7 @@ def test_an_interrupted_run_resumes_with_its_finished_cells(tmp_path, monkeypatc
     assert len(list((tmp_path / "res").glob(".tiny.cells-*/cell-*.pkl"))) == 2
     calls.clear()
     stop_after = 0
-    resumed = runner.invoke(main, ["run", str(path), "--runs", "2", "--out",
+    resumed = runner.invoke(main, ["run", str(path), "--runs", "2", "--jobs", "1", "--out",
                                    str(tmp_path / "res")])
     assert resumed.exit_code == 0, resumed.output
     assert "resumed with 2 finished cell(s)" in resumed.output
