@@ -551,3 +551,23 @@ def test_a_netlist_with_subcircuits_agrees_with_ngspice():
     assert {r["check"] for r in rows} == {"dc", "transient", "ac"}
     bad = [r for r in rows if r["difference"] > compare.BARS[r["check"]]]
     assert not bad, bad
+
+
+def test_the_new_circuits_config_comments_hold():
+    """The comments of configs/netlist/ce_amp_*.yaml against the stored tables: a gain of
+    about 42 dB (every row of the distortion table), so 2 mV at the source gives 0.244-0.245
+    V at the load and 0.5 and 1 mV of source noise about 61 and 122 mV; no run of the EKF table
+    diverges; the fitted Q's only identifiable entry is Q[2] (the tune overlay says so)."""
+    import pandas as pd
+
+    gain_db = pd.read_csv(ROOT / "results" / "ce_amp_distortion" / "distortion.csv")["gain_db"]
+    assert len(gain_db) == 6 and (gain_db.round() == 42).all()
+    gain = 10 ** (gain_db / 20)
+    two_mv = 0.002 * gain[[1, 4]]                       # the 2 mV rows, 1 and 10 kHz
+    assert ((two_mv >= 0.2435) & (two_mv < 0.2455)).all()
+    assert (abs(0.0005 * gain - 0.061) < 0.001).all()
+    assert (abs(0.001 * gain - 0.122) < 0.001).all()
+    health = pd.read_csv(ROOT / "results" / "ce_amp_ekf" / "health.csv")
+    assert (health["diverged"] == 0).all()
+    overlay = (ROOT / "configs" / "netlist" / "fitted" / "ce_amp_ekf.yaml").read_text()
+    assert "# not identifiable from these data: Q[0], Q[1], Q[3], Q[4] (" in overlay
