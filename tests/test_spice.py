@@ -275,6 +275,14 @@ def test_the_compiled_netlist_kernel_is_the_numpy_drift():
         Jfd = np.stack([(net.f(x + eps * e, u) - net.f(x - eps * e, u)) / (2 * eps)
                         for e in np.eye(net.n_states)], axis=-1)
         assert np.abs(Jfd - J).max() < 1e-5 * np.abs(J).max()
+    # the analytic input Jacobian and Hessian against the base class's differences
+    from estim.models.base import Model
+
+    x, u = rng.uniform(0, 1, net.n_states), np.array([0.8])
+    H, Hd = net.hessian(x, u), Model.hessian(net, x, u)
+    assert np.abs(H - Hd).max() < 1e-6 * np.abs(H).max()
+    B, Bd = net.input_jacobian(x, u), Model.input_jacobian(net, x, u)
+    assert np.abs(B - Bd).max() < 1e-6 * np.abs(B).max()
 
 
 def _write(text: str) -> Path:

@@ -66,7 +66,7 @@ def model_class(path: Path, inputs, output: str, name: str | None = None,
 def rebuild(origin: tuple) -> type:
     """The model class of ``origin`` (:attr:`NetlistModel.origin`): how a netlist model class
     crosses to a worker process (pickled as the arguments of :func:`model_class`)."""
-    known = registry.MODELS.get(origin[3]) if origin[3] in registry.MODELS else None
+    known = registry.MODELS.get(origin[3])
     if known is not None and getattr(known, "origin", None) == origin:
         return known
     return model_class(Path(origin[0]), origin[1], origin[2], origin[3], origin[4])

@@ -590,19 +590,17 @@ class NetlistModel(Model, metaclass=_NetlistClass):
             elif kind in ("npn", "pnp"):
                 c, b, e = idx
                 s = -1.0 if kind == "pnp" else 1.0
-                aF, aR, VT = p["alpha_f"], p["alpha_r"], p["vt"]
-                ies, ics = p["ies"], _ics(p)
-                eF = np.exp(s * (V[b] - V[e]) / VT)
-                eR = np.exp(s * (V[b] - V[c]) / VT)
-                gF, gR = ies * eF / VT, ics * eR / VT
+                VT = p["vt"]
+                tc = ebers_moll.currents(s * (V[b] - V[e]), s * (V[b] - V[c]), p["ies"],
+                                         _ics(p), p["alpha_f"], p["alpha_r"], VT)
                 dbe, dbc = np.array([0.0, 1.0, -1.0]), np.array([-1.0, 1.0, 0.0])
                 be, bc = np.outer(dbe, dbe), np.outer(dbc, dbc)
-                # current into each terminal = s (cF fF(v_be) + cR fR(v_bc)), v_.. = s (...)
-                terms = []
-                for node, cF, cR in ((c, aF, -1.0), (b, 1 - aF, 1 - aR), (e, -1.0, aR)):
-                    d1 = cF * gF * dbe + cR * gR * dbc
-                    d2 = s * (cF * gF / VT * be + cR * gR / VT * bc)
-                    terms.append((node, d1, d2))
+                # current into each terminal = s I(v_be, v_bc), v_.. = s (...); every term
+                # is linear in e^(v/V_T), so its second derivative is its first over V_T
+                terms = [(node, d_be * dbe + d_bc * dbc, s * (d_be * be + d_bc * bc) / VT)
+                         for node, d_be, d_bc in ((c, tc.dIC_be, tc.dIC_bc),
+                                                  (b, tc.dIB_be, tc.dIB_bc),
+                                                  (e, tc.dIE_be, tc.dIE_bc))]
                 yield [c, b, e], terms
             else:
                 d_, g_, s_, b_ = idx
