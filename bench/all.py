@@ -1,4 +1,8 @@
-"""Every benchmark in one run:  pip install '.[bench]' && python bench/all.py"""
+"""Every benchmark in one run:  pip install '.[bench]' && python bench/all.py
+
+``python bench/all.py --reproduce --baseline COMMIT_OR_FOLDER [CONFIGS]`` instead runs every
+default config on this checkout and on the baseline and prints their CPU-seconds side by side
+(:mod:`bench_reproduce`)."""
 
 from __future__ import annotations
 
@@ -11,9 +15,13 @@ import bench_expansion  # noqa: E402
 import bench_field  # noqa: E402
 import bench_filters  # noqa: E402
 import bench_image  # noqa: E402
+import bench_reproduce  # noqa: E402
 import bench_simulate  # noqa: E402
 
 if __name__ == "__main__":
+    if "--reproduce" in sys.argv:
+        bench_reproduce.main([a for a in sys.argv[1:] if a != "--reproduce"])
+        sys.exit(0)
     for name, module in (("Chapter 3 actual signal", bench_simulate),
                          ("Chapter 2 expansion", bench_expansion),
                          ("filters", bench_filters),

@@ -415,7 +415,7 @@ def list_configs() -> None:
     """Show the configs and the thesis tables each reproduces."""
     where = project.locate()
     click.echo(where.describe(), err=True)
-    for exp in config.load_files(where.configs()):
+    for exp in config.load_files(where.configs(), plan=False):
         click.echo(f"{exp.source:40s} {exp.name:24s} Tables {', '.join(exp.spec['reproduces'])}"
                    f"  {exp.spec['title']}")
 

@@ -20,12 +20,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import pandas as pd
-
-from estim import io
+from estim import io, lazy
 from estim.config import MAX_WORK, load_data, load_file, spec_hash
 from estim.errors import UsageError
 from estim.schema import Experiment
+
+pd = lazy.load("pandas")
 
 
 @dataclass

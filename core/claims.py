@@ -30,10 +30,11 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import pandas as pd
-from scipy import stats
 
+from estim import lazy
 from estim.tablespec import TableSpec
+
+pd = lazy.load("pandas")
 
 LEVEL = 0.95
 """Two-sided coverage of every claim's interval."""
@@ -82,6 +83,8 @@ def sign_interval_rank(n: int, level: float = LEVEL) -> int:
     """The largest ``k`` with ``P(Binomial(n, 1/2) <= k - 1) <= (1 - level) / 2``: the
     interval ``[d_(k), d_(n-k+1)]`` covers the median with probability at least ``level``.
     0 when no such interval exists (``n < 6`` at 95 %)."""
+    from scipy import stats
+
     tail = (1.0 - level) / 2.0
     k = 0
     while k + 1 <= n // 2 + 1 and stats.binom.cdf(k, n, 0.5) <= tail:
@@ -137,6 +140,8 @@ def judge(better: Losses, worse: Losses, level: float = LEVEL, exact: bool = Fal
         d = b - w
         mean = float(np.mean(d))
         se = float(np.std(d, ddof=1) / np.sqrt(n)) if n > 1 else float("nan")
+        from scipy import stats
+
         q = float(stats.t.ppf(0.5 + level / 2, n - 1)) if n > 1 else float("inf")
         low, high = mean - q * se, mean + q * se
         mw = np.mean(w)

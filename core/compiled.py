@@ -16,21 +16,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from estim import kernels
+from estim import kernels, radau
 from estim.kernels import evaluate, jit
 
 AVAILABLE = kernels.AVAILABLE
 
-_S6 = np.sqrt(6.0)
-RADAU_A = np.array([
-    [(88 - 7 * _S6) / 360, (296 - 169 * _S6) / 1800, (-2 + 3 * _S6) / 225],
-    [(296 + 169 * _S6) / 1800, (88 + 7 * _S6) / 360, (-2 - 3 * _S6) / 225],
-    [(16 - _S6) / 36, (16 + _S6) / 36, 1 / 9],
-])
-"""Radau IIA (3 stages, order 5) coefficients."""
-RADAU_MU = 3 + 3 ** (2 / 3) - 3 ** (1 / 3)
-RADAU_E = np.array([-13 - 7 * _S6, -13 + 7 * _S6, -1.0]) / 3
-"""The embedded error estimate (Hairer & Wanner, Solving ODEs II, IV.8; as scipy)."""
+RADAU_A, RADAU_MU, RADAU_E = radau.A, radau.MU, radau.E
 
 OK, STEP_UNDERFLOW, TOO_MANY_STEPS = 0, 1, 2
 

@@ -195,8 +195,11 @@ def parse(text_: str, source: str, default_name: str, max_work: int = MAX_WORK) 
 
 
 def parse_data(data: dict, source: str, default_name: str,
-               max_work: int = MAX_WORK) -> Experiment:
-    """Validate an already loaded config mapping; ``max_work`` bounds its work size."""
+               max_work: int = MAX_WORK, plan: bool = True) -> Experiment:
+    """Validate an already loaded config mapping; ``max_work`` bounds its work size. With
+    ``plan=False`` the analysis' ``prepare`` (models built, DC points found, grids laid) is
+    skipped: the keys, values and table ids are checked, and ``Experiment.plan`` is None
+    (``estim list`` reads titles, not plans)."""
     data = copy.deepcopy(data)
     sweep = data.pop("sweep", None) if isinstance(data, dict) else None
     load_plugins(data.get("plugins") if isinstance(data, dict) else None, source)
@@ -221,12 +224,15 @@ def parse_data(data: dict, source: str, default_name: str,
     if work > max_work:
         raise ConfigError(source, "", f"the experiment computes about {work:.3g} state-samples, "
                           f"more than the limit {max_work:.3g} (raise it with --max-work)")
+    if not plan:
+        return Experiment(name=spec["name"], source=source, spec=spec, plan=None, models={})
     with recording_models() as models:
-        plan = module.prepare(spec, source)
+        prepared = module.prepare(spec, source)
     _check_tolerances(spec, module, source)
     if sweep is not None:
         spec["sweep"] = _check_sweep(sweep, data, source, default_name, max_work, work)
-    return Experiment(name=spec["name"], source=source, spec=spec, plan=plan, models=models)
+    return Experiment(name=spec["name"], source=source, spec=spec, plan=prepared,
+                      models=models)
 
 
 MAX_PLUGIN_BYTES = 1 << 20
@@ -436,7 +442,7 @@ MAX_CONFIG_BYTES = 1 << 20
 
 
 def load_file(path: Path, overrides: dict | None = None, max_work: int = MAX_WORK,
-              quick: bool = False) -> Experiment:
+              quick: bool = False, plan: bool = True) -> Experiment:
     """Read and validate one config file (a regular file of at most 1 MiB of UTF-8) with
     ``overrides`` (key path -> value) applied first; with ``quick``, shrunk to its analysis'
     quick profile (``tiny``: the first cell of a sweep) and validated again."""
@@ -460,30 +466,30 @@ def load_file(path: Path, overrides: dict | None = None, max_work: int = MAX_WOR
     except UnicodeDecodeError:
         raise ConfigError(str(path), "", "not a UTF-8 text file") from None
     return load_data(load_yaml(text_, str(path)), str(path), path.stem, overrides, max_work,
-                     quick)
+                     quick, plan)
 
 
 def load_data(data: dict, source: str, default_name: str, overrides: dict | None = None,
-              max_work: int = MAX_WORK, quick: bool = False) -> Experiment:
+              max_work: int = MAX_WORK, quick: bool = False, plan: bool = True) -> Experiment:
     """:func:`load_file` for a config already read into a mapping."""
     if overrides:
         data = apply_overrides(data, overrides, source)
-    exp = parse_data(data, source, default_name, 2**62 if quick else max_work)
+    exp = parse_data(data, source, default_name, 2**62 if quick else max_work, plan)
     if quick:                          # the first cell of a sweep, shrunk: the grid's size is moot
         spec = copy.deepcopy(exp.spec)
         sweep = spec.pop("sweep", None)
         if sweep:
             spec = apply_overrides(spec, {k: v[0] for k, v in sweep.items()}, source)
         small = ANALYSES[exp.analysis].tiny(spec)
-        exp = parse_data(small, f"{source} (--quick)", default_name, max_work)
+        exp = parse_data(small, f"{source} (--quick)", default_name, max_work, plan)
     return exp
 
 
 def load_files(paths, overrides: dict | None = None, max_work: int = MAX_WORK,
-               quick: bool = False) -> list[Experiment]:
+               quick: bool = False, plan: bool = True) -> list[Experiment]:
     """:func:`load_file` of every path; two configs of one name are a ``UsageError`` (they
     would write one results folder)."""
-    exps = [load_file(Path(p), overrides, max_work, quick) for p in paths]
+    exps = [load_file(Path(p), overrides, max_work, quick, plan) for p in paths]
     names = [e.name for e in exps]
     dupes = sorted({n for n in names if names.count(n) > 1})
     if dupes:

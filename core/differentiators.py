@@ -24,7 +24,10 @@ from fractions import Fraction
 from math import factorial
 
 import numpy as np
-from scipy import signal
+
+from estim import lazy
+
+signal = lazy.load("scipy.signal")
 
 
 def _double_factorial(k: int) -> int:

@@ -29,11 +29,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import linalg
 
-from estim import kernels
+from estim import lazy
 from estim.errors import SimulationError
 from estim.simulate import SOLVERS
+
+linalg = lazy.load("scipy.linalg")
+kernels = lazy.load("estim.kernels")
 
 
 @dataclass(frozen=True)

@@ -26,9 +26,11 @@ run-average falls in the band. The innovations of a consistent filter are also w
 from __future__ import annotations
 
 import numpy as np
-from scipy import stats
 
+from estim import lazy
 from estim.estimators.base import Estimate
+
+stats = lazy.load("scipy.stats")
 
 DEFAULTS = {
     "band": 0.95,            # two-sided probability of the NEES/NIS band

@@ -20,9 +20,11 @@ from importlib import metadata
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
+from estim import lazy
 from estim.errors import UsageError
+
+pd = lazy.load("pandas")
 
 _UMASK = os.umask(0)
 os.umask(_UMASK)

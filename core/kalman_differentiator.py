@@ -21,9 +21,11 @@ derivative error variance ``P22 = sqrt(2) q^(3/4) r^(1/4)``, and the differentia
 from __future__ import annotations
 
 import numpy as np
-from scipy import linalg
 
+from estim import lazy
 from estim.estimators.kf import KalmanFilter
+
+linalg = lazy.load("scipy.linalg")
 
 
 def check_differentiable(G: np.ndarray, H: np.ndarray) -> None:

@@ -27,9 +27,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import linalg
 
+from estim import lazy
 from estim.expansion import expand
+
+linalg = lazy.load("scipy.linalg")
 
 
 @dataclass(frozen=True)

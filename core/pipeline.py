@@ -7,10 +7,11 @@ the thesis row each of our rows joins, and the claims judged on the per-run loss
 from __future__ import annotations
 
 import numpy as np
-import pandas as pd
 
-from estim import claims, health, metrics, tables
+from estim import claims, health, lazy, metrics, tables
 from estim.schema import Experiment
+
+pd = lazy.load("pandas")
 
 MEASUREMENT = "measurement"
 """Label of the baseline row: the raw measurement taken as the estimate."""

@@ -3,13 +3,28 @@
 from __future__ import annotations
 
 import textwrap
+from typing import TYPE_CHECKING
 
-import matplotlib
 import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+
+class _Pyplot:
+    """``matplotlib.pyplot`` on the Agg backend, imported at the first figure: a command that
+    draws nothing (``estim validate``, ``estim table``) does not pay matplotlib's import."""
+
+    def __getattr__(self, name: str):
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot
+
+        return getattr(matplotlib.pyplot, name)
+
+
+plt = _Pyplot()
 
 SIZE = (8.0, 6.0)
 LINESTYLES = ("-", "--", "-.", ":")

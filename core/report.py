@@ -12,9 +12,9 @@ import html
 import re
 from dataclasses import dataclass, field
 
-import pandas as pd
+from estim import lazy, tables
 
-from estim import tables
+pd = lazy.load("pandas")
 
 STYLE = """
 body { font-family: sans-serif; margin: 2em; max-width: 110em; color: #222; }

@@ -8,14 +8,14 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-import pandas as pd
-
-from estim import io
+from estim import io, lazy
 from estim.analyses import ANALYSES
 from estim.analyses.base import Result, ShardDone, execution, sweep_cell
 from estim.config import apply_overrides, parse_data, spec_hash
 from estim.schema import Experiment
 from estim.tables import SWEEP_PREFIX
+
+pd = lazy.load("pandas")
 
 
 def sweep_cells(exp: Experiment) -> list[tuple[dict, Experiment]]:

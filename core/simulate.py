@@ -14,14 +14,14 @@ together in one vectorised loop. ``tests/test_mosfet.py`` checks the result agai
 from __future__ import annotations
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
-from estim import compiled, linalg
+from estim import lazy, linalg, radau
 from estim.errors import SimulationError
 
-# The Radau IIA tableau and its embedded error estimate (Hairer & Wanner, Solving ODEs II,
-# IV.8; as scipy), shared with the compiled integrator.
-RADAU_A, _MU, _E = compiled.RADAU_A, compiled.RADAU_MU, compiled.RADAU_E
+integrate = lazy.load("scipy.integrate")
+compiled = lazy.load("estim.compiled")
+
+RADAU_A, _MU, _E = radau.A, radau.MU, radau.E
 
 
 def _radau_step(model, x: np.ndarray, u: np.ndarray, h: np.ndarray, newton_tol: float,
@@ -164,8 +164,9 @@ def simulate_scipy(model, x0: np.ndarray, u: np.ndarray, dt: float, rtol: float 
         y = x0[r]
         for k in range(steps):
             uk = u[r, k]
-            sol = solve_ivp(lambda _t, x, uk=uk: model.f(x, uk), (0.0, dt), y, method=method,
-                            jac=lambda _t, x, uk=uk: model.jacobian(x, uk), rtol=rtol, atol=atol)
+            sol = integrate.solve_ivp(lambda _t, x, uk=uk: model.f(x, uk), (0.0, dt), y,
+                                      method=method, rtol=rtol, atol=atol,
+                                      jac=lambda _t, x, uk=uk: model.jacobian(x, uk))
             if not sol.success:
                 raise SimulationError(f"{model.name}: solve_ivp failed on run {r}, interval "
                                       f"{k}: {sol.message}")

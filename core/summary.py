@@ -15,10 +15,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
-from estim import claims
+from estim import claims, lazy
 from estim.io import read_manifest, read_table
+
+pd = lazy.load("pandas")
 
 
 @dataclass(frozen=True)

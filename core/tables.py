@@ -9,10 +9,12 @@ from __future__ import annotations
 from importlib import resources
 
 import numpy as np
-import pandas as pd
 
+from estim import lazy
 from estim.analyses.base import TableSpec
 from estim.errors import ReferenceJoinError
+
+pd = lazy.load("pandas")
 
 OWN_TABLE = "ours"
 """``tables.<metric>: ours`` in a config writes the table without naming a thesis table (a

@@ -29,7 +29,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import optimize
+
+from estim import lazy
+
+optimize = lazy.load("scipy.optimize")
 
 IDENTIFIABLE_CONDITION = 1e8
 """Largest condition number of the observed information at which the fit is reported."""

@@ -29,9 +29,10 @@ from contextvars import ContextVar
 from dataclasses import dataclass, field
 from typing import Any
 
-import pandas as pd
-
+from estim import lazy
 from estim.tablespec import TableSpec
+
+pd = lazy.load("pandas")
 
 __all__ = ["TableSpec"]
 

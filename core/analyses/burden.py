@@ -28,10 +28,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import pandas as pd
-import pywt
 
-from estim import claims, opcount, plots, registry, tables
+from estim import claims, lazy, opcount, plots, registry, tables
 from estim.analyses.base import Result, TableSpec
 from estim.blocks import Model as ModelBlock
 from estim.errors import ConfigError
@@ -51,6 +49,9 @@ from estim.schema import (
 )
 from estim.settings import Settings, block, setting, settings_class
 from estim.summary import Quote
+
+pd = lazy.load("pandas")
+pywt = lazy.load("pywt")
 
 
 @settings_class

@@ -21,14 +21,15 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-import pandas as pd
 
-from estim import claims, plots
+from estim import claims, lazy, plots
 from estim import differentiators as fd
 from estim.analyses.base import Result, TableSpec
 from estim.schema import Experiment, file_name, integer, list_of, number, text
 from estim.settings import Settings, block, setting, settings_class
 from estim.summary import Quote
+
+pd = lazy.load("pandas")
 
 
 @settings_class

@@ -33,9 +33,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-import pandas as pd
 
-from estim import claims, metrics, signals
+from estim import claims, lazy, metrics, signals
 from estim.analyses.base import Result, TableSpec, map_tasks
 from estim.blocks import MonteCarlo, Readings
 from estim.errors import ConfigError
@@ -46,6 +45,8 @@ from estim.fields.dipole import Dipole
 from estim.schema import REQUIRED, Experiment, check_interval, integer, list_of, number, text
 from estim.settings import Settings, block, blocks, setting, settings_class
 from estim.summary import Quote
+
+pd = lazy.load("pandas")
 
 COMPONENTS = ("E_r", "E_theta", "H_phi")
 PARTS = ("imag", "real", "abs")

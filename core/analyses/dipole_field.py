@@ -34,23 +34,27 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-import pandas as pd
-from scipy.spatial import cKDTree
 from threadpoolctl import threadpool_limits
 
-from estim import claims, metrics, plots
+from estim import claims, lazy, metrics, plots
 from estim.analyses import dipole as literal
 from estim.analyses.base import Result, TableSpec, map_tasks
 from estim.analyses.dipole import COMPONENTS, TABLE_IDS, sinusoid_rls
 from estim.blocks import MonteCarlo
 from estim.errors import ConfigError
-from estim.fields import etkf, letkf, model_error, wave
+from estim.fields import etkf, wave
 from estim.fields.dipole import Dipole
-from estim.fields.fdtd import Grid, Simulation, fields_from, spherical
 from estim.memory import reuse_freed_memory
 from estim.schema import REQUIRED, Experiment, check_interval, integer, list_of, number, text
 from estim.settings import Settings, block, blocks, setting, settings_class
 from estim.summary import Quote
+
+pd = lazy.load("pandas")
+spatial = lazy.load("scipy.spatial")
+fdtd = lazy.load("estim.fields.fdtd")
+grids = lazy.load("estim.fields.grid")
+letkf = lazy.load("estim.fields.letkf")
+model_error = lazy.load("estim.fields.model_error")
 
 KF, RLS, PLAIN = "KF", "RLS", "plain simulation"
 SOURCE_ONLY, FIT = "KF (source only)", "amplitude-only fit"
@@ -202,7 +206,7 @@ class Plan:
     """The grid, the sensors (grid indices) and their rows of the operators, and each
     zone's grid points, built once."""
 
-    grid: Grid
+    grid: grids.Grid
     sensors: np.ndarray
     zones: dict
     sensor_ops: tuple
@@ -214,7 +218,7 @@ def prepare(spec: dict, source: str) -> Plan:
     if g["n"] % 2:
         raise ConfigError(source, "grid.n", "expected an even number (no grid point on the "
                           "source's centre, where the analytic field is infinite)")
-    grid = Grid(g["n"], g["length"] / g["n"])
+    grid = grids.Grid(g["n"], g["length"] / g["n"])
     half = g["length"] / 2
     for i, z in enumerate(spec["zones"]):
         check_interval(z["r"], source, f"zones[{i}].r")
@@ -301,7 +305,7 @@ def _amplitude(pair: list[float]) -> complex:
     return pair[0] * np.exp(1j * np.radians(pair[1]))
 
 
-def _observe(grid: Grid, states_before: np.ndarray, states_after: np.ndarray, dt: float,
+def _observe(grid: grids.Grid, states_before: np.ndarray, states_after: np.ndarray, dt: float,
              mu0: float, ops: tuple | None = None) -> dict[str, np.ndarray]:
     """Cartesian E and H at time t from ``states_before`` (levels t - dt, t) and
     ``states_after`` (t, t + dt): ``dA/dt`` by the centred difference. With ``ops`` (the
@@ -309,7 +313,7 @@ def _observe(grid: Grid, states_before: np.ndarray, states_after: np.ndarray, dt
     A, Phi = states_after[:, 0, 0], states_after[:, 0, 1]
     dA = (states_after[:, 1, 0] - states_before[:, 0, 0]) / (2 * dt)
     if ops is None:
-        return fields_from(grid, A, Phi, dA, mu0)
+        return fdtd.fields_from(grid, A, Phi, dA, mu0)
     grad_s, curl_z, pick = ops
     E = -(grad_s @ Phi.T).T.reshape(A.shape[0], 3, -1)
     E[:, 2] -= dA[:, pick]
@@ -317,7 +321,7 @@ def _observe(grid: Grid, states_before: np.ndarray, states_after: np.ndarray, dt
     return {"E": E, "H": H}
 
 
-def sensor_operators(grid: Grid, sensors: np.ndarray) -> tuple:
+def sensor_operators(grid: grids.Grid, sensors: np.ndarray) -> tuple:
     """The rows of the gradient at the sensors, the columns of the curl that act on ``A_z``
     (the only component of ``A``) at the sensors' rows, and the sensors themselves."""
     rows = np.concatenate([sensors + k * grid.size for k in range(3)])
@@ -331,7 +335,7 @@ class _Setup:
     """What one case's runs share: the simulation, its step, the record's length, the
     localisation and the observation variances."""
 
-    sim: Simulation
+    sim: fdtd.Simulation
     dipole: Dipole
     dt: float
     per: int
@@ -356,7 +360,7 @@ def _setup(spec: dict, plan: Plan) -> _Setup:
     dt = spec["grid"]["courant"] * grid.spacing / src["c"]
     per = int(round(1 / (src["frequency"] * dt)))
     dt = 1 / (src["frequency"] * per)                  # whole steps per period
-    sim = Simulation(grid, dipole, dt, dl=grid.spacing, width=spec["grid"]["source_width"],
+    sim = fdtd.Simulation(grid, dipole, dt, dl=grid.spacing, width=spec["grid"]["source_width"],
                      boundary=spec["grid"]["boundary"])
     quarter = max(1, per // 4)
     f, so = spec["filter"], spec["source_only"]
@@ -406,10 +410,10 @@ def _rows_of(before: np.ndarray, after: np.ndarray) -> np.ndarray:
     return np.concatenate([before[:, 0, 0][:, None], after[:, 0], after[:, 1]], axis=1)
 
 
-def _fields_of(grid: Grid, X: np.ndarray, dt: float, mu0: float) -> dict[str, np.ndarray]:
+def _fields_of(grid: grids.Grid, X: np.ndarray, dt: float, mu0: float) -> dict[str, np.ndarray]:
     """E and H at ``t`` of the mean of ``X (m, 5, points)`` (:func:`_rows_of`)."""
     mean = X.mean(axis=0)
-    return fields_from(grid, mean[None, 1], mean[None, 2], (mean[None, 3] - mean[None, 0])
+    return fdtd.fields_from(grid, mean[None, 1], mean[None, 2], (mean[None, 3] - mean[None, 0])
                        / (2 * dt), mu0)
 
 
@@ -634,7 +638,7 @@ class _EulerRun:
     ``u = [A_z, Phi]``, nominal source, Mur faces not applied (Euler has no two-level
     boundary of that kind); it grows without bound and is reported as it comes out."""
 
-    def __init__(self, sim: Simulation, amplitude: complex) -> None:
+    def __init__(self, sim: fdtd.Simulation, amplitude: complex) -> None:
         self.sim, self.amplitude = sim, np.array([amplitude])
         self.u = np.zeros((1, 2, sim.grid.size))
         self.v = np.zeros_like(self.u)
@@ -652,11 +656,11 @@ class _EulerRun:
 
     def fields(self) -> dict:
         with np.errstate(all="ignore"):
-            return fields_from(self.sim.grid, self.u[:, 0], self.u[:, 1], self.v[:, 0],
+            return fdtd.fields_from(self.sim.grid, self.u[:, 0], self.u[:, 1], self.v[:, 0],
                                self.sim.dipole.mu0)
 
 
-def _analytic_cartesian(grid: Grid, phasors: dict, turn: complex,
+def _analytic_cartesian(grid: grids.Grid, phasors: dict, turn: complex,
                         where: np.ndarray) -> np.ndarray:
     """Analytic E and H at ``where`` as ``(2, 3, points)`` Cartesian components."""
     th, ph = grid.theta[where], grid.phi[where]
@@ -679,7 +683,7 @@ def _errors(exp, grid, phasors, dipole, sensors, times, traces, measured, smooth
     its estimate at ``t`` is this run's estimate at ``t - T/4``, against
     ``Im{F e^{j omega t}}``. ``abs``: the magnitude formed from the two, against ``|F|``."""
     out = {}
-    tree = cKDTree(grid.xyz[sensors])
+    tree = spatial.cKDTree(grid.xyz[sensors])
     for zone, where in exp.plan.zones.items():
         _, nearest = tree.query(grid.xyz[where])
         turn = np.exp(1j * dipole.omega * times)[:, None]
@@ -692,11 +696,11 @@ def _errors(exp, grid, phasors, dipole, sensors, times, traces, measured, smooth
                 continue
             E = np.stack([tr["E"][0] for tr in traces[name]])[..., where]
             H = np.stack([tr["H"][0] for tr in traces[name]])[..., where]
-            Es, Hs = spherical(grid, E, where), spherical(grid, H, where)
+            Es, Hs = fdtd.spherical(grid, E, where), fdtd.spherical(grid, H, where)
             est[name] = {"E_r": Es["r"], "E_theta": Es["theta"], "H_phi": Hs["phi"]}
         for name, data in (("measurement", measured), (RLS, smooth)):
             E, H = data[:, 0][..., nearest], data[:, 1][..., nearest]
-            Es, Hs = spherical(grid, E, where), spherical(grid, H, where)
+            Es, Hs = fdtd.spherical(grid, E, where), fdtd.spherical(grid, H, where)
             est[name] = {"E_r": Es["r"], "E_theta": Es["theta"], "H_phi": Hs["phi"]}
         q = quarter
         for name, comps in est.items():

@@ -30,11 +30,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-import pandas as pd
 
 from estim import (
     claims,
     kalman_differentiator,
+    lazy,
     pipeline,
     registry,
     signals,
@@ -56,6 +56,8 @@ from estim.schema import (
 )
 from estim.simulate import SOLVERS
 from estim.summary import Quote
+
+pd = lazy.load("pandas")
 
 SCHEMA: dict = Config.schema()
 

@@ -16,9 +16,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-import pandas as pd
 
-from estim import claims, metrics, plots
+from estim import claims, lazy, metrics, plots
 from estim.analyses import dipole_field as field
 from estim.analyses.base import Result, TableSpec, map_tasks
 from estim.errors import ConfigError
@@ -26,6 +25,8 @@ from estim.schema import REQUIRED, Experiment, list_of, number, text
 from estim.settings import Settings, block, settings_class
 from estim.settings import setting as declare
 from estim.summary import Quote
+
+pd = lazy.load("pandas")
 
 SETTINGS = {"grid.n": int, "sensors.fraction": float, "filter.members": int}
 """The settings a study may vary, and their type."""

@@ -24,12 +24,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-import pandas as pd
 
-from estim import claims, metrics, plots
+from estim import claims, lazy, metrics, plots
 from estim.analyses.base import Result, TableSpec, map_tasks
 from estim.blocks import MonteCarlo
-from estim.images import kalman2d, nshp, strip
+from estim.images import nshp, strip
 from estim.schema import (
     REQUIRED,
     Experiment,
@@ -41,6 +40,9 @@ from estim.schema import (
 )
 from estim.settings import Settings, block, setting, settings_class
 from estim.summary import Quote
+
+pd = lazy.load("pandas")
+kalman2d = lazy.load("estim.images.kalman2d")
 
 IMAGES = ("camera", "moon", "brick", "grass", "gravel", "coins", "text", "page", "astronaut")
 """scikit-image's images that ship inside its wheel (no download at run time)."""

@@ -11,16 +11,17 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-import pandas as pd
-from scipy import linalg
 
-from estim import claims, metrics, plots
+from estim import claims, lazy, metrics, plots
 from estim import kalman_differentiator as kd
 from estim.analyses.base import Result, TableSpec, map_tasks
 from estim.blocks import MonteCarlo
 from estim.schema import REQUIRED, Experiment, file_name, number
 from estim.settings import Settings, block, blocks, setting, settings_class
 from estim.summary import Quote
+
+pd = lazy.load("pandas")
+linalg = lazy.load("scipy.linalg")
 
 
 @settings_class

@@ -30,9 +30,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import pandas as pd
 
-from estim import claims, pipeline, plots, registry, signals
+from estim import claims, lazy, pipeline, plots, registry, signals
 from estim.analyses.base import Result, TableSpec, map_tasks
 from estim.blocks import (
     VOLTS,
@@ -62,6 +61,8 @@ from estim.schema import (
 from estim.settings import Settings, block, blocks, setting, settings_class
 from estim.simulate import SOLVERS
 from estim.summary import Quote
+
+pd = lazy.load("pandas")
 
 CAPACITANCES = ("C_S", "C_D", "C_B", "C_BS", "C_BD")
 """The device capacitances that scale with gate area under ``area_scaled_caps``."""

@@ -13,15 +13,16 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-import pandas as pd
 
-from estim import claims, metrics, plots
+from estim import claims, lazy, metrics, plots
 from estim import passive_network as pn
 from estim.analyses.base import Result, TableSpec
 from estim.blocks import MonteCarlo
 from estim.schema import REQUIRED, Experiment, file_name, integer, number, text
 from estim.settings import Settings, block, blocks, setting, settings_class
 from estim.summary import Quote
+
+pd = lazy.load("pandas")
 
 
 @settings_class

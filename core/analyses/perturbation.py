@@ -24,9 +24,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import pandas as pd
 
-from estim import claims, metrics, plots, registry, signals, tables
+from estim import claims, lazy, metrics, plots, registry, signals, tables
 from estim.analyses.base import Result, TableSpec, map_tasks
 from estim.blocks import VOLTS, simulation
 from estim.blocks import Model as ModelBlock
@@ -48,6 +47,8 @@ from estim.schema import (
 )
 from estim.settings import Settings, block, blocks, setting, settings_class
 from estim.summary import Quote
+
+pd = lazy.load("pandas")
 
 
 @settings_class

@@ -26,12 +26,13 @@ For the measured states ``y`` (``measures``; eq 4.16 measures all four, ``H = I`
 from __future__ import annotations
 
 import numpy as np
-import pywt
 
-from estim import opcount
+from estim import lazy, opcount
 from estim.estimators.base import Estimate, Estimator, batch_input
 from estim.schema import integer, list_of, number, text
 from estim.settings import setting, settings_class
+
+pywt = lazy.load("pywt")
 
 STEP_BOUND = 2.0
 """Normalised LMS is mean-square stable only for a step in (0, 2)."""

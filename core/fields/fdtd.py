@@ -21,14 +21,14 @@ leapfrog levels. Everything works on a leading batch axis (ensemble members).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
 from scipy.special import erf
 
 from estim.fields import operators as ops
 from estim.fields.dipole import Dipole
+from estim.fields.grid import Grid
 from estim.kernels import jit
 
 
@@ -89,45 +89,6 @@ def _mur(now, new, faces, inner, mur):  # pragma: no cover - compiled
                 for b in range(faces.shape[1]):
                     p, q = faces[a, b], inner[a, b]
                     new[k, f, p] = now[k, f, q] + mur * (new[k, f, q] - now[k, f, p])
-
-
-@dataclass
-class Grid:
-    """``n`` points per axis, spacing ``spacing``, centred on the dipole (``n`` even: no
-    point sits on the source's centre)."""
-
-    n: int
-    spacing: float
-    laplacian: sp.csr_matrix = field(init=False, repr=False)
-    grad: sp.csr_matrix = field(init=False, repr=False)
-    curl: sp.csr_matrix = field(init=False, repr=False)
-
-    def __post_init__(self) -> None:
-        self.laplacian = ops.laplacian(self.n, self.spacing)
-        self.grad = ops.gradient(self.n, self.spacing)
-        self.curl = ops.curl(self.n, self.spacing)
-        x = (np.arange(self.n) - (self.n - 1) / 2) * self.spacing
-        self.axis = x
-        X, Y, Z = np.meshgrid(x, x, x, indexing="ij")
-        self.xyz = np.stack([X.ravel(), Y.ravel(), Z.ravel()], axis=-1)
-        self.r = np.linalg.norm(self.xyz, axis=-1)
-        self.theta = np.arccos(np.clip(self.xyz[:, 2] / self.r, -1, 1))
-        self.phi = np.arctan2(self.xyz[:, 1], self.xyz[:, 0])
-        shape = (self.n,) * 3
-        index = np.indices(shape)
-        faces, inner = [], []
-        for axis in range(3):
-            for edge, neighbour in ((0, 1), (self.n - 1, self.n - 2)):
-                on = index[axis] == edge
-                faces.append(np.flatnonzero(on.ravel()))
-                moved = [a[on] for a in index]
-                moved[axis] = np.full(moved[axis].shape, neighbour)
-                inner.append(np.ravel_multi_index(moved, shape))
-        self.faces, self.inner = faces, inner
-
-    @property
-    def size(self) -> int:
-        return self.n**3
 
 
 def source_profiles(grid: Grid, dl: float, width: float) -> tuple[np.ndarray, np.ndarray]:

@@ -14,11 +14,12 @@ import dataclasses
 from typing import Any
 
 import numpy as np
-from scipy import optimize
 
-from estim import registry
+from estim import lazy, registry
 from estim.errors import ParameterError, SimulationError
 from estim.simulate import simulate
+
+optimize = lazy.load("scipy.optimize")
 
 
 def param(default: Any, unit: str = "-", doc: str = "") -> Any:

@@ -31,9 +31,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estim import kernels
+from estim import lazy
 from estim.devices import ebers_moll
 from estim.models.base import Model, check_params, param
+
+kernels = lazy.load("estim.kernels")
 
 
 @dataclass(frozen=True)

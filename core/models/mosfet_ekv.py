@@ -34,8 +34,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estim import kernels
+from estim import lazy
 from estim.models.base import Model, check_params, param
+
+kernels = lazy.load("estim.kernels")
 
 WEAK_INVERSION = 0.1
 """Upper bound of the forward inversion coefficient in weak inversion (EKV convention)."""

@@ -32,12 +32,14 @@ import dataclasses
 import re
 
 import numpy as np
-from scipy.special import lambertw
 
-from estim import kernels
+from estim import lazy
 from estim.devices import ebers_moll
 from estim.models.base import Model, param
 from estim.spice.parser import Netlist, NetlistError
+
+special = lazy.load("scipy.special")
+kernels = lazy.load("estim.kernels")
 
 GROUND = ("0", "gnd")
 
@@ -718,7 +720,7 @@ def _diode(vd, p):
             e = np.exp(vd / a)
         return Is * (e - 1), Is * e / a
     z = np.log(Is * rs / a) + (vd + Is * rs) / a           # log of W's argument
-    w = np.where(z < 500, np.real(lambertw(np.exp(np.minimum(z, 500)))),
+    w = np.where(z < 500, np.real(special.lambertw(np.exp(np.minimum(z, 500)))),
                  z - np.log(np.maximum(z, 1.0)))
     i = a * w / rs - Is
     g = (i + Is) / (a + rs * (i + Is))

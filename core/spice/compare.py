@@ -28,11 +28,13 @@ estim's circuits at against ngspice), and ``holds`` says whether it is within it
 from __future__ import annotations
 
 import numpy as np
-import pandas as pd
 
+from estim import lazy
 from estim.errors import ConfigError
 from estim.simulate import simulate
 from estim.spice import ngspice
+
+pd = lazy.load("pandas")
 
 BARS = {"dc": 1e-13, "transient": 5.5e-6, "ac": 1.7e-9}
 """Largest relative differences from ngspice that count as agreement."""

@@ -1,0 +1,136 @@
+"""CPU-seconds of every default config, this checkout beside a baseline, in one run.
+
+    python bench/all.py --reproduce --baseline HEAD~5        # a commit (a git worktree)
+    python bench/all.py --reproduce --baseline ../old-clone  # or a checkout's folder
+
+Each config runs as its own process (``estim run CONFIG --jobs 1 --out TMP``) first on the
+baseline, then on this checkout, so drift in the machine's load hits both alike. A
+``--quick`` run of each config comes first on each side and is not counted: it loads (or
+compiles) numba's kernels into that checkout's cache. CPU-seconds are the child processes'
+user + system time (``resource.RUSAGE_CHILDREN``). The last column says whether this
+checkout's tables equal the stored ``results/`` byte for byte (a benchmark that changed a
+table has changed a result, not only a speed).
+
+The baseline runs from a folder of symbolic links that lays its ``core/``, ``cli/``,
+``configs/`` and ``circuits/`` out as the package ``estim`` (as pyproject.toml maps them),
+first on ``PYTHONPATH``: no second install is needed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+LAUNCH = "from estim.cli.main import main; main()"
+
+
+def package_view(checkout: Path, into: Path) -> Path:
+    """A folder holding ``estim/`` laid out from ``checkout`` as the installed package."""
+    pkg = into / "estim"
+    pkg.mkdir(parents=True)
+    for entry in (checkout / "core").iterdir():
+        (pkg / entry.name).symlink_to(entry)
+    cli = pkg / "cli"
+    cli.mkdir()
+    for entry in (checkout / "cli").iterdir():
+        (cli / entry.name).symlink_to(entry)
+    (cli / "configs").symlink_to(checkout / "configs")
+    if (checkout / "circuits").is_dir():
+        (pkg / "circuits").symlink_to(checkout / "circuits")
+    return into
+
+
+def checkout_of(baseline: str, scratch: Path) -> Path:
+    """``baseline`` as a folder: itself if it is one, else a git worktree at that commit."""
+    path = Path(baseline)
+    if (path / "core").is_dir():
+        return path.resolve()
+    tree = scratch / "baseline"
+    subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(tree), baseline],
+                   check=True, capture_output=True)
+    return tree
+
+
+def cpu_run(args: list[str], env: dict, cwd: Path) -> tuple[float, float, int]:
+    """CPU-seconds (user + system of the child) and wall seconds of one command."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = time.perf_counter()
+    out = subprocess.run([sys.executable, "-c", LAUNCH, *args], env=env, cwd=cwd,
+                         capture_output=True, text=True)
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    if out.returncode:
+        print(f"   {' '.join(args[:2])}: exit {out.returncode}: "
+              f"{out.stderr.strip().splitlines()[-1:]}", file=sys.stderr)
+    return cpu, wall, out.returncode
+
+
+def same_tables(new: Path, stored: Path) -> bool:
+    """Every CSV of ``stored`` is in ``new`` with the same bytes (timing tables excepted:
+    they hold wall-clock times)."""
+    csvs = [p for p in stored.glob("*.csv") if p.name != "timing.csv"]
+    return bool(csvs) and all((new / p.name).is_file()
+                              and (new / p.name).read_bytes() == p.read_bytes() for p in csvs)
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--baseline", required=True,
+                        help="a commit (checked out as a git worktree) or a checkout's folder")
+    parser.add_argument("configs", nargs="*",
+                        help="configs to run [default: every configs/*.yaml]")
+    args = parser.parse_args(argv)
+    configs = args.configs or sorted(str(p.relative_to(ROOT))
+                                     for p in (ROOT / "configs").glob("*.yaml"))
+    scratch = Path(tempfile.mkdtemp(prefix="estim-bench-"))
+    worktree = None
+    try:
+        base = checkout_of(args.baseline, scratch)
+        worktree = base if base.is_relative_to(scratch) else None
+        sides = {"baseline": base, "this": ROOT}
+        envs = {}
+        for side, checkout in sides.items():
+            view = package_view(checkout, scratch / f"view-{side}")
+            envs[side] = {**os.environ, "PYTHONPATH": str(view), "OMP_NUM_THREADS": "1",
+                          "NUMBA_NUM_THREADS": "1"}
+        for config in configs:
+            for side, checkout in sides.items():
+                cpu_run(["run", config, "--quick", "--jobs", "1", "--out",
+                         str(scratch / f"quick-{side}")], envs[side], checkout)
+        print(f"{'config':<28}{'baseline s':>11}{'this s':>9}{'ratio':>8}{'wall s':>9}"
+              "  tables (CPU-s, ratio this/baseline, this one's wall)")
+        total = {"baseline": 0.0, "this": 0.0}
+        for config in configs:
+            cpu, wall = {}, {}
+            for side, checkout in sides.items():
+                out = scratch / f"out-{side}"
+                c, w, rc = cpu_run(["run", config, "--jobs", "1", "--out", str(out)],
+                                   envs[side], checkout)
+                cpu[side] = c if rc == 0 else float("nan")
+                total[side] += c
+                wall[side] = w
+            name = Path(config).stem
+            same = same_tables(scratch / "out-this" / name, ROOT / "results" / name)
+            print(f"{name:<28}{cpu['baseline']:>11.1f}{cpu['this']:>9.1f}"
+                  f"{cpu['this'] / cpu['baseline']:>8.2f}{wall['this']:>9.1f}  "
+                  f"{'identical' if same else 'DIFFER'}", flush=True)
+        print(f"{'total':<28}{total['baseline']:>11.1f}{total['this']:>9.1f}"
+              f"{total['this'] / total['baseline']:>8.2f}")
+    finally:
+        if worktree is not None:
+            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force",
+                            str(worktree)], capture_output=True)
+        shutil.rmtree(scratch, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()

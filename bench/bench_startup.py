@@ -1,0 +1,75 @@
+"""Wall time of the small commands (validate, list, table), each a fresh process.
+
+    python bench/bench_startup.py                     # this checkout
+    python bench/bench_startup.py --baseline HEAD~3   # beside a baseline, in the same run
+
+Each command runs once to warm the caches (Python's bytecode, numba's), then three times; the
+fastest of the three is printed (start-up is a floor, and the fastest run is the one least
+disturbed by other work on the machine). The baseline runs from a package view of its
+checkout (:func:`bench_reproduce.package_view`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from bench_reproduce import LAUNCH, ROOT, checkout_of, package_view  # noqa: E402
+
+COMMANDS = (("validate", "configs/mosfet_saturation.yaml"),
+            ("validate", "configs/dipole_field.yaml"),
+            ("validate", "configs/diffamp_distortion.yaml"),
+            ("list",),
+            ("table", "distortion"),
+            ("table", "rmse"))
+
+
+def fastest(command: tuple[str, ...], env: dict, repeats: int = 3) -> float:
+    """The fastest wall time of ``repeats`` runs of ``estim COMMAND`` after one warm-up."""
+    times = []
+    for k in range(repeats + 1):
+        start = time.perf_counter()
+        out = subprocess.run([sys.executable, "-c", LAUNCH, *command], env=env, cwd=ROOT,
+                             capture_output=True, text=True)
+        if out.returncode:
+            raise SystemExit(f"estim {' '.join(command)}: exit {out.returncode}\n{out.stderr}")
+        if k:
+            times.append(time.perf_counter() - start)
+    return min(times)
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--baseline", help="a commit or a checkout's folder")
+    args = parser.parse_args(argv)
+    scratch = Path(tempfile.mkdtemp(prefix="estim-startup-"))
+    worktree = None
+    try:
+        sides = {"this": ROOT}
+        if args.baseline:
+            base = checkout_of(args.baseline, scratch)
+            worktree = base if base.is_relative_to(scratch) else None
+            sides = {"baseline": base, **sides}
+        envs = {side: {**os.environ, "PYTHONPATH": str(package_view(c, scratch / side))}
+                for side, c in sides.items()}
+        print(f"{'command':<48}" + "".join(f"{side + ' s':>12}" for side in sides))
+        for command in COMMANDS:
+            cells = "".join(f"{fastest(command, envs[side]):>12.2f}" for side in sides)
+            print(f"{'estim ' + ' '.join(command):<48}{cells}", flush=True)
+    finally:
+        if worktree is not None:
+            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force",
+                            str(worktree)], capture_output=True)
+        shutil.rmtree(scratch, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()

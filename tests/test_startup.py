@@ -1,0 +1,68 @@
+"""Start-up: a command imports what it uses. Each check runs the command in a fresh
+interpreter and lists which heavy modules were really loaded (a module that ``lazy_loader``
+has only registered is not loaded). No timing here: ``bench/bench_startup.py`` measures."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+HEAVY = ("matplotlib", "pandas", "numba", "scipy.stats", "scipy.signal", "scipy.optimize",
+         "scipy.integrate", "scipy.sparse", "pywt", "skimage", "estim.kernels")
+
+_PROBE = """
+import importlib.util, json, sys
+from estim.cli.entry import main
+try:
+    main(sys.argv[1:], standalone_mode=False)
+except SystemExit as exc:
+    assert not exc.code, exc.code
+heavy = {heavy!r}
+loaded = [m for m in heavy if m in sys.modules
+          and not isinstance(sys.modules[m], importlib.util._LazyModule)]
+print("LOADED=" + json.dumps(loaded))
+"""
+
+
+def loaded_by(*args: str) -> set[str]:
+    """The heavy modules that ``estim ARGS`` loads, run in a fresh interpreter."""
+    out = subprocess.run([sys.executable, "-c", _PROBE.format(heavy=HEAVY), *args],
+                         capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert out.returncode == 0, out.stderr
+    line = next(x for x in out.stdout.splitlines() if x.startswith("LOADED="))
+    return set(json.loads(line[len("LOADED="):]))
+
+
+def test_validate_of_every_default_config_draws_nothing_and_reads_no_tables():
+    configs = sorted(str(p.relative_to(ROOT)) for p in (ROOT / "configs").glob("*.yaml"))
+    loaded = loaded_by("validate", *configs)
+    assert not loaded & {"matplotlib", "pandas", "scipy.stats", "scipy.signal"}, loaded
+
+
+@pytest.mark.parametrize("config", ["configs/dipole_field.yaml",
+                                    "configs/diffamp_distortion.yaml",
+                                    "configs/netlist/ce_amp_distortion.yaml"])
+def test_validate_of_a_config_without_a_settling_run_loads_no_compiled_code(config):
+    """These configs' checks (a grid, a DC point by Newton) need neither numba nor the
+    compiled kernels; the MOSFET configs' DC point lets the circuit settle first, with the
+    compiled integrator, where Newton fails from zero (models/base.py)."""
+    loaded = loaded_by("validate", config)
+    assert not loaded & {"numba", "estim.kernels", "matplotlib", "pandas"}, loaded
+
+
+def test_list_reads_configs_without_building_their_plans():
+    loaded = loaded_by("list")
+    assert not loaded & {"numba", "estim.kernels", "matplotlib", "pandas", "scipy.optimize",
+                         "scipy.sparse", "skimage"}, loaded
+
+
+def test_table_reads_csv_without_drawing_or_compiling():
+    loaded = loaded_by("table", "distortion")
+    assert "pandas" in loaded                      # the probe sees a real load
+    assert not loaded & {"numba", "estim.kernels", "matplotlib", "scipy.stats",
+                         "scipy.optimize", "skimage", "pywt"}, loaded
