@@ -38,6 +38,11 @@ def counting(runs: int = 1) -> Iterator[dict]:
         tally.pop("_runs")
 
 
+def counting_active() -> bool:
+    """Whether a :func:`counting` block is open (a compiled path adds its counts then)."""
+    return bool(_tally)
+
+
 def _add(label: str, total: float) -> None:
     if _tally:
         tally = _tally[-1]

@@ -149,6 +149,36 @@ def test_least_squares_recovers_theta_and_lms_ends_near_it():
     assert np.max(np.abs(fit["lms"] - theta)) < 0.01 * np.max(np.abs(theta))
 
 
+def _numpy_lms(Ws, Wt, step, epochs):
+    """The batched numpy form of the LMS passes (before they were compiled)."""
+    theta = np.zeros((Ws.shape[0], Wt.shape[2], Ws.shape[2]))
+    for _ in range(epochs):
+        for k in range(Ws.shape[1]):
+            g = Ws[:, k, :]
+            e = Wt[:, k, :] - (theta @ g[..., None])[..., 0]
+            norm = 1e-12 + (g[:, None, :] @ g[..., None])[:, 0, 0]
+            theta = theta + e[:, :, None] * ((step / norm[:, None]) * g)[:, None, :]
+    return theta
+
+
+@pytest.mark.parametrize("q", [1, 4])
+def test_compiled_lms_passes_are_the_numpy_form_to_rounding_and_count_alike(q):
+    from estim.compiled_lms import lms_passes
+
+    rng = np.random.default_rng(q)
+    d = q + q * (q + 1) // 2 + 2
+    Ws, Wt = rng.standard_normal((7, 30, d)), rng.standard_normal((7, 30, q))
+    ours, ref = lms_passes(Ws, Wt, 0.5, 20), _numpy_lms(Ws, Wt, 0.5, 20)
+    assert np.allclose(ours, ref, rtol=1e-12, atol=1e-14 * np.max(np.abs(ref)))
+    assert not np.array_equal(lms_passes(Ws, Wt, 0.5, 19), ours)   # every pass is made
+    y, u, _, dt = _synthetic()
+    est = WaveletLMS(band_factor=1e6, epochs=3, step=1.0)
+    with opcount.counting(runs=y.shape[0]) as tally:
+        fit = est.identify(y, u, np.zeros(2), dt, 7.0)
+    kept, d2 = round(fit["kept_fraction"] * y.shape[1]), 2 + 3 + u.shape[-1] + 1
+    assert tally["LMS"] == 3 * kept * (2 * 2 * d2 + 2 * d2)     # 2 q d + 2 d per coefficient
+
+
 @pytest.mark.parametrize("step", [2.0, 5.0])
 def test_lms_step_above_the_stability_bound_is_refused(step):
     with pytest.raises(ValueError, match="stability bound"):

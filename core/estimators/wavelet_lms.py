@@ -16,7 +16,8 @@ For the measured states ``y`` (``measures``; eq 4.16 measures all four, ``H = I`
    ``N1, N2`` (eq 4.19) is undefined for a real wavelet (``|psi'|/|psi|`` is unbounded);
    this rule is ours (docs/deviations.md);
 3. ``Theta`` is identified from the kept coefficients by normalised LMS (eq 4.33 by
-   gradient search; ``step`` in (0, 2), ``epochs`` passes, columns scaled to unit RMS),
+   gradient search; ``step`` in (0, 2), ``epochs`` passes, columns scaled to unit RMS;
+   compiled, :mod:`estim.compiled_lms`),
    with batch least squares on the same coefficients as the reference it is compared with
    (``diagnostics["lms_ls_gap"]``: ``|Theta_LMS - Theta_LS| / |Theta_LS|``);
 4. the states are rebuilt by running the identified model from ``y_0`` on the nominal
@@ -24,6 +25,8 @@ For the measured states ``y`` (``measures``; eq 4.16 measures all four, ``H = I`
 """
 
 from __future__ import annotations
+
+import functools
 
 import numpy as np
 
@@ -33,6 +36,7 @@ from estim.schema import integer, list_of, number, text
 from estim.settings import setting, settings_class
 
 pywt = lazy.load("pywt")
+compiled_lms = lazy.load("estim.compiled_lms")
 
 STEP_BOUND = 2.0
 """Normalised LMS is mean-square stable only for a step in (0, 2)."""
@@ -46,10 +50,16 @@ def stable_step(value) -> str | None:
             "(mean-square stable only there)")
 
 
+@functools.cache
+def _pairs(q: int) -> tuple[np.ndarray, np.ndarray]:
+    """``np.triu_indices(q)``, made once per ``q`` (it is asked for at every rebuilt step)."""
+    return np.triu_indices(q)
+
+
 def regressors(c: np.ndarray, u: np.ndarray) -> np.ndarray:
     """``phi = [c, c_i c_j (i <= j), u, 1]`` for deviations ``c (..., q)`` and input
     ``u (..., p)``: shape ``(..., q + q(q+1)/2 + p + 1)``."""
-    i, j = np.triu_indices(c.shape[-1])
+    i, j = _pairs(c.shape[-1])
     quad = opcount.mul(c[..., i], c[..., j], "regressors")
     return np.concatenate([c, quad, u, np.ones(c.shape[:-1] + (1,))], axis=-1)
 
@@ -155,15 +165,12 @@ class WaveletLMS(Estimator, name="wavelet_lms"):
         Ws = Wp / scale
         theta_ls = np.stack([np.linalg.lstsq(Ws[r], Wt[r], rcond=None)[0].T
                              for r in range(runs)])
-        theta = np.zeros((runs, q, phi.shape[-1]))
-        mm = opcount.matmul
-        for _ in range(self.epochs):
-            for k in range(kept):
-                g = Ws[:, k, :]
-                e = Wt[:, k, :] - mm(theta, g[..., None], "LMS")[..., 0]
-                norm = 1e-12 + mm(g[:, None, :], g[..., None], "LMS")[:, 0, 0]
-                gain = opcount.mul(self.step / norm[:, None], g, "LMS")
-                theta = theta + opcount.mul(e[:, :, None], gain[:, None, :], "LMS")
+        theta = compiled_lms.lms_passes(Ws, Wt, self.step, self.epochs)
+        if opcount.counting_active():
+            d = phi.shape[-1]
+            for _ in range(self.epochs * kept):      # as the batched form counted them
+                for size in (q * d, d, d, q * d):
+                    opcount._add("LMS", runs * size)
         gap = (np.linalg.norm(theta - theta_ls, axis=(1, 2))
                / np.maximum(np.linalg.norm(theta_ls, axis=(1, 2)), 1e-300))
         return {"lms": theta / scale, "least_squares": theta_ls / scale,
