@@ -10,10 +10,26 @@ import click
 
 from estim.errors import ConfigError, UsageError
 
+MAX_LINE = 400
+"""Longest error line printed: a value quoted from the user's input is cut in the middle."""
+MAX_LINES = 12
+"""Most error lines printed for one failure (one per problem of a config)."""
+
+
+def bounded(line: str) -> str:
+    """``line`` cut to :data:`MAX_LINE` characters, keeping its start and its end."""
+    if len(line) <= MAX_LINE:
+        return line
+    cut = len(line) - (MAX_LINE - 100)
+    return f"{line[:MAX_LINE - 180]} ...[{cut} characters]... {line[-80:]}"
+
 
 def fail(message: str) -> None:
-    for line in str(message).splitlines() or [""]:
-        click.echo(f"error: {line}", err=True)
+    lines = str(message).splitlines() or [""]
+    for line in lines[:MAX_LINES]:
+        click.echo(f"error: {bounded(line)}", err=True)
+    if len(lines) > MAX_LINES:
+        click.echo(f"error: ... and {len(lines) - MAX_LINES} more problems", err=True)
     sys.exit(2)
 
 
@@ -34,9 +50,14 @@ class Group(click.Group):
             fail(str(exc))
         except OSError as exc:
             where = f" ({exc.filename})" if exc.filename else ""
-            click.echo(f"error: {exc.strerror or exc}{where}", err=True)
+            click.echo(f"error: {bounded(f'{exc.strerror or exc}{where}')}", err=True)
             sys.exit(3)
         except Exception as exc:  # noqa: BLE001 - last line of defence, reported
+            from estim.cli.launch import interrupted
+
+            if interrupted():                       # e.g. a worker pool the Ctrl-C broke
+                click.echo("error: interrupted", err=True)
+                sys.exit(130)
             first = (str(exc).strip().splitlines() or [""])[0]
-            click.echo(f"error: {type(exc).__name__}: {first}", err=True)
+            click.echo(f"error: {bounded(f'{type(exc).__name__}: {first}')}", err=True)
             sys.exit(3)

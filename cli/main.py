@@ -43,6 +43,16 @@ def usable_cores() -> int:
         return os.cpu_count() or 1
 
 
+class _NamedPath(click.Path):
+    """A path that must be named: ``--out ''`` is refused (as a path it would mean the
+    current folder, which the user did not name)."""
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, str) and not value.strip():
+            self.fail("expected a path, got an empty string", param, ctx)
+        return super().convert(value, param, ctx)
+
+
 _jobs = click.option("--jobs", type=click.IntRange(1, 256), default=usable_cores,
                      show_default="the usable cores",
                      help="Worker processes over work units (never more than a config's "
@@ -54,7 +64,7 @@ _max_work = click.option("--max-work", type=click.IntRange(1), default=MAX_WORK,
 
 @main.command()
 @click.argument("configs", nargs=-1, required=True)
-@click.option("--out", type=click.Path(file_okay=False, path_type=Path),
+@click.option("--out", type=_NamedPath(file_okay=False, path_type=Path),
               help="Folder for results [default: the project's results/ for a config of "
                    "configs/ run as it is, else its scratch/].")
 @click.option("--runs", type=click.IntRange(1), help="Override monte_carlo.runs.")
@@ -128,7 +138,7 @@ def run(configs, out, runs, seed, update_baseline, quick, jobs, max_work, execut
 @click.option("--from", "sources", multiple=True, required=True,
               type=click.Path(file_okay=False, exists=True, path_type=Path),
               help="A folder the shards wrote into (repeat for several).")
-@click.option("--out", type=click.Path(file_okay=False, path_type=Path),
+@click.option("--out", type=_NamedPath(file_okay=False, path_type=Path),
               help="Folder for results [default: as for run].")
 @click.option("--runs", type=click.IntRange(1), help="As given to the shards' run.")
 @click.option("--seed", type=click.IntRange(0), help="As given to the shards' run.")
@@ -160,7 +170,7 @@ def merge(configs, sources, out, runs, seed, quick, jobs, max_work, quiet) -> No
 
 
 @main.command()
-@click.option("--out", type=click.Path(file_okay=False, path_type=Path),
+@click.option("--out", type=_NamedPath(file_okay=False, path_type=Path),
               help="Folder for results [default: the project's results/].")
 @_jobs
 @_max_work
@@ -249,7 +259,7 @@ def check(configs, results, jobs, max_work, everything) -> None:
               help="Training runs per sweep point (drawn apart from the table's runs).")
 @click.option("--fit-r", is_flag=True, help="Fit R too (reported as not identifiable when "
                                            "the data cannot tell Q from R).")
-@click.option("--out", type=click.Path(dir_okay=False, path_type=Path),
+@click.option("--out", type=_NamedPath(dir_okay=False, path_type=Path),
               help="Overlay file [default: fitted/<config name>.yaml beside the config].")
 @_max_work
 def tune(config, label, new_label, runs, fit_r, out, max_work) -> None:
@@ -328,9 +338,12 @@ def validate(configs, max_work) -> None:
 @main.command(name="report")
 @click.option("--results", type=click.Path(file_okay=False, path_type=Path),
               help="Folder of stored results [default: the project's results/].")
-@click.option("--out", type=click.Path(dir_okay=False, path_type=Path), default="report.html",
+@click.option("--out", type=_NamedPath(dir_okay=False, path_type=Path), default="report.html",
               show_default=True, help="The HTML file to write.")
-def report_page(results, out) -> None:
+@click.option("--full", is_flag=True,
+              help="Embed every figure as stored (by default PNGs are shrunk to 900 pixels "
+                   "wide and 256 colours, keeping the page near 3 MB).")
+def report_page(results, out, full) -> None:
     """Write one self-contained HTML page of the stored results: tables beside the printed
     values (failing claims in red), every figure, the deviations each config cites, seeds
     and versions."""
@@ -339,11 +352,12 @@ def report_page(results, out) -> None:
     where = project.locate()
     results = results or where.results
     notes = where.root / "docs" / "deviations.md" if where.root else None
+    io.ensure_writable(out.parent)               # before the page is built, not after
     text_ = notes.read_text() if notes and notes.is_file() else ""
     sections = html_report.sections(results, text_, where.config_dir, ANALYSES)
     if not sections:
         fail(f"no stored results under {results}/ (run 'estim reproduce')")
-    page = html_report.page("estim: stored results", sections)
+    page = html_report.page("estim: stored results", sections, full=full)
     io.atomic_write_bytes(out, page.encode("utf-8"))
     click.echo(f"report: {len(sections)} experiments -> {out}")
 
@@ -389,7 +403,7 @@ def summary(results, readme, check_only) -> None:
 
 @main.command()
 @click.argument("name", required=False)
-@click.option("--out", type=click.Path(dir_okay=False, path_type=Path),
+@click.option("--out", type=_NamedPath(dir_okay=False, path_type=Path),
               help="Write the listing to this Markdown file (docs/settings.md) instead.")
 def settings(name, out) -> None:
     """List every setting a config can give, from its one declaration: each analysis' keys,

@@ -21,7 +21,7 @@ import yaml
 
 from estim import registry, spice, tables
 from estim.analyses import ANALYSES
-from estim.errors import ConfigError, UsageError
+from estim.errors import ConfigError, ConfigErrors, UsageError
 from estim.schema import (
     Experiment,
     list_of,
@@ -206,7 +206,10 @@ def parse_data(data: dict, source: str, default_name: str,
     spice.resolve_model_block(data, source)
     analysis = data.get("analysis") or "estimation"
     validate(analysis, text(ANALYSES), source, "analysis")
-    spec = validate(data, schema_of(analysis), source, "")
+    try:
+        spec = validate(data, schema_of(analysis), source, "")
+    except ConfigErrors as exc:
+        raise _wrong_analysis(exc, data, analysis, source) or exc from None
     spec["analysis"] = analysis
     spec["name"] = spec["name"] or default_name
     if not re.fullmatch(r"[A-Za-z0-9_.-]+", spec["name"]) or spec["name"].strip(".") == "":
@@ -233,6 +236,23 @@ def parse_data(data: dict, source: str, default_name: str,
         spec["sweep"] = _check_sweep(sweep, data, source, default_name, max_work, work)
     return Experiment(name=spec["name"], source=source, spec=spec, plan=prepared,
                       models=models)
+
+
+def _wrong_analysis(exc: ConfigErrors, data: dict, analysis: str,
+                    source: str) -> ConfigError | None:
+    """One line in place of a line per key when the config's top-level keys are another
+    analysis' (``analysis`` is valid, but not this file's): None when it is not so."""
+    unknown = [e.path for e in exc.errors if "." not in e.path and "[" not in e.path
+               and e.message.startswith("unknown key")]
+    if len(unknown) < 2:
+        return None
+    fits = [name for name in ANALYSES if name != analysis
+            and all(key in schema_of(name) for key in unknown)]
+    shown = ", ".join(unknown[:6]) + (f" and {len(unknown) - 6} more" if len(unknown) > 6
+                                      else "")
+    where = f"; they are keys of {', '.join(repr(n) for n in fits)}" if fits else ""
+    return ConfigError(source, "analysis", f"{analysis!r} takes none of the keys {shown}"
+                       f"{where}: is the analysis the file's?")
 
 
 MAX_PLUGIN_BYTES = 1 << 20

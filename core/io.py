@@ -15,6 +15,7 @@ import json
 import os
 import platform
 import shutil
+import stat
 import tempfile
 from importlib import metadata
 from pathlib import Path
@@ -345,6 +346,10 @@ def compare_tables(stored: pd.DataFrame, new: pd.DataFrame,
     return diffs
 
 
+_CELL = "estim-cell-1"
+"""The tag of a stored cell: a pickle of ``(tag, key, value)``."""
+
+
 class CellStore:
     """Finished work units of one run, one pickle per cell in ``folder`` (written
     atomically), so a run stopped by a crash or Ctrl-C resumes with the cells it has. The
@@ -359,23 +364,34 @@ class CellStore:
         return self.folder / ("cell-" + "-".join(str(k) for k in key) + ".pkl")
 
     def get(self, key: tuple[int, ...]) -> tuple[bool, object]:
+        """``(True, value)`` of a stored cell, ``(False, None)`` when there is none or it is
+        damaged (not a regular file, not a pickle, or not a cell of this key: a file of
+        another shape, say one a shard left half-copied, is recomputed, never used)."""
         import pickle
 
         path = self._path(key)
         if not path.is_file():
             return False, None
         try:
-            value = pickle.loads(path.read_bytes())
+            data = pickle.loads(path.read_bytes())
         except Exception:  # noqa: BLE001 - a damaged cell is recomputed
             return False, None
+        if not (isinstance(data, tuple) and len(data) == 3 and data[0] == _CELL
+                and data[1] == tuple(key)):
+            return False, None
         self.hits += 1
-        return True, value
+        return True, data[2]
 
     def put(self, key: tuple[int, ...], value: object) -> None:
         import pickle
 
+        path = self._path(key)
+        if os.path.lexists(path) and not path.is_file():
+            raise UsageError(f"{path}: not a regular file where a finished cell is kept; "
+                             "remove it and run again")
         self.folder.mkdir(parents=True, exist_ok=True)
-        atomic_write_bytes(self._path(key), pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL))
+        atomic_write_bytes(path, pickle.dumps((_CELL, tuple(key), value),
+                                              protocol=pickle.HIGHEST_PROTOCOL))
 
     def clear(self) -> None:
         import shutil
@@ -399,25 +415,73 @@ def code_fingerprint() -> str:
     return _FINGERPRINT[0]
 
 
+MAX_TABLE_BYTES = 8 << 20
+"""Largest stored table read (50 times the largest a shipped config writes, 155 KB)."""
+MAX_MANIFEST_BYTES = 4 << 20
+"""Largest stored manifest read (the shipped ones are at most 23 KB)."""
+
+
+def read_stored(path: Path, limit: int, what: str) -> bytes:
+    """The bytes of a stored file, which must be a regular file of at most ``limit`` bytes:
+    a FIFO, a device, a directory or a symbolic-link loop is refused before anything is read
+    (opening a FIFO would wait for a writer). Raises :class:`UsageError` naming the file."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    except OSError as exc:
+        raise UsageError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    with os.fdopen(fd, "rb") as fh:
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            raise UsageError(f"{path}: not a regular file (a stored {what} must be one)")
+        if info.st_size > limit:
+            raise UsageError(f"{path}: larger than {limit >> 20} MiB, the limit of a stored "
+                             f"{what}")
+        try:
+            data = fh.read(limit + 1)
+        except OSError as exc:
+            raise UsageError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    if len(data) > limit:
+        raise UsageError(f"{path}: larger than {limit >> 20} MiB, the limit of a stored {what}")
+    return data
+
+
+def stored_table_path(folder: Path, spec) -> Path | None:
+    """``folder``'s file of the table ``spec``: None when there is none; a
+    :class:`UsageError` when something that is not a regular file stands in its place."""
+    path = Path(folder) / spec.file
+    if not os.path.lexists(path):
+        return None
+    try:
+        mode = path.stat().st_mode
+    except OSError as exc:
+        raise UsageError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    if not stat.S_ISREG(mode):
+        raise UsageError(f"{path}: not a regular file (a stored table must be one)")
+    return path
+
+
 def read_table(path: Path, spec=None) -> pd.DataFrame:
     """A stored result table, with an empty ``table_id`` kept as an empty string.
 
-    Raises :class:`UsageError` naming the file when it cannot be read as a table: empty,
-    not CSV, ragged rows, missing columns of ``spec``, or text in one of its value columns.
+    Raises :class:`UsageError` naming the file when it cannot be read as a table: not a
+    regular file, over :data:`MAX_TABLE_BYTES`, empty or a header alone, not CSV, ragged
+    rows, missing columns of ``spec``, or text in one of its value columns.
     """
     try:
-        with path.open(newline="") as fh:
-            rows = list(csv.reader(fh))
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        text_ = read_stored(path, MAX_TABLE_BYTES, "table").decode("utf-8")
+        rows = list(csv.reader(io.StringIO(text_, newline="")))
+    except (UnicodeDecodeError, csv.Error) as exc:
         raise UsageError(f"{path}: cannot read ({exc})") from None
     if not rows or not rows[0]:
         raise UsageError(f"{path}: empty, not a table")
+    if len(rows) == 1:
+        raise UsageError(f"{path}: a header and no rows (estim writes no empty table)")
     width = len(rows[0])
     for number, row in enumerate(rows[1:], start=2):
         if len(row) != width:
             raise UsageError(f"{path}: line {number} has {len(row)} fields, the header {width}")
     try:
-        df = pd.read_csv(path, dtype={"table_id": str}, keep_default_na=False,
+        df = pd.read_csv(io.StringIO(text_), dtype={"table_id": str}, keep_default_na=False,
                          na_values=["", "NaN", "nan", "<NA>"])
     except (ValueError, pd.errors.ParserError) as exc:
         raise UsageError(f"{path}: not a table ({str(exc).splitlines()[0]})") from None
@@ -441,9 +505,13 @@ def read_table(path: Path, spec=None) -> pd.DataFrame:
 
 
 def read_manifest(folder: Path) -> dict | None:
+    """``folder``'s manifest.json as a mapping; None when it is missing, is not a bounded
+    regular file (:func:`read_stored`), or is not JSON that Python can hold (a document
+    nested deeper than the interpreter's recursion limit is not)."""
     try:
-        manifest = json.loads((folder / "manifest.json").read_text())
-    except (OSError, ValueError):
+        data = read_stored(Path(folder) / "manifest.json", MAX_MANIFEST_BYTES, "manifest")
+        manifest = json.loads(data.decode("utf-8"))
+    except (UsageError, ValueError, RecursionError):
         return None
     return manifest if isinstance(manifest, dict) else None
 
@@ -456,7 +524,11 @@ def stored_tables(results: Path, metric: str, analyses: dict):
         manifest = read_manifest(folder)
         if manifest is None or not isinstance(manifest.get("config"), dict):
             raise UsageError(f"{manifest_path}: not a readable estim manifest")
-        analysis = analyses.get(manifest["config"].get("analysis", "estimation"))
-        spec = analysis.TABLES.get(metric) if analysis else None
-        if spec is not None and (folder / spec.file).is_file():
-            yield folder, spec, folder / spec.file
+        name = manifest["config"].get("analysis", "estimation")
+        analysis = analyses.get(name) if isinstance(name, str) else None
+        if analysis is None:
+            raise UsageError(f"{manifest_path}: names an unknown analysis {str(name)[:60]!r}")
+        spec = analysis.TABLES.get(metric)
+        path = stored_table_path(folder, spec) if spec is not None else None
+        if path is not None:
+            yield folder, spec, path

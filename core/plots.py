@@ -32,53 +32,119 @@ LINESTYLES = ("-", "--", "-.", ":")
 DPI = 100
 
 
-def _clipped(ax, t, y, lo: float, hi: float, label: str, **style) -> None:
-    """Draw ``y`` until it first leaves ``[lo, hi]`` or stops being finite, and say so in its
-    label (a diverged filter is named, not hidden)."""
+def _clipped(ax, t, y, lo: float, hi: float, label: str, **style) -> bool:
+    """Draw the points of ``y`` inside ``[lo, hi]``; a curve that leaves the axis for good
+    (runs away or stops being finite) is named with the time it left, one that leaves it
+    now and then as partly off the axis. Returns False, drawing nothing, when no point is
+    inside (the caller names the estimate instead)."""
     with np.errstate(invalid="ignore"):
-        outside = ~np.isfinite(y) | (y < lo) | (y > hi)
-    if outside.any():
-        k = int(np.argmax(outside))
-        label = f"{label} (leaves the axis at {t[k]:.3g} ms)" if k else f"{label} (off the axis)"
-        y = np.where(np.arange(y.size) < k, y, np.nan)
-    ax.plot(t, y, label=label, **style)
+        inside = np.isfinite(y) & (y >= lo) & (y <= hi)
+    if not inside.any():
+        return False
+    if not inside.all():
+        last = int(np.flatnonzero(inside)[-1])
+        label = (f"{label} (leaves the axis at {t[last + 1]:.3g} ms)" if last + 1 < y.size
+                 and not inside[last + 1:].any() else f"{label} (partly off the axis)")
+    ax.plot(t, np.where(inside, y, np.nan), label=label, **style)
+    return True
+
+
+def _robust(values: np.ndarray) -> tuple[float, float] | None:
+    """The 1st and 99th percentiles of the finite values (None when there are none)."""
+    v = np.asarray(values, float).ravel()
+    v = v[np.isfinite(v)]
+    return (float(np.percentile(v, 1)), float(np.percentile(v, 99))) if v.size else None
+
+
+def output_limits(actual: np.ndarray, measured: np.ndarray,
+                  estimates: dict) -> tuple[float, float]:
+    """Output-axis limits that show the estimates: the robust range (1st-99th percentile)
+    of the actual signal and the measurement, widened to take in each estimate's robust
+    range that lies within ten times that width of it. An estimate beyond (one that ran
+    away) is clipped and named instead of squeezing every other curve flat."""
+    lo, hi = _robust(np.concatenate([np.ravel(actual), np.ravel(measured)])) or (-1.0, 1.0)
+    span = hi - lo or max(abs(hi), 1e-3) * 1e-3
+    reach = (lo - 10 * span, hi + 10 * span)
+    for y in estimates.values():
+        r = _robust(y)
+        if r is not None and reach[0] <= r[0] and r[1] <= reach[1]:
+            lo, hi = min(lo, r[0]), max(hi, r[1])
+    pad = 0.05 * (hi - lo or span)
+    return lo - pad, hi + pad
+
+
+def _output_panels(axes, trace: dict, t_ms: np.ndarray, zoom: slice, zoom_heading: str,
+                   ylabel: str) -> None:
+    """(b) the whole record on :func:`output_limits`, (c) a zoom (``zoom`` of the samples)
+    held to the actual signal's range, where the waveform can be read, and (d) each
+    estimate's error against the actual signal."""
+    ax_all, ax_zoom, ax_err = axes
+    actual, z, y_hat = trace["actual"], trace["z"], trace["y_hat"]
+    lo, hi = output_limits(actual, z, y_hat)
+    span = float(np.ptp(actual)) or 1e-3
+    z_lo, z_hi = float(actual.min()) - 0.5 * span, float(actual.max()) + 0.5 * span
+    styles = {label: LINESTYLES[i % len(LINESTYLES)] for i, label in enumerate(y_hat)}
+    ax_all.plot(t_ms, z, ".", ms=2, color="0.6", label="measurement")
+    ax_all.plot(t_ms, actual, lw=1.6, color="k", label="actual")
+    away = [label for label, y in y_hat.items()
+            if not _clipped(ax_all, t_ms, y, lo, hi, label, lw=1.0, ls=styles[label])]
+    ax_all.set_ylim(lo, hi)
+    ax_all.set_title("(b) estimated output, whole record (run 1); the axis spans the "
+                     "estimates" + (f"; off it throughout: {', '.join(away)}" if away else ""),
+                     fontsize=10)
+    ax_zoom.plot(t_ms[zoom], z[zoom], ".", ms=2, color="0.6", label="measurement")
+    ax_zoom.plot(t_ms[zoom], actual[zoom], lw=1.6, color="k", label="actual")
+    outside = []
+    for label, y in y_hat.items():
+        part = y[zoom]
+        with np.errstate(invalid="ignore"):
+            inside = np.isfinite(part) & (part >= z_lo) & (part <= z_hi)
+        if inside.any():
+            ax_zoom.plot(t_ms[zoom], np.where(inside, part, np.nan), lw=1.0, ls=styles[label],
+                         label=label)
+        else:
+            outside.append(label)
+    ax_zoom.set_ylim(z_lo, z_hi)
+    ax_zoom.set_title(f"(c) {zoom_heading}, on the actual signal's range"
+                      + (f"; outside it: {', '.join(outside)}" if outside else ""), fontsize=10)
+    for label, y in y_hat.items():
+        with np.errstate(invalid="ignore"):
+            error = np.abs(np.asarray(y, float) - actual)
+        error = np.where(np.isfinite(error) & (error > 0), error, np.nan)
+        if np.isfinite(error).any():
+            ax_err.plot(t_ms, error, lw=0.9, ls=styles[label], label=label)
+    ax_err.plot(t_ms, np.where(np.abs(z - actual) > 0, np.abs(z - actual), np.nan), ".",
+                ms=1.5, color="0.6", label="measurement")
+    ax_err.set_yscale("log")
+    ax_err.set_title("(d) error |estimate - actual| (run 1)", fontsize=10)
+    ax_err.set_ylabel(f"error [{ylabel.rpartition('[')[2].rstrip(']') or 'V'}]")
+    for ax in axes:
+        ax.set_xlabel("time [ms]")
+    ax_all.set_ylabel(ylabel)
+    ax_zoom.set_ylabel(ylabel)
 
 
 def estimates(trace: dict, title: str, period_s: float | None = None,
               window_periods: int = 3) -> Figure:
-    """Input and output, actual, measured and every estimate (Figs 3.2-3.5): (a) the input
-    and (b) the output over the whole record, and with ``period_s`` (c) the output over its
-    last ``window_periods`` periods, where the waveform can be read. The output axis holds
-    the actual signal's range; an estimate that leaves it is drawn until then and named.
-    Legends sit outside the data."""
-    zoom = period_s is not None and trace["t"][-1] - trace["t"][0] > 2 * window_periods * period_s
-    rows = 3 if zoom else 2
-    fig, axes = plt.subplots(rows, 1, figsize=(10.0, 3.0 * rows))
-    t_ms = trace["t"] * 1e3
+    """Input and output, actual, measured and every estimate (Figs 3.2-3.5): (a) the input;
+    (b) the output over the whole record, its axis spanning the estimates
+    (:func:`output_limits`); (c) a zoom held to the actual signal's range, over the last
+    ``window_periods`` periods with ``period_s`` (else the whole record), where the
+    waveform can be read; (d) each estimate's error. Legends sit outside the data."""
+    t = trace["t"]
+    zoom = (period_s is not None and t[-1] - t[0] > 2 * window_periods * period_s)
+    fig, axes = plt.subplots(4, 1, figsize=(10.0, 11.0))
+    t_ms = t * 1e3
     ax_in = axes[0]
     ax_in.plot(t_ms, trace["source"], lw=0.8, label="source (as applied)")
     ax_in.plot(t_ms, trace["clean"], lw=1.2, label="nominal input")
     ax_in.set_ylabel("v_in [V]")
     ax_in.set_xlabel("time [ms]")
     ax_in.set_title(f"(a) input - {title}", fontsize=10)
-    actual = trace["actual"]
-    span = float(np.ptp(actual)) or 1e-3
-    lo, hi = float(actual.min()) - span, float(actual.max()) + span
-    panels = [(axes[1], slice(None), "(b) estimated output, whole record (run 1)")]
-    if zoom:
-        start = int(np.searchsorted(trace["t"], trace["t"][-1] - window_periods * period_s))
-        panels.append((axes[2], slice(start, None),
-                       f"(c) the last {window_periods} periods"))
-    for ax, part, heading in panels:
-        ax.plot(t_ms[part], trace["z"][part], ".", ms=2, color="0.6", label="measurement")
-        ax.plot(t_ms[part], actual[part], lw=1.6, color="k", label="actual")
-        for i, (label, y) in enumerate(trace["y_hat"].items()):
-            _clipped(ax, t_ms[part], y[part], lo, hi, label, lw=1.0,
-                     ls=LINESTYLES[i % len(LINESTYLES)])
-        ax.set_ylim(lo, hi)
-        ax.set_xlabel("time [ms]")
-        ax.set_ylabel("output [V]")
-        ax.set_title(heading, fontsize=10)
+    start = int(np.searchsorted(t, t[-1] - window_periods * period_s)) if zoom else 0
+    _output_panels(axes[1:], trace, t_ms, slice(start, None),
+                   f"the last {window_periods} periods" if zoom else "whole record",
+                   "output [V]")
     for ax in axes:
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     fig.tight_layout()
@@ -182,34 +248,20 @@ def burden(timing, slopes) -> Figure:
 
 
 def estimates_clipped(trace: dict, title: str) -> Figure:
-    """Input (a) and output (b) like :func:`estimates`, with the output axis held to the
-    actual signal's range: an estimate that leaves it (or breaks) is drawn until then and
-    named in the legend with the time it left (Figs 4.3-4.7). Legend outside the data."""
-    fig, (ax_in, ax_out) = plt.subplots(2, 1, figsize=(10.0, 6.0), sharex=True)
+    """Input (a) and output like :func:`estimates` (Figs 4.3-4.7): (b) the whole record on
+    an axis that spans the estimates (one that runs away is drawn until it leaves and named
+    with the time it left), (c) the same record held to the actual signal's range, (d) each
+    estimate's error. Legends outside the data."""
+    fig, axes = plt.subplots(4, 1, figsize=(10.0, 11.0), sharex=True)
     t_ms = trace["t"] * 1e3
+    ax_in = axes[0]
     ax_in.plot(t_ms, trace["source"], lw=0.8, label="source (as applied)")
     ax_in.plot(t_ms, trace["clean"], lw=1.2, label="nominal input")
     ax_in.set_ylabel("v_in [V]")
     ax_in.set_title(f"(a) input - {title}", fontsize=10)
-    ax_in.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
-    actual = trace["actual"]
-    span = float(np.ptp(actual)) or 1e-3
-    lo, hi = float(actual.min()) - span, float(actual.max()) + span
-    ax_out.plot(t_ms, trace["z"], ".", ms=2, color="0.6", label="measurement")
-    ax_out.plot(t_ms, actual, lw=1.6, color="k", label="actual")
-    for label, y in trace["y_hat"].items():
-        outside = ~np.isfinite(y) | (y < lo) | (y > hi)
-        if outside.any():
-            k = int(np.argmax(outside))
-            where = f"leaves the axis at {t_ms[k]:.3g} ms" if k else "off the axis"
-            label = f"{label} ({where})"
-            y = np.where(np.arange(y.size) < k, y, np.nan)
-        ax_out.plot(t_ms, y, lw=1.0, label=label)
-    ax_out.set_ylim(lo, hi)
-    ax_out.set_xlabel("time [ms]")
-    ax_out.set_ylabel("output v_D [V]")
-    ax_out.set_title("(b) estimated output (run 1 of the batch)", fontsize=10)
-    ax_out.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+    _output_panels(axes[1:], trace, t_ms, slice(None), "whole record", "output v_D [V]")
+    for ax in axes:
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     fig.tight_layout()
     return fig
 

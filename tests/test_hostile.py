@@ -3,8 +3,10 @@ an internal error or a silent NaN; a result folder is all old or all new."""
 
 import copy
 import functools
+import json
 import math
 import os
+import pickle
 import random
 import signal
 import subprocess
@@ -645,3 +647,166 @@ def test_max_work_raises_the_work_limit(tmp_path):
     assert_one_line_exit_2(result, path, expected="raise it with --max-work")
     raised = CliRunner().invoke(main, ["validate", str(path), "--max-work", str(10**12)])
     assert raised.exit_code == 0, raised.output
+
+
+# ----- issue 28: damaged stored results, exit codes, bounded messages ---------------------------
+
+def _damage(target: Path, kind: str) -> None:
+    """Put something other than a regular file (or a file past its bounds) at ``target``."""
+    target.unlink()
+    if kind == "fifo":
+        os.mkfifo(target)
+    elif kind == "directory":
+        target.mkdir()
+    elif kind == "symlink loop":
+        target.symlink_to(target)
+    elif kind == "device":
+        target.symlink_to("/dev/zero")
+    elif kind == "huge":
+        with target.open("w") as fh:
+            fh.write("a,b\n")
+            fh.write("1,2\n" * (io.MAX_TABLE_BYTES // 4 + 1))
+
+
+def _command(*args: str, timeout: float = 60) -> subprocess.CompletedProcess:
+    """``estim ARGS`` as a process (a hang is a failure, not a stuck test)."""
+    return subprocess.run([sys.executable, "-m", "estim.cli.main", *args], capture_output=True,
+                          text=True, timeout=timeout, cwd=ROOT)
+
+
+@pytest.mark.parametrize("kind", ["fifo", "directory", "symlink loop", "device", "huge"])
+@pytest.mark.parametrize("command", ["table", "report"])
+def test_a_damaged_stored_table_is_named_and_exit_2(stored, kind, command):
+    _, out = stored
+    target = out / "tiny" / "rmse.csv"
+    _damage(target, kind)
+    args = (["table", "rmse", "--results", str(out)] if command == "table" else
+            ["report", "--results", str(out), "--out", str(out / "page.html")])
+    result = _command(*args)
+    assert result.returncode == 2, result.stderr
+    assert str(target) in result.stderr and "Traceback" not in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1, result.stderr
+    assert not (out / "page.html").exists()
+
+
+@pytest.mark.parametrize("kind", ["fifo", "huge", "deep"])
+def test_a_damaged_stored_manifest_is_named_and_exit_2(stored, kind):
+    _, out = stored
+    target = out / "tiny" / "manifest.json"
+    if kind == "deep":
+        target.write_text("[" * 100_000 + "]" * 100_000)
+    elif kind == "huge":
+        target.write_text('{"config": {}, "pad": "' + "x" * (io.MAX_MANIFEST_BYTES + 1) + '"}')
+    else:
+        _damage(target, kind)
+    for args in (["table", "rmse", "--results", str(out)],
+                 ["report", "--results", str(out), "--out", str(out / "page.html")]):
+        result = _command(*args)
+        assert result.returncode == 2, result.stderr
+        assert str(target) in result.stderr and "Traceback" not in result.stderr
+
+
+def test_a_header_only_table_or_an_unknown_analysis_is_not_left_out_silently(stored):
+    _, out = stored
+    target = out / "tiny" / "rmse.csv"
+    target.write_text(target.read_text().splitlines()[0] + "\n")
+    for args in (["table", "rmse", "--results", str(out)],
+                 ["report", "--results", str(out), "--out", str(out / "page.html")]):
+        result = _command(*args)
+        assert result.returncode == 2 and "a header and no rows" in result.stderr, result.stderr
+    manifest = out / "tiny" / "manifest.json"
+    data = json.loads(manifest.read_text())
+    data["config"]["analysis"] = "no_such_analysis"
+    manifest.write_text(json.dumps(data))
+    result = _command("report", "--results", str(out), "--out", str(out / "page.html"))
+    assert result.returncode == 2 and "unknown analysis 'no_such_analysis'" in result.stderr
+
+
+def test_report_checks_its_target_before_building_the_page(stored):
+    _, out = stored
+    result = _command("report", "--results", str(out), "--out", "/proc/estim-report.html")
+    assert result.returncode == 2 and "cannot write to /proc" in result.stderr, result.stderr
+
+
+@pytest.mark.parametrize("command", ["run", "reproduce", "report", "merge"])
+def test_an_empty_out_is_refused(tmp_path, command):
+    args = {"run": ["run", "configs/fir_differentiator.yaml"],
+            "reproduce": ["reproduce"], "report": ["report"],
+            "merge": ["merge", "configs/fir_differentiator.yaml"]}[command]
+    result = CliRunner().invoke(main, [*args, "--out", ""])
+    assert result.exit_code == 2 and "expected a path, got an empty string" in result.output
+
+
+def test_settle_at_or_after_the_record_is_a_config_error(tmp_path):
+    for settle in (5.0, 7.5):
+        path, result = validate_text(tmp_path, yaml.safe_dump(config(
+            "kalman_differentiator", {"settle_s": settle, "record_s": 5.0})))
+        assert_one_line_exit_2(result, path, "settle_s", "expected less than record_s")
+
+
+def test_a_kf_sized_for_another_model_is_refused_at_validate(tmp_path):
+    spec = config("mosfet_saturation", {})
+    spec["estimators"] = [{"label": "EKF", "type": "kf", "settings": {
+        "A": 1.0, "B": 0.0, "C": 1.0, "Q": 1.0, "R": 1.0, "P0": 1.0}}]
+    path, result = validate_text(tmp_path, yaml.safe_dump(spec))
+    assert_one_line_exit_2(result, path, "estimators[0].settings.A",
+                           "1 rows, but the model mosfet_ekv has 4 states")
+
+
+def test_merge_recomputes_a_damaged_cell_and_names_a_directory_in_its_place(tmp_path):
+    path = tmp_path / "tiny.yaml"
+    path.write_text(yaml.safe_dump(tiny_spec()))
+    runner = CliRunner()
+    shard = tmp_path / "s1"
+    done = runner.invoke(main, ["run", str(path), "--out", str(shard), "--shard", "1/2",
+                                "--quiet"])
+    assert done.exit_code == 0, done.output
+    cells = sorted(shard.glob(".tiny.cells-*/cell-*.pkl"))
+    assert cells
+    cells[0].write_bytes(pickle.dumps("not a cell"))            # the wrong type
+    merged = runner.invoke(main, ["merge", str(path), "--from", str(shard), "--out",
+                                  str(tmp_path / "m"), "--quiet"])
+    assert merged.exit_code == 0, merged.output
+    reference = runner.invoke(main, ["run", str(path), "--out", str(tmp_path / "r"),
+                                     "--quiet"])
+    assert reference.exit_code == 0
+    assert ((tmp_path / "m" / "tiny" / "rmse.csv").read_bytes()
+            == (tmp_path / "r" / "tiny" / "rmse.csv").read_bytes())
+    cells[0].unlink()
+    cells[0].mkdir()                                             # a directory in its place
+    again = runner.invoke(main, ["merge", str(path), "--from", str(shard), "--out",
+                                 str(shard), "--quiet"])
+    assert again.exit_code == 2, again.output
+    assert str(cells[0]) in again.output and "not a regular file" in again.output
+
+
+def test_long_values_are_quoted_as_a_bounded_excerpt(tmp_path):
+    spec = config("fir_differentiator", {})
+    spec["name"] = "x" * 1_000_000
+    path = tmp_path / "long.yaml"
+    path.write_text(yaml.safe_dump(spec, width=2**31 - 1))
+    result = _command("validate", str(path))
+    assert result.returncode == 2
+    assert len(result.stderr) < 600 and "characters]" in result.stderr, len(result.stderr)
+
+
+def test_a_valid_but_foreign_analysis_is_one_line(tmp_path):
+    result = _command("validate", "configs/fir_differentiator.yaml", "analysis=perturbation")
+    assert result.returncode == 2
+    assert result.stderr.strip().splitlines() == [
+        "error: configs/fir_differentiator.yaml: analysis: 'perturbation' takes none of the "
+        "keys bands, max_n, max_taps, thresholds_db; they are keys of 'differentiator': is the "
+        "analysis the file's?"]
+
+
+@pytest.mark.parametrize("delay", [0.0, 0.05, 0.1, 0.2])
+def test_ctrl_c_while_python_imports_is_one_line_and_exit_130(delay):
+    launch = [sys.executable, "-c", "from estim.cli.launch import main; main()",
+              "validate", "configs/mosfet_saturation.yaml"]
+    run = subprocess.Popen(launch, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                           text=True)
+    time.sleep(delay + 0.03)                # the interpreter itself starts in ~30 ms
+    run.send_signal(signal.SIGINT)
+    _, err = run.communicate(timeout=60)
+    assert run.returncode == 130, err
+    assert err.strip().splitlines() == ["error: interrupted"], err

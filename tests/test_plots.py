@@ -20,7 +20,7 @@ def _trace(n=400, f=1000.0, dt=1e-4):
 def test_estimates_name_diverged_filters_and_keep_legends_off_the_data():
     fig = plots.estimates(_trace(), "test", period_s=1e-3)
     axes = fig.axes
-    assert len(axes) == 3                                  # input, whole record, last periods
+    assert len(axes) == 4                        # input, whole record, last periods, errors
     fig.canvas.draw()
     labels = [t.get_text() for t in axes[1].get_legend().get_texts()]
     assert any(label.startswith("broken (leaves the axis at 25") for label in labels), labels
@@ -31,6 +31,44 @@ def test_estimates_name_diverged_filters_and_keep_legends_off_the_data():
     start, end = axes[2].get_xlim()
     assert end - start < 4.0                              # ms: three periods of 1 ms, zoomed
     plots.plt.close(fig)
+
+
+def _narrow_trace(n=400, dt=1e-4):
+    """Fig 3.4's case: an actual signal 0.02 V wide, noisy readings and filters whose
+    estimates stray 0.1 V from it, one that runs away and one off from the start."""
+    rng = np.random.default_rng(0)
+    t = dt * np.arange(1, n + 1)
+    actual = 0.97 + 0.01 * np.sin(2 * np.pi * 1000 * t)
+    z = actual + 0.1 * rng.standard_normal(n)
+    runaway = actual + np.where(t > 0.02, np.exp((t - 0.02) * 2000), 0.0)
+    return {"t": t, "source": actual, "clean": actual, "actual": actual, "z": z,
+            "y_hat": {"EKF": actual + 0.08 * rng.standard_normal(n), "RLS": 0.5 * (z + actual),
+                      "runaway": runaway, "offset": actual + 40.0}}
+
+
+def _estimate_lines(ax):
+    return [line for line in ax.get_lines()
+            if not line.get_label().startswith(("measurement", "actual", "_"))]
+
+
+def test_every_plotted_estimate_has_points_inside_its_axes():
+    for fig in (plots.estimates(_narrow_trace(), "t", period_s=1e-3),
+                plots.estimates_clipped(_narrow_trace(), "t")):
+        for ax in fig.axes[1:]:
+            lo, hi = ax.get_ylim()
+            for line in _estimate_lines(ax):
+                y = np.asarray(line.get_ydata(), float)
+                assert np.any(np.isfinite(y) & (y >= lo) & (y <= hi)), (ax.get_title(),
+                                                                         line.get_label())
+        whole, zoom = fig.axes[1], fig.axes[2]
+        drawn = {line.get_label().split(" (")[0] for line in _estimate_lines(whole)}
+        assert {"EKF", "RLS", "runaway"} <= drawn           # the axis spans the estimates
+        lo, hi = whole.get_ylim()
+        assert hi - lo > 0.2                                # not held to the actual's 0.02 V
+        assert "off it throughout: offset" in whole.get_title()
+        assert zoom.get_ylim()[1] - zoom.get_ylim()[0] < 0.05     # the waveform, readable
+        assert fig.axes[3].get_yscale() == "log"            # and each estimate's error
+        plots.plt.close(fig)
 
 
 def test_series_says_when_every_run_diverged():

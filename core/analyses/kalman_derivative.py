@@ -16,6 +16,7 @@ from estim import claims, lazy, metrics, plots
 from estim import kalman_differentiator as kd
 from estim.analyses.base import Result, TableSpec, map_tasks
 from estim.blocks import MonteCarlo
+from estim.errors import ConfigError
 from estim.schema import REQUIRED, Experiment, file_name, number
 from estim.settings import Settings, block, blocks, setting, settings_class
 from estim.summary import Quote
@@ -91,6 +92,12 @@ class Plan:
 
 
 def prepare(spec: dict, source: str) -> Plan:
+    for i, case in enumerate(spec["cases"]):
+        if int(round(spec["settle_s"] / case["dt"])) >= int(round(spec["record_s"] / case["dt"])):
+            raise ConfigError(source, "settle_s", f"expected less than record_s "
+                              f"({spec['record_s']:g} s): the error is averaged over the "
+                              f"samples after settle_s, and cases[{i}] (dt {case['dt']:g} s) "
+                              "would have none")
     return Plan(Config.build(spec))
 
 

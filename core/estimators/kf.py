@@ -59,9 +59,21 @@ class KalmanFilter(NoiseCovariances, name="kf"):
                 as_matrix(self.P0, n, "P0"))
 
     def validate(self, model) -> None:
-        """The covariances: finite, symmetric, positive (semi)definite."""
-        A, _, C, Q, R, P0 = self.matrices()
+        """The covariances: finite, symmetric, positive (semi)definite; and, where the
+        analysis gives the filter a model, the matrices' sizes against it: the estimate is
+        compared with the model's states, fed its inputs and its measurements."""
+        A, B, C, Q, R, P0 = self.matrices()
         n = A.shape[0]
+        if model is not None:
+            sizes = (("A", n, model.n_states, "states"), ("C", C.shape[0], model.n_outputs,
+                                                           "measured outputs"))
+            for name, got, expected, what in sizes:
+                if got != expected:
+                    raise ValueError(f"{name}: {got} rows, but the model {model.name} has "
+                                     f"{expected} {what}")
+            if B.size and B.shape[1] != model.n_inputs:
+                raise ValueError(f"B: {B.shape[1]} columns, but the model {model.name} has "
+                                 f"{model.n_inputs} inputs")
         check_covariance(Q, n, "Q")
         check_covariance(P0, n, "P0")
         check_covariance(R, C.shape[0], "R", definite=True)

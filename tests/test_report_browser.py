@@ -1,0 +1,99 @@
+"""The report page in a real browser: headless Chromium (Debian's ``chromium``) driven by
+Playwright (``pip install '.[browser]'``). It loads the page of the stored results, finds
+no console error, follows two in-page links and checks the summary's counts against each
+experiment's claims.csv. Skipped, saying so, where either is missing; CI installs both."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+CHROMIUM = os.environ.get("ESTIM_CHROMIUM") or shutil.which("chromium") or shutil.which(
+    "chromium-browser")
+FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+         "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+"""Chromium's flags for a closed network (no background connections) and a root user."""
+
+sync_api = pytest.importorskip("playwright.sync_api",
+                               reason="Playwright is not installed (pip install '.[browser]')")
+pytestmark = pytest.mark.skipif(CHROMIUM is None,
+                                reason="no Chromium on this machine (apt-get install chromium)")
+
+
+@pytest.fixture(scope="module")
+def page_file(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("report") / "report.html"
+    done = subprocess.run([sys.executable, "-m", "estim.cli.main", "report", "--results",
+                           str(ROOT / "results"), "--out", str(out)], cwd=ROOT,
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    return out
+
+
+def _browse(page_file: Path, action):
+    with sync_api.sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=FLAGS)
+        try:
+            page = browser.new_page(viewport={"width": 1400, "height": 900})
+            errors: list[str] = []
+            page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+            page.on("pageerror", lambda e: errors.append(str(e)))
+            page.goto(page_file.as_uri())
+            page.wait_for_load_state("load")
+            return action(page), errors
+        finally:
+            browser.close()
+
+
+def test_the_page_is_under_3_mb_and_loads_without_a_console_error(page_file):
+    assert page_file.stat().st_size <= 3 * 1024 * 1024
+    images, errors = _browse(page_file, lambda page: page.evaluate(
+        "[...document.images].map(i => [i.alt, i.complete && i.naturalWidth > 0])"))
+    assert not errors, errors
+    assert images and all(ok for _, ok in images), [a for a, ok in images if not ok]
+
+
+def test_two_in_page_links_land_on_their_sections(page_file):
+    def follow(page):
+        landed = []
+        for selector in ('nav#toc a[href="#mosfet_saturation"]',
+                         'table.summary a[href="#dipole_field"]'):
+            page.click(selector)
+            target = page.get_attribute(selector, "href")
+            top = page.evaluate(f"document.getElementById('{target[1:]}')"
+                                ".getBoundingClientRect().top")
+            toc_visible = page.evaluate("document.getElementById('toc')"
+                                        ".getBoundingClientRect().top")
+            landed.append((page.evaluate("location.hash"), top, toc_visible))
+        return landed
+
+    landed, errors = _browse(page_file, follow)
+    assert not errors, errors
+    assert [hash_ for hash_, _, _ in landed] == ["#mosfet_saturation", "#dipole_field"]
+    assert all(abs(top) < 5 for _, top, _ in landed), landed        # scrolled to the heading
+    assert all(toc == 0 for _, _, toc in landed), landed            # the contents stay in view
+
+
+def test_the_summary_counts_are_those_of_claims_csv(page_file):
+    rows, errors = _browse(page_file, lambda page: page.evaluate(
+        "[...document.querySelectorAll('table.summary tbody tr')].map(r => "
+        "[...r.cells].map(c => c.textContent))"))
+    assert not errors, errors
+    checked = 0
+    for name, holds, fails, undecided, *_ in rows:
+        claims = ROOT / "results" / name / "claims.csv"
+        if not claims.is_file():
+            assert (holds, fails, undecided) == ("0", "0", "0"), name
+            continue
+        counts = pd.read_csv(claims)["verdict"].value_counts()
+        assert [int(holds), int(fails), int(undecided)] == [
+            int(counts.get(v, 0)) for v in ("holds", "fails", "undecided")], name
+        checked += 1
+    assert checked >= 20
