@@ -89,8 +89,8 @@ def _output_panels(axes, trace: dict, t_ms: np.ndarray, zoom: slice, zoom_headin
     away = [label for label, y in y_hat.items()
             if not _clipped(ax_all, t_ms, y, lo, hi, label, lw=1.0, ls=styles[label])]
     ax_all.set_ylim(lo, hi)
-    ax_all.set_title("(b) estimated output, whole record (run 1); the axis spans the "
-                     "estimates" + (f"; off it throughout: {', '.join(away)}" if away else ""),
+    ax_all.set_title("(b) estimates, whole record (run 1)"
+                     + (f"; off the axis throughout: {', '.join(away)}" if away else ""),
                      fontsize=10)
     ax_zoom.plot(t_ms[zoom], z[zoom], ".", ms=2, color="0.6", label="measurement")
     ax_zoom.plot(t_ms[zoom], actual[zoom], lw=1.6, color="k", label="actual")
@@ -106,7 +106,7 @@ def _output_panels(axes, trace: dict, t_ms: np.ndarray, zoom: slice, zoom_headin
             outside.append(label)
     ax_zoom.set_ylim(z_lo, z_hi)
     ax_zoom.set_title(f"(c) {zoom_heading}, on the actual signal's range"
-                      + (f"; outside it: {', '.join(outside)}" if outside else ""), fontsize=10)
+                      + (f"; outside: {', '.join(outside)}" if outside else ""), fontsize=10)
     for label, y in y_hat.items():
         with np.errstate(invalid="ignore"):
             error = np.abs(np.asarray(y, float) - actual)

@@ -65,7 +65,7 @@ def test_every_plotted_estimate_has_points_inside_its_axes():
         assert {"EKF", "RLS", "runaway"} <= drawn           # the axis spans the estimates
         lo, hi = whole.get_ylim()
         assert hi - lo > 0.2                                # not held to the actual's 0.02 V
-        assert "off it throughout: offset" in whole.get_title()
+        assert "off the axis throughout: offset" in whole.get_title()
         assert zoom.get_ylim()[1] - zoom.get_ylim()[0] < 0.05     # the waveform, readable
         assert fig.axes[3].get_yscale() == "log"            # and each estimate's error
         plots.plt.close(fig)
