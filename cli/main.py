@@ -341,12 +341,14 @@ def validate(configs, max_work) -> None:
 @click.option("--out", type=_NamedPath(dir_okay=False, path_type=Path), default="report.html",
               show_default=True, help="The HTML file to write.")
 @click.option("--full", is_flag=True,
-              help="Embed every figure as stored (by default PNGs are shrunk to 900 pixels "
-                   "wide and 256 colours, keeping the page near 3 MB).")
+              help="Embed every figure as stored and draw every row (by default PNGs are "
+                   "shrunk to 640 pixels, as 64-colour PNG or WebP, and tables to 40 rows: "
+                   "the page of the shipped results stays under 3 MB).")
 def report_page(results, out, full) -> None:
-    """Write one self-contained HTML page of the stored results: tables beside the printed
-    values (failing claims in red), every figure, the deviations each config cites, seeds
-    and versions."""
+    """Write one self-contained HTML page of the stored results: a summary of every
+    experiment's claims, printed cells and health at the top, then its tables beside the
+    printed values (failing claims in red), its figures, the deviations its config cites,
+    seeds and versions."""
     from estim import report as html_report
 
     where = project.locate()

@@ -41,7 +41,7 @@ figure { display: inline-block; margin: 0.5em; } figure img { max-width: 46em; }
 figcaption { font-size: 0.8em; color: #555; } pre { white-space: pre-wrap; font-size: 0.85em; }
 """
 
-FIGURE_WIDTH = 720
+FIGURE_WIDTH = 640
 """Widest embedded PNG, in pixels, unless ``full`` (the stored figures are 800-1400)."""
 FIGURE_COLOURS = 64
 """Colours of an embedded PNG unless ``full`` (line plots use a few dozen)."""
@@ -184,7 +184,7 @@ def markdown(text_: str) -> str:
 def shrink_png(data: bytes, width: int = FIGURE_WIDTH,
                colours: int = FIGURE_COLOURS) -> tuple[str, bytes]:
     """A stored PNG for the page: at most ``width`` pixels wide, as a PNG of ``colours``
-    colours (line plots lose nothing a reader sees) or a WebP of quality 80 (photographs
+    colours (line plots lose nothing a reader sees) or a WebP of quality 70 (photographs
     and colour maps, which a palette would band), whichever is smaller; the original where
     neither is. Returns the media type and the bytes."""
     from PIL import Image
@@ -196,7 +196,7 @@ def shrink_png(data: bytes, width: int = FIGURE_WIDTH,
                                  Image.Resampling.LANCZOS)
         png, webp = io.BytesIO(), io.BytesIO()
         image.quantize(colours).save(png, format="PNG", optimize=True)
-        image.save(webp, format="WEBP", quality=80, method=6)
+        image.save(webp, format="WEBP", quality=70, method=6)
     return min((("image/png", data), ("image/png", png.getvalue()),
                 ("image/webp", webp.getvalue())), key=lambda pair: len(pair[1]))
 

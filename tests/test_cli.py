@@ -542,6 +542,14 @@ def test_report_is_one_page_with_every_table_and_figure(tmp_path, fmt, media):
     assert page.failing == int((claims["verdict"] == "fails").sum())
 
 
+def test_the_report_of_the_shipped_results_is_under_3_mb(tmp_path):
+    out = tmp_path / "report.html"
+    result = CliRunner().invoke(main, ["report", "--results", str(ROOT / "results"), "--out",
+                                       str(out)])
+    assert result.exit_code == 0, result.output
+    assert out.stat().st_size <= 3 * 1024 * 1024
+
+
 def test_a_dask_run_writes_the_same_bytes_as_jobs_1(tmp_path):
     pytest.importorskip("distributed")
     path = write(tmp_path, tiny_config())
