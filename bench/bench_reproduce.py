@@ -19,6 +19,7 @@ first on ``PYTHONPATH``: no second install is needed.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import resource
 import shutil
@@ -26,6 +27,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -57,6 +59,26 @@ def checkout_of(baseline: str, scratch: Path) -> Path:
     subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(tree), baseline],
                    check=True, capture_output=True)
     return tree
+
+
+@contextlib.contextmanager
+def checkouts(baseline: str | None, prefix: str) -> Iterator[tuple[Path, dict[str, Path]]]:
+    """A scratch folder and the checkouts to run, ``{"baseline": ..., "this": ROOT}`` (only
+    "this" without a baseline); the baseline's worktree and the folder are removed after."""
+    scratch = Path(tempfile.mkdtemp(prefix=prefix))
+    worktree = None
+    try:
+        sides = {"this": ROOT}
+        if baseline:
+            base = checkout_of(baseline, scratch)
+            worktree = base if base.is_relative_to(scratch) else None
+            sides = {"baseline": base, **sides}
+        yield scratch, sides
+    finally:
+        if worktree is not None:
+            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force",
+                            str(worktree)], capture_output=True)
+        shutil.rmtree(scratch, ignore_errors=True)
 
 
 def cpu_run(args: list[str], env: dict, cwd: Path) -> tuple[float, float, int]:
@@ -91,12 +113,7 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     configs = args.configs or sorted(str(p.relative_to(ROOT))
                                      for p in (ROOT / "configs").glob("*.yaml"))
-    scratch = Path(tempfile.mkdtemp(prefix="estim-bench-"))
-    worktree = None
-    try:
-        base = checkout_of(args.baseline, scratch)
-        worktree = base if base.is_relative_to(scratch) else None
-        sides = {"baseline": base, "this": ROOT}
+    with checkouts(args.baseline, "estim-bench-") as (scratch, sides):
         envs = {}
         for side, checkout in sides.items():
             view = package_view(checkout, scratch / f"view-{side}")
@@ -125,11 +142,6 @@ def main(argv: list[str] | None = None) -> None:
                   f"{'identical' if same else 'DIFFER'}", flush=True)
         print(f"{'total':<28}{total['baseline']:>11.1f}{total['this']:>9.1f}"
               f"{total['this'] / total['baseline']:>8.2f}")
-    finally:
-        if worktree is not None:
-            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force",
-                            str(worktree)], capture_output=True)
-        shutil.rmtree(scratch, ignore_errors=True)
 
 
 if __name__ == "__main__":

@@ -13,16 +13,14 @@ from __future__ import annotations
 
 import argparse
 import os
-import shutil
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_reproduce import LAUNCH, ROOT, checkout_of, package_view  # noqa: E402
+from bench_reproduce import LAUNCH, ROOT, checkouts, package_view  # noqa: E402
 
 COMMANDS = (("validate", "configs/mosfet_saturation.yaml"),
             ("validate", "configs/dipole_field.yaml"),
@@ -50,25 +48,13 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--baseline", help="a commit or a checkout's folder")
     args = parser.parse_args(argv)
-    scratch = Path(tempfile.mkdtemp(prefix="estim-startup-"))
-    worktree = None
-    try:
-        sides = {"this": ROOT}
-        if args.baseline:
-            base = checkout_of(args.baseline, scratch)
-            worktree = base if base.is_relative_to(scratch) else None
-            sides = {"baseline": base, **sides}
+    with checkouts(args.baseline, "estim-startup-") as (scratch, sides):
         envs = {side: {**os.environ, "PYTHONPATH": str(package_view(c, scratch / side))}
                 for side, c in sides.items()}
         print(f"{'command':<48}" + "".join(f"{side + ' s':>12}" for side in sides))
         for command in COMMANDS:
             cells = "".join(f"{fastest(command, envs[side]):>12.2f}" for side in sides)
             print(f"{'estim ' + ' '.join(command):<48}{cells}", flush=True)
-    finally:
-        if worktree is not None:
-            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force",
-                            str(worktree)], capture_output=True)
-        shutil.rmtree(scratch, ignore_errors=True)
 
 
 if __name__ == "__main__":

@@ -163,7 +163,7 @@ def _series(trace: dict, key: str, ylabel: str, title: str) -> Figure:
         ax.plot(t_ms, values, lw=1.0, ls=LINESTYLES[i % len(LINESTYLES)], label=label)
     ax.set_xlabel("time [ms]")
     ax.set_ylabel(ylabel)
-    ax.set_title(title, fontsize=10)
+    ax.set_title(textwrap.fill(title, 70), fontsize=10)     # the legend takes the right side
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     ax.grid(True, lw=0.3)
     fig.tight_layout()
