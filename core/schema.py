@@ -12,6 +12,7 @@ import dataclasses
 import difflib
 import math
 import re
+import reprlib
 from collections.abc import Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -58,6 +59,17 @@ def integer(minimum: int = 1, maximum: int = 10**9):
             return f"an integer from {minimum} to {maximum}"
         return None
     return check
+
+
+_SHOWN = reprlib.Repr()
+_SHOWN.maxstring, _SHOWN.maxother, _SHOWN.maxlist, _SHOWN.maxdict = 80, 80, 8, 8
+_SHOWN.maxlevel = 3
+
+
+def shown(value) -> str:
+    """A bounded ``repr`` of a value from the user's input, for a message: a long string or
+    an alias-expanded structure is quoted as an excerpt, without building its whole repr."""
+    return _SHOWN.repr(value)
 
 
 def text(choices=None, max_length: int = 200):
@@ -197,7 +209,7 @@ def _check(value: Any, spec: Any, source: str, path: str, errors: list) -> Any:
         return out
     problem = spec(value)
     if problem:
-        raise ConfigError(source, path, f"expected {problem}, got {value!r}")
+        raise ConfigError(source, path, f"expected {problem}, got {shown(value)}")
     return value
 
 
@@ -234,9 +246,10 @@ def build_model(model_cls, variant, params: dict, source: str, path: str):
             problem = number(minimum=-limit, maximum=limit)(value)
             if problem:
                 raise ConfigError(source, f"{path}.{key}", f"expected {problem} (at most "
-                                  f"{PARAM_RANGE:g} times the default {default:g}), got {value!r}")
+                                  f"{PARAM_RANGE:g} times the default {default:g}), "
+                                  f"got {shown(value)}")
         if expected is str and not isinstance(value, str):
-            raise ConfigError(source, f"{path}.{key}", f"expected a string, got {value!r}")
+            raise ConfigError(source, f"{path}.{key}", f"expected a string, got {shown(value)}")
     try:
         model = model_cls(variant, **params)
     except (ParameterError, ValueError, TypeError) as exc:
@@ -290,7 +303,8 @@ def build_estimator(est_cls, settings: dict, model, source: str, path: str):
 def check_interval(values: list, source: str, path: str) -> None:
     """A ``[low, high]`` pair with ``low < high``."""
     if len(values) != 2 or not values[0] < values[1]:
-        raise ConfigError(source, path, f"expected [low, high] with low < high, got {values!r}")
+        raise ConfigError(source, path,
+                          f"expected [low, high] with low < high, got {shown(values)}")
 
 
 def check_input_vector(values: list, model_cls, source: str, path: str) -> None:

@@ -787,7 +787,15 @@ def test_long_values_are_quoted_as_a_bounded_excerpt(tmp_path):
     path.write_text(yaml.safe_dump(spec, width=2**31 - 1))
     result = _command("validate", str(path))
     assert result.returncode == 2
-    assert len(result.stderr) < 600 and "characters]" in result.stderr, len(result.stderr)
+    assert len(result.stderr) < 600 and "xxx...xxx" in result.stderr, result.stderr[:600]
+
+
+def test_an_alias_bomb_in_an_override_is_quoted_as_an_excerpt():
+    bomb = "{" + ", ".join(f"l{i}: &l{i} [" + ", ".join([f"*l{i - 1}"] * 9 if i else
+                                                      ["lol"] * 9) + "]" for i in range(7)) + "}"
+    result = _command("validate", "configs/fir_differentiator.yaml", f"name={bomb}")
+    assert result.returncode == 2 and "name: expected a non-empty string" in result.stderr
+    assert len(result.stderr) < 600, len(result.stderr)
 
 
 def test_a_valid_but_foreign_analysis_is_one_line(tmp_path):
