@@ -63,6 +63,8 @@ class Section:
     """``(metric, caption, table)``, joined to the printed values where there are any."""
     figures: list[tuple[str, bytes]] = field(default_factory=list)   # (file name, bytes)
     deviations: list[tuple[str, str]] = field(default_factory=list)
+    empty: list[str] = field(default_factory=list)
+    """Captions of the tables with no value in any cell (keys alone): named, not drawn."""
 
 
 def deviation_entries(markdown: str) -> dict[str, str]:
@@ -202,9 +204,9 @@ def shrink_png(data: bytes, width: int = FIGURE_WIDTH,
 
 
 def _has_values(df: pd.DataFrame) -> bool:
-    """Whether a table holds any value (not only keys and empty cells)."""
-    return bool(len(df)) and bool(df.notna().to_numpy().any()) and not bool(
-        df.astype(str).isin(["", "--", "nan", "NaN"]).to_numpy().all())
+    """Whether a table holds any value (a cell that is neither missing, empty nor ``--``)."""
+    return any(pd.notna(v) and str(v).strip() not in ("", "--")
+               for column in df.columns for v in df[column])
 
 
 def summary(section: Section) -> dict:
@@ -279,7 +281,7 @@ def page(title: str, sections: list[Section], full: bool = False) -> str:
     for s in sections:
         part = [f'<h2 id="{html.escape(s.name)}">{html.escape(s.name)}: '
                 f"{html.escape(s.title)}</h2>", _meta(s.manifest)]
-        empty = [caption for _, caption, df in s.tables if not _has_values(df)]
+        empty = s.empty + [caption for _, caption, df in s.tables if not _has_values(df)]
         part += [_table(caption, df, f"results/{s.name}/{metric}.csv",
                         None if full else ROWS_MAX)
                  for metric, caption, df in s.tables if _has_values(df)]
@@ -345,12 +347,17 @@ def sections(results, deviations_text: str, config_dir, analyses: dict) -> list[
             if path is None:
                 continue
             df = tables.view(read_table(path, spec), spec)
+            caption = f"{metric}: {spec.title}"
+            values = df.drop(columns=[*spec.keys, *tables.sweep_columns(df)], errors="ignore")
+            if values.isna().all().all():             # ours are empty, printed ones or not
+                section.empty.append(caption)
+                continue
             if spec.join and "table_id" in df and df["table_id"].astype(str).str.len().any():
                 try:
                     df = tables.with_reference(df, spec, allow_unmatched=True)
                 except ReferenceJoinError:
                     pass
-            section.tables.append((metric, f"{metric}: {spec.title}", df))
+            section.tables.append((metric, caption, df))
         for figure in sorted((folder / "figures").glob("*")):
             if figure.suffix in (".png", ".svg", ".pdf"):
                 section.figures.append((figure.name,

@@ -1,3 +1,4 @@
+import shutil
 from io import StringIO
 from pathlib import Path
 
@@ -7,6 +8,7 @@ import pytest
 import yaml
 from click.testing import CliRunner
 
+from estim.analyses import ANALYSES
 from estim.cli.main import main
 from estim.config import parse_override
 
@@ -890,3 +892,31 @@ def test_jobs_defaults_to_the_usable_cores():
         option = next(p for p in command.params if p.name == "jobs")
         ctx = click.Context(command)
         assert option.get_default(ctx) == len(os.sched_getaffinity(0))
+
+
+def test_report_renders_deviations_and_leaves_out_empty_tables_and_missing_metadata(tmp_path):
+    from estim import report
+
+    html_ = report.markdown("**D28.** The *printed* bias (eq 2.14):\n- one `x`\n  continued\n"
+                            "- two [see](#D3), [away](https://example.org)\n\nLast.")
+    assert html_.startswith("<p><strong>D28.</strong> The <em>printed</em> bias")
+    assert "<li>one <code>x</code> continued</li>" in html_
+    assert '<a href="#D3">see</a>' in html_ and "away" in html_ and "example.org" not in html_
+    assert html_.endswith("<p>Last.</p>") and "**" not in html_
+    empty = pd.DataFrame({"table_id": [""], "gain": [float("nan")]})
+    section = report.Section("x", "t", {"seed": None, "runs": None, "wall_time_s": 1.5},
+                             tables=[("gain", "gain: G", empty)])
+    page = report.page("p", [section])
+    assert "Left out, no values in any cell: gain: G" in page and "<h3>gain: G" not in page
+    assert "seed None" not in page and "runs None" not in page and "wall time 1.5 s" in page
+    results = tmp_path / "res"
+    shutil.copytree(ROOT / "results" / "mosfet_distortion", results / "mosfet_distortion")
+    gain = results / "mosfet_distortion" / "distortion.csv"
+    df = pd.read_csv(gain)
+    keys = ANALYSES["perturbation"].TABLES["distortion"].keys
+    for column in (c for c in df.columns if c not in keys):
+        df[column] = float("nan")
+    df.to_csv(gain, index=False)
+    section = report.sections(results, "", None, ANALYSES)[0]
+    assert sorted(c.split(":")[0] for c in section.empty) == ["distortion", "gain"]
+    assert [m for m, _, _ in section.tables] == ["claims"]

@@ -818,3 +818,28 @@ def test_ctrl_c_while_python_imports_is_one_line_and_exit_130(delay):
     _, err = run.communicate(timeout=60)
     assert run.returncode == 130, err
     assert err.strip().splitlines() == ["error: interrupted"], err
+
+
+def test_a_valid_override_longer_than_a_file_name_is_an_override():
+    values = ",".join(str(f) for f in range(1000, 1500, 10))
+    override = f"input.frequencies_hz=[{values}]"
+    assert len(override.encode()) > 255
+    result = _command("validate", "configs/mosfet_saturation.yaml", override, "--max-work",
+                      str(10**12))
+    assert result.returncode == 0, result.stderr
+
+
+def test_a_full_width_digit_in_a_shard_is_refused():
+    result = CliRunner().invoke(main, ["run", "configs/fir_differentiator.yaml", "--shard",
+                                       "\uff11/2", "--out", "/tmp/estim-never"])
+    assert result.exit_code == 2 and "expected K/N" in result.output
+
+
+@pytest.mark.parametrize("address", ["bogus://x", "127.0.0.1:notaport"])
+def test_a_malformed_scheduler_address_is_exit_2(tmp_path, address):
+    pytest.importorskip("distributed")
+    result = _command("run", "configs/fir_differentiator.yaml", "--executor", "dask",
+                      "--scheduler", address, "--out", str(tmp_path / "o"))
+    assert result.returncode == 2, result.stderr
+    assert result.stderr.startswith("error: cannot reach the Dask scheduler")
+    assert len(result.stderr.strip().splitlines()) == 1
