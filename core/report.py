@@ -96,8 +96,9 @@ def cited(text_: str) -> list[str]:
 
 
 def _table(caption: str, df: pd.DataFrame, source: str = "", rows_max: int | None = None) -> str:
-    """A table as HTML; with ``rows_max``, at most that many rows (for claims, the rows that
-    do not hold first) and a line naming the CSV that holds them all."""
+    """A table as HTML; with ``rows_max``, at most that many rows (for claims, chosen from
+    the rows that do not hold first; shown in the table's order) and a line naming the CSV
+    that holds them all."""
     failing = (df["verdict"].astype(str) == "fails") if "verdict" in df else None
     note = ""
     if rows_max is not None and len(df) > rows_max:
@@ -106,7 +107,7 @@ def _table(caption: str, df: pd.DataFrame, source: str = "", rows_max: int | Non
                  if "verdict" in df else df.index.tolist())
         shown = sorted(order[:rows_max])
         note = (f'<p class="meta">{rows_max} of {len(df)} rows shown'
-                + (" (every claim that does not hold among them)" if "verdict" in df else "")
+                + (" (chosen from the claims that do not hold first)" if "verdict" in df else "")
                 + f"; all of them in {html.escape(source)} and in "
                 "<code>estim report --full</code>.</p>")
         df, failing = df.loc[shown], failing.loc[shown] if failing is not None else None
