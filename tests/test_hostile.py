@@ -843,3 +843,17 @@ def test_a_malformed_scheduler_address_is_exit_2(tmp_path, address):
     assert result.returncode == 2, result.stderr
     assert result.stderr.startswith("error: cannot reach the Dask scheduler")
     assert len(result.stderr.strip().splitlines()) == 1
+
+
+def test_a_manifest_naming_its_analysis_by_a_list_is_named_not_a_crash(stored):
+    _, out = stored
+    manifest = out / "tiny" / "manifest.json"
+    data = json.loads(manifest.read_text())
+    data["config"]["analysis"] = ["estimation"]
+    manifest.write_text(json.dumps(data))
+    for args in (["table", "rmse", "--results", str(out)],
+                 ["report", "--results", str(out), "--out", str(out / "page.html")],
+                 ["summary", "--results", str(out)]):
+        result = _command(*args)
+        assert result.returncode == 2, (args, result.stderr)
+        assert "Traceback" not in result.stderr and len(result.stderr.splitlines()) == 1

@@ -30,6 +30,8 @@ class _Analyses(Mapping):
     """Analysis name -> its module, each imported on first access."""
 
     def __getitem__(self, name: str) -> ModuleType:
+        if not isinstance(name, str) or name not in _MODULES:
+            raise KeyError(name)                # a list or mapping from a damaged manifest too
         return importlib.import_module(_MODULES[name])
 
     def __iter__(self) -> Iterator[str]:
@@ -39,7 +41,7 @@ class _Analyses(Mapping):
         return len(_MODULES)
 
     def __contains__(self, name: object) -> bool:
-        return name in _MODULES
+        return isinstance(name, str) and name in _MODULES
 
 
 ANALYSES: Mapping[str, ModuleType] = _Analyses()
