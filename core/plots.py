@@ -73,6 +73,14 @@ def output_limits(actual: np.ndarray, measured: np.ndarray,
     return lo - pad, hi + pad
 
 
+def _input_panel(ax, trace: dict, t_ms: np.ndarray, title: str) -> None:
+    """(a) the source as applied and the nominal input, under the figure's title."""
+    ax.plot(t_ms, trace["source"], lw=0.8, label="source (as applied)")
+    ax.plot(t_ms, trace["clean"], lw=1.2, label="nominal input")
+    ax.set_ylabel("v_in [V]")
+    ax.set_title(f"(a) input - {title}", fontsize=10)
+
+
 def _output_panels(axes, trace: dict, t_ms: np.ndarray, zoom: slice, zoom_heading: str,
                    ylabel: str) -> None:
     """(b) the whole record on :func:`output_limits`, (c) a zoom (``zoom`` of the samples)
@@ -135,12 +143,8 @@ def estimates(trace: dict, title: str, period_s: float | None = None,
     zoom = (period_s is not None and t[-1] - t[0] > 2 * window_periods * period_s)
     fig, axes = plt.subplots(4, 1, figsize=(10.0, 11.0))
     t_ms = t * 1e3
-    ax_in = axes[0]
-    ax_in.plot(t_ms, trace["source"], lw=0.8, label="source (as applied)")
-    ax_in.plot(t_ms, trace["clean"], lw=1.2, label="nominal input")
-    ax_in.set_ylabel("v_in [V]")
-    ax_in.set_xlabel("time [ms]")
-    ax_in.set_title(f"(a) input - {title}", fontsize=10)
+    _input_panel(axes[0], trace, t_ms, title)
+    axes[0].set_xlabel("time [ms]")
     start = int(np.searchsorted(t, t[-1] - window_periods * period_s)) if zoom else 0
     _output_panels(axes[1:], trace, t_ms, slice(start, None),
                    f"the last {window_periods} periods" if zoom else "whole record",
@@ -254,11 +258,7 @@ def estimates_clipped(trace: dict, title: str) -> Figure:
     estimate's error. Legends outside the data."""
     fig, axes = plt.subplots(4, 1, figsize=(10.0, 11.0), sharex=True)
     t_ms = trace["t"] * 1e3
-    ax_in = axes[0]
-    ax_in.plot(t_ms, trace["source"], lw=0.8, label="source (as applied)")
-    ax_in.plot(t_ms, trace["clean"], lw=1.2, label="nominal input")
-    ax_in.set_ylabel("v_in [V]")
-    ax_in.set_title(f"(a) input - {title}", fontsize=10)
+    _input_panel(axes[0], trace, t_ms, title)
     _output_panels(axes[1:], trace, t_ms, slice(None), "whole record", "output v_D [V]")
     for ax in axes:
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)

@@ -254,3 +254,27 @@ def test_burden_counts_equal_the_closed_forms_of_what_the_code_does():
     assert at4.loc[1, "printed"] == 36 and at4.loc[1, "counted"] == 100
     slopes = result.tables["slopes"].set_index(["estimator", "quantity"])["slope"]
     assert 2.5 < slopes[("Kronecker EKF", "counted")] < 3.0
+
+
+def test_deviations_quote_the_stored_burden_timings():
+    """docs/deviations.md's wall-time sentences on Table 4.3/4.4 against the stored tables."""
+    import pandas as pd
+
+    text = open("docs/deviations.md").read()
+    slopes = pd.read_csv("results/kronecker_burden/slopes.csv").set_index(
+        ["estimator", "quantity"])["slope"]
+    timing = pd.read_csv("results/kronecker_burden/timing.csv")
+    one = timing[timing["estimator"] == "Kronecker EKF"]["seconds_per_step"] * 1e3
+    lms = timing[timing["estimator"].str.startswith("wavelet LMS")].set_index("n_x")
+    quoted = {
+        f"one run: {one.min():.2f}–{one.max():.2f} ms from n_x = 4 to 32, slope "
+        f"{slopes[('Kronecker EKF', 'seconds')]:.1f}",
+        f"256 runs filtered together, per run: slope "
+        f"{slopes[('Kronecker EKF, 256 runs batched (per run)', 'seconds')]:.1f}",
+        f"{lms.loc[4, 'seconds_per_step'] * 1e6:.1f} µs at n_x = 4 to "
+        f"{lms.loc[32, 'seconds_per_step'] * 1e6:.0f} µs at 32, slope "
+        f"{slopes[('wavelet LMS (per sample of a block)', 'seconds')]:.1f}",
+        f"against the counted {slopes[('wavelet LMS (per sample of a block)', 'counted')]:.2f}",
+    }
+    missing = [q for q in quoted if " ".join(q.split()) not in " ".join(text.split())]
+    assert not missing, missing
