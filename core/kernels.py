@@ -180,43 +180,52 @@ def _lambertw_exp(z):
 
 def _netlist(x, u, P, f, J):
     """A netlist model (``estim.spice.circuit.NetlistModel``) in scalar form, in the numpy
-    path's order: the currents leaving the state nodes, linear part ``Y x + W u + c`` (R, G,
-    I and the sources), plus each device (D, Q, M) from its terminal voltages
-    ``V = Pm x + Qm u + r``; then ``f = -C^-1 (currents)`` on the node states and the inductor
-    drift (the last rows of ``Y, W, c``) as is. The currents are summed before ``C^-1`` is
-    applied: folding ``C^-1`` (entries 1/C_par ~ 1e12) into the coefficients made sums of
-    1e9-sized terms that left a rounding bias in ``f`` which the slow load capacitor
-    integrated into 1e-10 V over 3 ms. One kernel for every netlist: the circuit is data in
-    ``P``, so numba compiles it once and caches it.
+    path's order: the currents of each row (a state node's supernode, then each controlling
+    source of an F or H), linear part ``Y x + W u + c`` (R, G, I and the sources), plus each
+    device (D, Q, M) from its terminal voltages ``V = Pm x + Qm u + r``, added to its node's
+    rows; each F source's current (``A`` times the control rows) added to the state rows;
+    then ``f = -C^-1 (currents)`` on the node states and the inductor drift (the last rows of
+    ``Y, W, c``) as is. The currents are summed before ``C^-1`` is applied: folding ``C^-1``
+    (entries 1/C_par ~ 1e12) into the coefficients made sums of 1e9-sized terms that left a
+    rounding bias in ``f`` which the slow load capacitor integrated into 1e-10 V over 3 ms.
+    One kernel for every netlist: the circuit is data in ``P``, so numba compiles it once
+    and caches it.
 
-    ``P = [n, k, p, N, devices, Y (n n), W (n p), c (n), Pm (N n), Qm (N p), r (N),
-    -C^-1 (k k), device rows (10 each)]``; a device row is ``[type, four node indices (-1:
-    none), five parameters]``: type 0 a diode (``a, b``; ``I_s, n V_T, r_s``), 1/2 an
-    NPN/PNP (``c, b, e``; ``I_ES, I_CS, alpha_F, alpha_R, V_T``), 3 an EKV NMOS
-    (``d, g, s, b``; ``U_T, V_T0, eta, I_s``)."""
-    n, k, p, N, nd = int(P[0]), int(P[1]), int(P[2]), int(P[3]), int(P[4])
-    oA = 5
-    oB = oA + n * n
-    oc = oB + n * p
-    oP = oc + n
+    ``P = [n, k, p, N, devices, nc, Y (R n), W (R p), c (R), Pm (N n), Qm (N p), r (N),
+    -C^-1 (k k), A (k nc), row (N), control row (N), device rows (10 each)]`` with ``R = k
+    + nc + n - k`` rows (``row``: a node's KCL row, -1 for none; ``control row``: its row
+    among the ``nc`` control rows, numbered from ``k``, or -1); a device row is ``[type,
+    four node indices (-1: none), five parameters]``: type 0 a diode (``a, b``; ``I_s, n
+    V_T, r_s``), 1/2 an NPN/PNP (``c, b, e``; ``I_ES, I_CS, alpha_F, alpha_R, V_T``), 3 an
+    EKV NMOS (``d, g, s, b``; ``U_T, V_T0, eta, I_s``)."""
+    n, k, p, N, nd, nc = int(P[0]), int(P[1]), int(P[2]), int(P[3]), int(P[4]), int(P[5])
+    kc = k + nc
+    R = kc + n - k
+    oA = 6
+    oB = oA + R * n
+    oc = oB + R * p
+    oP = oc + R
     oQ = oP + N * n
     orr = oQ + N * p
     oM = orr + N
-    odev = oM + k * k
-    for a in range(n):
-        s = P[oc + a]
-        for b in range(n):
-            s += P[oA + a * n + b] * x[b]
-            J[a, b] = P[oA + a * n + b]
-        for c in range(p):
-            s += P[oB + a * p + c] * u[c]
-        f[a] = s
-    scratch = np.empty(19 + n + k * (n + 1))            # one allocation per call
+    oF = oM + k * k
+    orow = oF + k * nc
+    ocrow = orow + N
+    odev = ocrow + N
+    scratch = np.empty(19 + n + R * (n + 1))            # one allocation per call
     v = scratch[0:4]
     term = scratch[4:7]
     dterm = scratch[7:19].reshape(3, 4)
     grad = scratch[19:19 + n]
-    cur = scratch[19 + n:].reshape(k, n + 1)
+    cur = scratch[19 + n:].reshape(R, n + 1)
+    for a in range(R):
+        s = P[oc + a]
+        for b in range(n):
+            s += P[oA + a * n + b] * x[b]
+            cur[a, b] = P[oA + a * n + b]
+        for c in range(p):
+            s += P[oB + a * p + c] * u[c]
+        cur[a, n] = s
     for d in range(nd):
         row = odev + 10 * d
         kind = P[row]
@@ -283,8 +292,9 @@ def _netlist(x, u, P, f, J):
             slot = t0 if t_ == 0 else (t1 if t_ == 1 else t2)
             if slot < 0:
                 continue
-            i = int(P[row + 1 + slot]) - 1                 # state nodes follow ground
-            if i < 0 or i >= k:
+            at = int(P[row + 1 + slot])
+            i1, i2 = int(P[orow + at]), int(P[ocrow + at])
+            if i1 < 0 and i2 < 0:
                 continue
             for b in range(n):
                 grad[b] = 0.0
@@ -295,13 +305,18 @@ def _netlist(x, u, P, f, J):
                     continue
                 for b in range(n):
                     grad[b] += g * P[oP + node * n + b]
-            f[i] += term[t_]
-            for b in range(n):
-                J[i, b] += grad[b]
-    for i in range(k):
-        cur[i, n] = f[i]
-        for b in range(n):
-            cur[i, b] = J[i, b]
+            for i in (i1, i2):
+                if i < 0:
+                    continue
+                cur[i, n] += term[t_]
+                for b in range(n):
+                    cur[i, b] += grad[b]
+    for a in range(k):
+        for j in range(nc):
+            w = P[oF + a * nc + j]
+            if w != 0.0:
+                for b in range(n + 1):
+                    cur[a, b] += w * cur[k + j, b]
     for a in range(k):
         s = 0.0
         for i in range(k):
@@ -312,6 +327,11 @@ def _netlist(x, u, P, f, J):
             for i in range(k):
                 s += P[oM + a * k + i] * cur[i, b]
             J[a, b] = s
+    for a in range(k, n):
+        f[a] = cur[kc + a - k, n]
+        for b in range(n):
+            J[a, b] = cur[kc + a - k, b]
+
 
 mosfet = jit(_mosfet)
 diffamp = jit(_diffamp)

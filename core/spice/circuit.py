@@ -3,9 +3,11 @@
 States: the voltage of every node that no voltage source fixes, and the current of every
 inductor. Nodes fixed by a voltage source (from ground or from another fixed node) carry the
 source's value: the model's inputs (the sources named in ``inputs``) or the source's DC
-value; a voltage-controlled voltage source (``E``) from a fixed node fixes its node to a
-function of the others. Every node voltage is then affine in the states and inputs,
-``V = P x + Q u + r``. KCL at the state nodes, with the nodal capacitance matrix ``C``,
+value; an ``E`` (or ``H``) source fixes its node to a function of the others. A source
+between two nodes no source ties to ground makes a supernode: its minus node is the state,
+its plus node follows it, and they share one KCL row (D76). Every node voltage is then
+affine in the states and inputs, ``V = P x + Q u + r``. KCL at the state nodes (supernodes),
+with the nodal capacitance matrix ``C``,
 
     C v' = - (the currents leaving each node through R, G, I, L, D, Q and M)
            + (a slope input's capacitor currents),
@@ -22,7 +24,8 @@ Device laws and their ``.model`` parameters: Shockley diodes with series resista
 ``pnp``: ``ies alpha_f alpha_r vt``, ``I_CS`` by reciprocity unless ``ics`` is given;
 :mod:`estim.devices.ebers_moll`, the thesis' law), EKV NMOS (``nmos``: ``u_t v_t0 eta i_0
 w_l``; the law of :mod:`estim.models.mosfet_ekv`). Jacobian, input Jacobian and Hessian are
-analytic. ``F``/``H`` (current-controlled) sources are refused for now.
+analytic. ``F`` and ``H`` sources take the current of a voltage source as KCL at the node
+it fixes (no capacitor there; for ``H`` only linear branches: D76).
 """
 
 from __future__ import annotations
@@ -106,8 +109,10 @@ class Circuit:
         net, src = self.netlist, self.netlist.source
         for e in net.elements:
             if e.kind in "fh":
-                raise NetlistError(src, e.line, f"{e.name}: current-controlled sources (F, H) "
-                                   "are not supported yet")
+                ctrl = net.element(e.ref)
+                if ctrl is None or ctrl.kind != "v":
+                    raise NetlistError(src, e.line, f"{e.name}: its controlling source "
+                                       f"{e.ref!r} is not a voltage source of the netlist")
         for e in net.elements:
             if e.kind in "vi" and e.waveform[0] != "dc" and e.name not in self.inputs:
                 raise NetlistError(src, e.line, f"{e.name}: a {e.waveform[0].upper()} source "
@@ -125,33 +130,16 @@ class Circuit:
         nodes = sorted({n for e in net.elements for n in e.nodes} - set(GROUND))
         if not nodes:
             raise NetlistError(src, 0, "no node but ground")
-        # fixed nodes: voltage sources from ground or from fixed nodes, E sources likewise
-        fixed: dict[str, tuple] = {g: ("ground",) for g in GROUND}
-        pending = [e for e in net.elements if e.kind in "ve"]
-        while pending:
-            progress = False
-            for e in list(pending):
-                p, m = e.nodes[:2]
-                if p in fixed and m in fixed:
-                    raise NetlistError(src, e.line, f"{e.name}: a loop of voltage sources "
-                                       f"(both {p} and {m} are already fixed)")
-                if m in fixed or p in fixed:
-                    node, other, sign = (p, m, 1.0) if m in fixed else (m, p, -1.0)
-                    fixed[node] = (e, other, sign)
-                    pending.remove(e)
-                    progress = True
-            if not progress:
-                e = pending[0]
-                raise NetlistError(src, e.line, f"{e.name}: a voltage source between two "
-                                   "nodes no other source fixes is not supported; tie one "
-                                   "end to ground or to a fixed node")
-        self.fixed = {n: v for n, v in fixed.items() if n not in GROUND}
-        self.state_nodes = [n for n in nodes if n not in fixed]
+        self.fixed, root = self._fix_nodes()
+        self.state_nodes = [n for n in nodes if n not in self.fixed]
         self.inductors = [e for e in net.elements if e.kind == "l"]
         names = [f"v({n})" for n in self.state_nodes] + [f"i({e.name})" for e in self.inductors]
         self.state_names = tuple(names)
         index = {n: i for i, n in enumerate(self.state_nodes)}
         self.index = index
+        # each node's KCL row: its own state's, or that of the state node whose voltage it
+        # follows through voltage sources (a supernode); None for a node tied to ground
+        self.row = {n: index.get(root.get(n, n)) for n in nodes}
         # a floating node: connected to only one element terminal
         touches: dict[str, int] = {}
         for e in net.elements:
@@ -162,28 +150,24 @@ class Circuit:
             raise NetlistError(src, 0, f"floating node(s) {', '.join(lonely)}: connected to "
                                "one terminal only")
         k = len(self.state_nodes)
-        self.slope = self._input_mode()
+        self.slope = self._input_mode(root)
+        self.controls = self._controls()
         C = np.zeros((k, k))
         B = np.zeros((k, len(self.inputs)))
         for e in net.elements:
             if e.kind != "c":
                 continue
-            a, b = e.nodes
-            ia, ib = index.get(a), index.get(b)
-            for i, j, other in ((ia, ib, b), (ib, ia, a)):
-                if i is None:
+            ends = [self._follows(n, e) for n in e.nodes]
+            for this, other in ((ends[0], ends[1]), (ends[1], ends[0])):
+                if this is None or this[0] != "x":
                     continue
-                C[i, i] += e.value
-                if j is not None:
-                    C[i, j] -= e.value
-                elif other in self.input_nodes:
-                    B[i, self.input_nodes.index(other)] += e.value
-                elif other not in GROUND:
-                    if self._driven_by_input(other):
-                        raise NetlistError(src, e.line, f"{e.name}: a capacitor to node "
-                                           f"{other}, which the model input (or an E "
-                                           "source) drives; the model would need its slope "
-                                           "(put the source behind a resistor)")
+                C[this[1], this[1]] += e.value
+                if other is None:
+                    continue
+                if other[0] == "x":
+                    C[this[1], other[1]] -= e.value
+                else:
+                    B[this[1], other[1]] += e.value
         missing = [self.state_nodes[i] for i in range(k) if C[i, i] == 0]
         if missing:
             raise NetlistError(src, 0, f"node(s) {', '.join(missing)} have no capacitive path: "
@@ -212,14 +196,95 @@ class Circuit:
                                        f"{sorted(DEFAULTS[model.type])}")
         self.output_terms = self._output(self.output)
 
+    def _fix_nodes(self) -> tuple[dict, dict]:
+        """Which node each voltage source (V, E, H) fixes: ``{node: (source, other end,
+        sign)}`` with ``v(node) = v(other) + sign * value``, and each such node's root: ground,
+        or the state node at the end of its chain of sources (a supernode, whose KCL is
+        one row). Sources with an end already known go first, so every chain that reaches
+        ground is rooted there; a source between two unknown nodes makes its minus node a
+        state."""
+        net, src = self.netlist, self.netlist.source
+        root: dict[str, str] = {g: "0" for g in GROUND}
+        fixed: dict[str, tuple] = {}
+        pending = [e for e in net.elements if e.kind in "veh"]
+        while pending:
+            e = next((s for s in pending if s.nodes[0] in root or s.nodes[1] in root), None)
+            if e is None:
+                e = pending[0]
+                root[e.nodes[1]] = e.nodes[1]
+            p, m = e.nodes[:2]
+            if p in root and m in root:
+                raise NetlistError(src, e.line, f"{e.name}: a loop of voltage sources "
+                                   f"(both {p} and {m} are already fixed)")
+            node, other, sign = (p, m, 1.0) if m in root else (m, p, -1.0)
+            fixed[node] = (e, other, sign)
+            root[node] = root[other]
+            pending.remove(e)
+        return fixed, root
+
+    def _follows(self, node: str, cap) -> tuple | None:
+        """What a capacitor's terminal at ``node`` moves with: ``("x", i)`` a state (the
+        node's own or its supernode's), ``("u", j)`` the slope of input ``j``, or None (a
+        constant). A node that an input (other than directly), an E or an H source drives
+        is refused: the model would need that source's slope."""
+        if node in self.index:
+            return ("x", self.index[node])
+        if node in self.input_nodes:
+            return ("u", self.input_nodes.index(node))
+        n = node
+        while n in self.fixed:
+            e, other, _ = self.fixed[n]
+            if e.kind in "eh" or e.name in self.inputs:
+                raise NetlistError(self.netlist.source, cap.line, f"{cap.name}: a capacitor "
+                                   f"to node {node}, which the model input (or an E or H "
+                                   "source) drives; the model would need its slope (put the "
+                                   "source behind a resistor)")
+            n = other
+        return ("x", self.index[n]) if n in self.index else None
+
+    def _controls(self) -> list[tuple]:
+        """The controlling sources of the F and H sources: ``(source, node, sign)`` with
+        ``i(source) = sign * (the currents leaving node through its other elements)``, at the
+        node the source fixes (SPICE's current flows into the + terminal: sign -1 there, +1
+        at the - terminal). That node may meet no capacitor (its current would need the
+        slope of the states), no other V, E, H or F source, and, for an H source (whose
+        voltage must stay affine in the states), only R, G, I and L."""
+        net, src = self.netlist, self.netlist.source
+        out: list[tuple] = []
+        for e in net.elements:
+            if e.kind not in "fh":
+                continue
+            vx = net.element(e.ref)
+            node = next(n for n, v in self.fixed.items() if v[0] is vx)
+            sign = -1.0 if node == vx.nodes[0] else 1.0
+            for x in net.elements:
+                if x is vx or node not in (x.nodes[:2] if x.kind in "veghf" else x.nodes):
+                    continue
+                why = None
+                if x.kind == "c":
+                    why = "a capacitor"
+                elif x.kind in "vehf":
+                    why = "another source"
+                elif e.kind == "h" and x.kind in "dqm":
+                    why = "a device (an H source needs a linear controlling current)"
+                if why:
+                    raise NetlistError(src, e.line, f"{e.name}: the current of {vx.name} is "
+                                       f"summed at node {node}, which {x.name} meets: {why}; "
+                                       f"move {vx.name} next to a branch of R, G, I, L"
+                                       f"{'' if e.kind == 'h' else ', D, Q, M'} only")
+            if not any(c[0] is vx for c in out):
+                out.append((vx, node, sign))
+        return out
+
     def _check_dc_paths(self) -> None:
-        """Refuse nodes with no DC path to ground or a fixed node (through R, L, D, Q, M):
-        a group reached only through capacitors and current sources (a cut-set of current
-        sources) has no DC point, and its voltage would drift with any current put in."""
-        reached = set(GROUND) | set(self.fixed)
+        """Refuse nodes with no DC path to ground (through R, L, D, Q, M and the voltage
+        sources): a group reached only through capacitors and current sources (a cut-set of
+        current sources) has no DC point, and its voltage would drift with any current put
+        in."""
+        reached = set(GROUND)
         edges = []
         for e in self.netlist.elements:
-            if e.kind in "rld":
+            if e.kind in "rldveh":
                 edges.append(e.nodes[:2])
             elif e.kind == "q":
                 edges += [(e.nodes[0], e.nodes[1]), (e.nodes[1], e.nodes[2])]
@@ -238,18 +303,23 @@ class Circuit:
                                "path to ground (only capacitors and current sources reach "
                                "them): add a resistor to ground")
 
-    def _input_mode(self) -> bool:
+    def _input_mode(self, root: dict) -> bool:
         """Whether the model input is the sources' slope (True) or their value. An input
         whose node reaches the circuit only through capacitors (a coupling capacitor, as the
         MOSFET's C_GX) drives it by its slope ``C dv/dt``; one that reaches it only through
         other elements drives it by its value. A node with both is refused (the model would
-        need value and slope), as are inputs of both kinds in one netlist."""
+        need value and slope), as are inputs of both kinds in one netlist, and an input that
+        floats between two nodes no other source ties to ground."""
         net, src = self.netlist, self.netlist.source
         self.input_nodes = []
         kinds = set()
         for name in self.inputs:
             e = net.element(name)
             node = next(n for n, v in self.fixed.items() if v[0] is e)
+            if root[node] not in GROUND:
+                raise NetlistError(src, e.line, f"{e.name}: a model input must be tied to "
+                                   "ground or to a node a DC source fixes; it floats between "
+                                   f"{e.nodes[0]} and {e.nodes[1]}")
             self.input_nodes.append(node)
             others = [x for x in net.elements if x is not e and node in x.nodes]
             caps = [x for x in others if x.kind == "c"]
@@ -267,18 +337,6 @@ class Circuit:
                                "supported")
         return kinds == {True}
 
-    def _driven_by_input(self, node: str) -> bool:
-        seen = set()
-        while node in self.fixed and node not in seen:
-            seen.add(node)
-            e, other, _ = self.fixed[node]
-            if e.kind == "v" and e.name in self.inputs:
-                return True
-            if e.kind == "e":
-                return True
-            node = other
-        return False
-
     def _output(self, text: str) -> tuple:
         m = re.fullmatch(r"\s*([vi])\(\s*([^,()\s]+)\s*(?:,\s*([^,()\s]+)\s*)?\)\s*",
                          text.lower())
@@ -292,10 +350,14 @@ class Circuit:
                                    f"inductor, one of {names}")
             return ("i", len(self.state_nodes) + names.index(m.group(2)))
         for n in (m.group(2), m.group(3)):
-            if n and n not in self.index:
+            if n and self.row.get(n) is None:
                 raise NetlistError(self.netlist.source, 0, f"output {text!r}: node {n} is "
-                                   f"not a state node ({', '.join(self.state_nodes)})")
-        return ("v", self.index[m.group(2)], self.index.get(m.group(3)) if m.group(3) else None)
+                                   f"not a state node ({', '.join(self.state_nodes)}) nor "
+                                   "follows one through voltage sources")
+        if all(n is None or n in self.index for n in (m.group(2), m.group(3))):
+            return ("v", self.index[m.group(2)],
+                    self.index.get(m.group(3)) if m.group(3) else None)
+        return ("node", m.group(2), m.group(3))
 
 
 def build_model_class(circuit: Circuit, name: str) -> type:
@@ -371,29 +433,39 @@ class NetlistModel(Model, metaclass=_NetlistClass):
 
     def _prepare(self) -> None:
         """Everything linear, once: every node's voltage as ``V = P x + Q u + r`` (states,
-        inputs, DC sources and E sources are affine), the linear branches (R, G, I, L) as
-        matrices, and the devices (D, Q, M) left for the per-call loop."""
+        inputs, DC sources and E and H sources are affine), the linear branches (R, G, I, L)
+        as matrices, and the devices (D, Q, M) left for the per-call loop. The currents are
+        summed in rows: one per state node (its supernode's KCL), then one per controlling
+        source of an F or H (the currents leaving the node it fixes); ``A`` adds each F's
+        current, gain times its control row, to the rows of its two nodes."""
         c = self.circuit
         self._ic = c.netlist.ic
         nodes = ["0", *c.state_nodes, *c.fixed]
         self._node = {n: i for i, n in enumerate(nodes)}
         self._node["gnd"] = 0
         n, p, k = self.n_states, self.n_inputs, len(c.state_nodes)
+        kc = k + len(c.controls)
+        self._rowmap = np.array([-1] + [c.row[x] if c.row[x] is not None else -1
+                                        for x in nodes[1:]], dtype=np.int64)
+        control = {node: k + j for j, (_, node, _) in enumerate(c.controls)}
+        self._crowmap = np.array([control.get(x, -1) for x in nodes], dtype=np.int64)
+        self._control_sign = np.array([sign for _, _, sign in c.controls])
         r = self._affine(np.zeros(n), np.zeros(p))
         self._r = r
         self._P = np.stack([self._affine(e, np.zeros(p)) - r for e in np.eye(n)], axis=-1)
         self._Q = np.stack([self._affine(np.zeros(n), e) - r for e in np.eye(p)], axis=-1) \
             if p else np.zeros((len(nodes), 0))
-        G = np.zeros((k, len(nodes)))               # current leaving each state node
-        K = np.zeros((k, n))
-        i0 = np.zeros(k)
+        G = np.zeros((kc, len(nodes)))              # current leaving each row's node(s)
+        K = np.zeros((kc, n))
+        i0 = np.zeros(kc)
         L = np.zeros((n, len(nodes)))                # inductor rows of dx/dt
+        A = np.zeros((k, len(c.controls)))
         self._devices = []
 
-        def leave(node, row, value, where):
-            i = c.index.get(node)
-            if i is not None:
-                where[i, row] += value
+        def leave(node, col, value, where):
+            for i in (self._rowmap[self._node[node]], self._crowmap[self._node[node]]):
+                if i >= 0:
+                    where[i, col] += value
 
         for e in c.netlist.elements:
             if e.kind == "r" or e.kind == "g":
@@ -405,8 +477,9 @@ class NetlistModel(Model, metaclass=_NetlistClass):
                     leave(node, self._node[cm], -sign * g, G)
             elif e.kind == "i":
                 for node, sign in ((e.nodes[0], 1.0), (e.nodes[1], -1.0)):
-                    if node in c.index:
-                        i0[c.index[node]] += sign * e.waveform[1]
+                    for i in (self._rowmap[self._node[node]], self._crowmap[self._node[node]]):
+                        if i >= 0:
+                            i0[i] += sign * e.waveform[1]
             elif e.kind == "l":
                 j = k + [x.name for x in c.inductors].index(e.name)
                 a, b = e.nodes
@@ -414,13 +487,39 @@ class NetlistModel(Model, metaclass=_NetlistClass):
                 leave(b, j, -1.0, K)
                 L[j, self._node[a]] += 1 / e.value
                 L[j, self._node[b]] -= 1 / e.value
+            elif e.kind == "f":
+                j = next(i for i, ctl in enumerate(c.controls) if ctl[0].name == e.ref)
+                for node, sign in ((e.nodes[0], 1.0), (e.nodes[1], -1.0)):
+                    i = self._rowmap[self._node[node]]
+                    if i >= 0:
+                        A[i, j] += sign * e.value * self._control_sign[j]
             elif e.kind in "dqm":
                 model = c.netlist.models[e.ref]
                 self._devices.append((model.type, {**DEFAULTS[model.type], **model.params},
                                       [self._node[x] for x in e.nodes]))
         self._G, self._K, self._i0, self._L = G, K, i0, L
-        self._U = -c.B                                 # a slope input's capacitor current
+        self._A = A if c.controls else None
+        U = np.zeros((kc, p))
+        U[:k] = -c.B                                   # a slope input's capacitor current
+        self._U = U
         self._linear = G @ self._P + K                # d(linear currents)/dx
+        term = c.output_terms
+        if term[0] == "node":
+            a, b = (self._node[x] if x else None for x in term[1:])
+            pick = (lambda M: M[a] - M[b]) if b is not None else (lambda M: M[a])
+            if np.any(pick(self._Q) != 0):
+                raise NetlistError(c.netlist.source, 0, f"output {c.output!r} follows the "
+                                   "model input directly; take a node behind an element")
+            self._h = (pick(self._P), float(pick(self._r)))
+
+    def _sum_rows(self, out, d_out):
+        """The state rows' currents with each F source's current added (``A``): the rows
+        of the supernodes, before ``C^-1``."""
+        k = len(self.circuit.state_nodes)
+        if self._A is None:
+            return out, d_out
+        return (out[..., :k] + out[..., k:] @ self._A.T,
+                d_out[..., :k, :] + np.einsum("ij,...jn->...in", self._A, d_out[..., k:, :]))
 
     def _affine(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Every node's voltage (in ``self._node`` order) at states ``x``, inputs ``u``."""
@@ -433,8 +532,10 @@ class NetlistModel(Model, metaclass=_NetlistClass):
             guard += 1
             node = todo.pop(0)
             e, other, sign = c.fixed[node]
-            ready = other in v and (e.kind == "v" or (e.nodes[2] in v and e.nodes[3] in v))
-            if not ready:
+            need = [other] + (list(e.nodes[2:4]) if e.kind == "e" else [])
+            if e.kind == "h":
+                need += self._control_nodes(e.ref)
+            if not all(x_ in v for x_ in need):
                 if guard > 10 * len(c.fixed) + 10:
                     raise NetlistError(c.netlist.source, e.line, f"{e.name}: its controlling "
                                        "nodes depend on it")
@@ -444,11 +545,43 @@ class NetlistModel(Model, metaclass=_NetlistClass):
                 value = 0.0 if c.slope else u[c.inputs.index(e.name)]
             elif e.kind == "v":
                 value = e.waveform[1]
-            else:                                  # E: v(p) - v(m) = gain (v(cp) - v(cm))
+            elif e.kind == "e":                    # v(p) - v(m) = gain (v(cp) - v(cm))
                 value = e.value * (v[e.nodes[2]] - v[e.nodes[3]])
+            else:                                  # H: v(p) - v(m) = gain i(control)
+                value = e.value * self._control_current(e.ref, v, x)
             v[node] = v[other] + sign * value
         nodes = sorted(self._node, key=self._node.get)
         return np.array([v[n] for n in nodes if n != "gnd"])
+
+    def _control_nodes(self, ref: str) -> list[str]:
+        """The nodes whose voltages set the current of source ``ref`` (an H's control)."""
+        vx, node, _ = next(ctl for ctl in self.circuit.controls if ctl[0].name == ref)
+        out = [node]
+        for e in self.circuit.netlist.elements:
+            if e is not vx and node in e.nodes[:2] and e.kind in "rg":
+                out += list(e.nodes[:2] if e.kind == "r" else e.nodes[2:4])
+        return out
+
+    def _control_current(self, ref: str, v: dict, x: np.ndarray) -> float:
+        """SPICE's current through source ``ref`` from the linear branches (R, G, I, L) at
+        the node it fixes (:meth:`Circuit._controls`)."""
+        c = self.circuit
+        vx, node, sign = next(ctl for ctl in c.controls if ctl[0].name == ref)
+        total = 0.0
+        for e in c.netlist.elements:
+            if e is vx or node not in e.nodes[:2]:
+                continue
+            way = 1.0 if e.nodes[0] == node else -1.0      # the branch current leaves node
+            if e.kind == "r":
+                total += way * (v[e.nodes[0]] - v[e.nodes[1]]) / e.value
+            elif e.kind == "g":
+                total += way * e.value * (v[e.nodes[2]] - v[e.nodes[3]])
+            elif e.kind == "i":
+                total += way * e.waveform[1]
+            elif e.kind == "l":
+                j = len(c.state_nodes) + [y.name for y in c.inductors].index(e.name)
+                total += way * x[j]
+        return sign * total
 
     def f_and_jacobian(self, x, u, t: float = 0.0):
         """``f = -C^-1 (currents leaving the state nodes)`` on the node states and
@@ -469,10 +602,8 @@ class NetlistModel(Model, metaclass=_NetlistClass):
         x = np.asarray(x, float)
         u = np.asarray(u, float)
         lead = np.broadcast_shapes(x.shape[:-1], u.shape[:-1])
-        c = self.circuit
-        k = len(c.state_nodes)
         V = x @ self._P.T + u @ self._Q.T + self._r          # every node's voltage
-        out = V @ self._G.T + x @ self._K.T + self._i0 + u @ self._U.T   # leaving state nodes
+        out = V @ self._G.T + x @ self._K.T + self._i0 + u @ self._U.T   # leaving each row
         d_out = np.broadcast_to(self._linear, lead + self._linear.shape).copy()
         for kind, p, idx in self._devices:
             if kind == "d":
@@ -503,10 +634,11 @@ class NetlistModel(Model, metaclass=_NetlistClass):
                         + ds[..., None] * self._P[s_] + db[..., None] * self._P[b_])
                 terms = ((d_, cur, dcur), (s_, -cur, -dcur))
             for node, cur, dcur in terms:
-                i = node - 1                               # state nodes follow ground
-                if 0 <= i < k:
-                    out[..., i] += cur
-                    d_out[..., i, :] += dcur
+                for i in (self._rowmap[node], self._crowmap[node]):
+                    if i >= 0:
+                        out[..., i] += cur
+                        d_out[..., i, :] += dcur
+        out, d_out = self._sum_rows(out, d_out)
         return out, d_out, V
 
     def operating_point(self, x_guess: np.ndarray | None = None,
@@ -554,12 +686,15 @@ class NetlistModel(Model, metaclass=_NetlistClass):
                 values = [prm["u_t"], prm["v_t0"], prm["eta"], prm["i_0"] * prm["w_l"], 0.0]
                 code = 3.0
             rows.append([code, *nodes, *values])
-        Y = np.vstack([self._linear[:k], (self._L @ self._P)[k:]])
+        Y = np.vstack([self._linear, (self._L @ self._P)[k:]])
         W = np.vstack([self._G @ self._Q + self._U, (self._L @ self._Q)[k:]])
         c = np.concatenate([self._G @ self._r + self._i0, (self._L @ self._r)[k:]])
-        P = np.concatenate([[n, k, p, N, len(rows)], Y.ravel(), W.ravel(), c, self._P.ravel(),
-                            self._Q.ravel(), self._r, (-self.circuit.C_inv).ravel(),
-                            np.ravel(rows)]).astype(float)
+        nc = len(self.circuit.controls)
+        A = self._A if self._A is not None else np.zeros((k, 0))
+        P = np.concatenate([[n, k, p, N, len(rows), nc], Y.ravel(), W.ravel(), c,
+                            self._P.ravel(), self._Q.ravel(), self._r,
+                            (-self.circuit.C_inv).ravel(), A.ravel(), self._rowmap,
+                            self._crowmap, np.ravel(rows)]).astype(float)
         return kernels.NETLIST, P
 
     def source_to_input(self, source: np.ndarray, dt: float) -> np.ndarray:
@@ -629,8 +764,11 @@ class NetlistModel(Model, metaclass=_NetlistClass):
         dcur = self._G @ self._Q + self._U
         for nodes, terms in self._device_derivatives(self._node_voltages(x, u)):
             for node, d1, _ in terms:
-                if 1 <= node <= k:
-                    dcur[node - 1] += d1 @ self._Q[nodes]
+                for i in (self._rowmap[node], self._crowmap[node]):
+                    if i >= 0:
+                        dcur[i] += d1 @ self._Q[nodes]
+        if self._A is not None:
+            dcur = dcur[:k] + self._A @ dcur[k:]
         out = self._L @ self._Q
         out[:k] = -self.circuit.C_inv @ dcur
         return out
@@ -645,12 +783,15 @@ class NetlistModel(Model, metaclass=_NetlistClass):
         k, n = len(self.circuit.state_nodes), self.n_states
         Z = np.hstack([self._P, self._Q])
         m = Z.shape[1]
-        Hcur = np.zeros((k, m, m))
+        Hcur = np.zeros((k + len(self.circuit.controls), m, m))
         for nodes, terms in self._device_derivatives(self._node_voltages(x, u)):
             Zd = Z[nodes]
             for node, _, d2 in terms:
-                if 1 <= node <= k:
-                    Hcur[node - 1] += Zd.T @ d2 @ Zd
+                for i in (self._rowmap[node], self._crowmap[node]):
+                    if i >= 0:
+                        Hcur[i] += Zd.T @ d2 @ Zd
+        if self._A is not None:
+            Hcur = Hcur[:k] + np.einsum("ij,jab->iab", self._A, Hcur[k:])
         H = np.zeros((n, m, m))
         H[:k] = -np.einsum("ij,jab->iab", self.circuit.C_inv, Hcur)
         return H
@@ -658,6 +799,8 @@ class NetlistModel(Model, metaclass=_NetlistClass):
     def h(self, x):
         term = self.circuit.output_terms
         x = np.asarray(x, float)
+        if term[0] == "node":
+            return (x @ self._h[0] + self._h[1])[..., None]
         if term[0] == "i" or term[2] is None:
             return x[..., term[1]:term[1] + 1]
         return (x[..., term[1]] - x[..., term[2]])[..., None]
@@ -666,6 +809,9 @@ class NetlistModel(Model, metaclass=_NetlistClass):
         term = self.circuit.output_terms
         x = np.asarray(x, float)
         H = np.zeros(x.shape[:-1] + (1, self.n_states))
+        if term[0] == "node":
+            H[..., 0, :] = self._h[0]
+            return H
         H[..., 0, term[1]] = 1.0
         if term[0] == "v" and term[2] is not None:
             H[..., 0, term[2]] = -1.0

@@ -155,6 +155,8 @@ def netlist_text(net: Netlist, t: np.ndarray, inputs: dict[str, np.ndarray],
             out += _em_sources(e, net)
         elif e.kind in "dq":
             out.append(f"{name} {nodes} {e.ref}")
+        elif e.kind in "fh":
+            out.append(f"{name} {nodes} {flat(e.ref, 'v')} {float(e.value)!r}")
         else:
             out.append(f"{name} {nodes} {float(e.value)!r}")
     models, vt = _models(net)
