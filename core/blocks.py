@@ -51,6 +51,12 @@ def simulation(rtol: float, atol: float) -> type:
     return Simulation
 
 
+def _quantities(v):
+    ok = isinstance(v, list) and v and len(v) <= 1000 and all(
+        isinstance(i, str) and 0 < len(i) <= 200 for i in v)
+    return None if ok else "a list of v(node), v(node,node) or i(inductor)"
+
+
 def _source_names(v):
     ok = isinstance(v, str) and v or (isinstance(v, list) and v and all(
         isinstance(i, str) and i for i in v))
@@ -81,6 +87,12 @@ class Model(Settings):
                                    "mean of its two end samples (default, as the "
                                    "hand-written amplifiers), its first (zero-order hold) or "
                                    "its last (as cco)")
+    thesis_states: list | None = setting(None, _quantities,
+                                         doc="with netlist: the states the filters' Q and P0 "
+                                             "are written in (noise_units: thesis), one per "
+                                             "netlist state, each v(node), v(node,node) or "
+                                             "i(inductor); default: the netlist's own states "
+                                             "(D77)")
 
 
 @settings_class

@@ -197,7 +197,8 @@ def _netlist(x, u, P, f, J):
     among the ``nc`` control rows, numbered from ``k``, or -1); a device row is ``[type,
     four node indices (-1: none), five parameters]``: type 0 a diode (``a, b``; ``I_s, n
     V_T, r_s``), 1/2 an NPN/PNP (``c, b, e``; ``I_ES, I_CS, alpha_F, alpha_R, V_T``), 3 an
-    EKV NMOS (``d, g, s, b``; ``U_T, V_T0, eta, I_s``)."""
+    NMOS (``d, g, s, b``; ``U_T, V_T0, eta, I_s``, law: 0 EKV, 1 weak inversion, 2 weak
+    saturation, 3 and 4 the Taylor polynomials, ``estim.spice.circuit.NMOS_LAWS``)."""
     n, k, p, N, nd, nc = int(P[0]), int(P[1]), int(P[2]), int(P[3]), int(P[4]), int(P[5])
     kc = k + nc
     R = kc + n - k
@@ -273,18 +274,43 @@ def _netlist(x, u, P, f, J):
             dterm[2, 0], dterm[2, 1], dterm[2, 2] = -aR * gR, -gF + aR * gR, gF
             t0, t1, t2 = 0, 1, 2
         else:
-            UT, VT0, eta, Is = P[row + 5], P[row + 6], P[row + 7], P[row + 8]
-            vp = (v[1] - v[3] - VT0) / eta
-            a_s = (vp - (v[2] - v[3])) / (2 * UT)
-            a_d = (vp - (v[0] - v[3])) / (2 * UT)
-            sp_s = max(a_s, 0.0) + np.log1p(np.exp(-abs(a_s)))
-            sp_d = max(a_d, 0.0) + np.log1p(np.exp(-abs(a_d)))
-            dFs = 2 * sp_s * 0.5 * (1.0 + np.tanh(0.5 * a_s)) / (2 * UT)
-            dFd = 2 * sp_d * 0.5 * (1.0 + np.tanh(0.5 * a_d)) / (2 * UT)
-            i_ds = Is * (sp_s * sp_s - sp_d * sp_d)
+            UT, VT0, eta, Is, law = P[row + 5], P[row + 6], P[row + 7], P[row + 8], P[row + 9]
+            if law == 3.0:                                 # taylor_conduction (eq 3.7)
+                xr = VT0 / (eta * UT)
+                c0 = 1 - xr + xr**2 / 2 - xr**3 / 6
+                c1 = (1 - xr + xr**2 / 2) / (eta * UT)
+                k_, q_ = Is / UT, 1 / (2 * UT)
+                vd, vg, vs, vb = v[0], v[1], v[2], v[3]
+                i_ds = k_ * (c0 * ((vd - vs) + q_ * (vs**2 - vd**2 - 2 * (vs * vb - vd * vb)))
+                             + c1 * (vg * vd - vb * vd - vg * vs + vb * vs))
+                dterm[0, 0] = k_ * (c0 * (1 + q_ * (2 * vb - 2 * vd)) + c1 * (vg - vb))
+                dterm[0, 1] = k_ * c1 * (vd - vs)
+                dterm[0, 2] = k_ * (c0 * (-1 + q_ * (2 * vs - 2 * vb)) + c1 * (vb - vg))
+                dterm[0, 3] = k_ * (c0 * q_ * 2 * (vd - vs) + c1 * (vs - vd))
+            elif law == 4.0:                               # taylor_saturation (eq 3.13)
+                vgs = v[1] - v[2]
+                a1 = 1 / UT - VT0 / UT**2
+                i_ds = Is * ((1 - VT0 / UT + VT0**2 / UT**2) + vgs * a1 + vgs**2 / (2 * UT**2))
+                dterm[0, 1] = Is * (a1 + vgs / UT**2)
+                dterm[0, 2] = -dterm[0, 1]
+            else:
+                vp = (v[1] - v[3] - VT0) / eta
+                a_s = (vp - (v[2] - v[3])) / (2 * UT)
+                a_d = (vp - (v[0] - v[3])) / (2 * UT)
+                if law == 0.0:                             # EKV
+                    sp_s = max(a_s, 0.0) + np.log1p(np.exp(-abs(a_s)))
+                    sp_d = max(a_d, 0.0) + np.log1p(np.exp(-abs(a_d)))
+                    dFs = 2 * sp_s * 0.5 * (1.0 + np.tanh(0.5 * a_s)) / (2 * UT)
+                    dFd = 2 * sp_d * 0.5 * (1.0 + np.tanh(0.5 * a_d)) / (2 * UT)
+                    i_ds = Is * (sp_s * sp_s - sp_d * sp_d)
+                else:                                      # weak inversion (eqs 3.6, 3.12)
+                    e_s = np.exp(2 * a_s)
+                    e_d = np.exp(2 * a_d) if law == 1.0 else 0.0
+                    dFs, dFd = 2 * e_s / (2 * UT), 2 * e_d / (2 * UT)
+                    i_ds = Is * (e_s - e_d)
+                dterm[0, 0], dterm[0, 1] = Is * dFd, Is * (dFs - dFd) / eta
+                dterm[0, 2], dterm[0, 3] = -Is * dFs, Is * (dFs - dFd) * (1 - 1 / eta)
             term[0], term[1] = i_ds, -i_ds
-            dterm[0, 0], dterm[0, 1] = Is * dFd, Is * (dFs - dFd) / eta
-            dterm[0, 2], dterm[0, 3] = -Is * dFs, Is * (dFs - dFd) * (1 - 1 / eta)
             for c in range(4):
                 dterm[1, c] = -dterm[0, c]
             t0, t1, t2 = 0, 2, -1

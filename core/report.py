@@ -41,7 +41,7 @@ figure { display: inline-block; margin: 0.5em; } figure img { max-width: 46em; }
 figcaption { font-size: 0.8em; color: #555; } pre { white-space: pre-wrap; font-size: 0.85em; }
 """
 
-FIGURE_WIDTH = 640
+FIGURE_WIDTH = 560
 """Widest embedded PNG, in pixels, unless ``full`` (the stored figures are 800-1400)."""
 FIGURE_COLOURS = 64
 """Colours of an embedded PNG unless ``full`` (line plots use a few dozen)."""

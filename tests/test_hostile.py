@@ -294,6 +294,15 @@ GOOD_BLOCK = {"netlist": DIFFAMP_NETLIST, "input": ["VB1", "VB2"], "output": "v(
     ({**GOOD_BLOCK, "hold": "middle"}, "model.hold", "mean, start or end"),
     ({"name": "diffamp_em", "hold": "start"}, "model.hold", "only with model.netlist"),
     ({"name": "diffamp_em", "output": "v(x)"}, "model.output", "only with model.netlist"),
+    ({"name": "diffamp_em", "thesis_states": ["v(e)"]}, "model.thesis_states",
+     "only with model.netlist"),
+    ({**GOOD_BLOCK, "thesis_states": "v(e)"}, "model.thesis_states", "a list of v(node)"),
+    ({**GOOD_BLOCK, "thesis_states": ["v(e)"]}, "model.thesis_states",
+     "1 given, the netlist has 4 states (v(c1), v(c2), v(e), v(m))"),
+    ({**GOOD_BLOCK, "thesis_states": ["v(e)", "v(m,c2)", "v(c1)", "v(zz)"]},
+     "model.thesis_states", "node zz is not a state node"),
+    ({**GOOD_BLOCK, "thesis_states": ["v(e)", "v(m,c2)", "v(c1)", "v(c1,e)"]},
+     "model.thesis_states", "one is a combination of the others"),
 ], ids=lambda v: v if isinstance(v, str) else None)
 def test_a_bad_netlist_model_block_is_one_line_and_exit_2(tmp_path, block, key, expected):
     if block.get("netlist") == "BAD":

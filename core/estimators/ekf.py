@@ -25,7 +25,12 @@ from estim.settings import setting, settings_class
 def thesis_to_state(M: np.ndarray, model) -> np.ndarray:
     """A covariance given in the thesis' state units (volts) in the model's own units:
     ``S M S`` with ``S = diag(model.state_scales)``, so a state that is a charge ``q = C v``
-    where the thesis has ``v`` gets ``C^2`` times the printed variance."""
+    where the thesis has ``v`` gets ``C^2`` times the printed variance; for a model with a
+    full map from the thesis' states (a netlist's ``thesis_states``, D77), ``T M T^T``."""
+    T = getattr(model, "thesis_map", None)
+    if T is not None:
+        out = T @ M @ T.T
+        return 0.5 * (out + out.T)
     S = np.asarray(model.state_scales, float)
     return S[:, None] * M * S[None, :]
 

@@ -48,17 +48,20 @@ def find_netlist(name: str, source: str) -> Path | None:
 
 
 def model_class(path: Path, inputs, output: str, name: str | None = None,
-                hold: str | None = None) -> type:
+                hold: str | None = None, thesis_states=None) -> type:
     """The model class of the netlist at ``path`` (registered under ``name``, default
     ``netlist:<stem>``); ``hold`` is how its value inputs hold a sample (``"mean"``, the
-    default, ``"start"`` or ``"end"``: :meth:`NetlistModel.source_to_input`)."""
+    default, ``"start"`` or ``"end"``: :meth:`NetlistModel.source_to_input`);
+    ``thesis_states`` the quantities a filter's Q and P0 are written in
+    (:attr:`NetlistModel.thesis_map`)."""
     inputs = (inputs,) if isinstance(inputs, str) else tuple(inputs)
     circuit = Circuit(read(path), tuple(i.lower() for i in inputs), output)
     name = name or f"netlist:{path.stem}"
     cls = build_model_class(circuit, name)
     cls.name = name
     cls.hold = hold or "mean"
-    cls.origin = (str(path), inputs, output, name, hold)
+    cls.thesis_states = tuple(thesis_states) if thesis_states else None
+    cls.origin = (str(path), inputs, output, name, hold, cls.thesis_states)
     registry.MODELS.register(name, cls)
     return cls
 
@@ -69,7 +72,7 @@ def rebuild(origin: tuple) -> type:
     known = registry.MODELS.get(origin[3])
     if known is not None and getattr(known, "origin", None) == origin:
         return known
-    return model_class(Path(origin[0]), origin[1], origin[2], origin[3], origin[4])
+    return model_class(Path(origin[0]), *origin[1:])
 
 
 def resolve_model_block(data: dict, source: str) -> None:
@@ -80,7 +83,7 @@ def resolve_model_block(data: dict, source: str) -> None:
     if not isinstance(block, dict):
         return
     if block.get("netlist") is None:
-        for key in ("input", "output", "hold"):
+        for key in ("input", "output", "hold", "thesis_states"):
             if block.get(key) is not None:
                 raise ConfigError(source, f"model.{key}", "only with model.netlist (a "
                                   "registered model declares its own inputs and outputs)")
@@ -108,8 +111,18 @@ def resolve_model_block(data: dict, source: str) -> None:
     if not isinstance(output, str):
         raise ConfigError(source, "model.output", "expected v(node), v(node,node) or "
                           "i(inductor)")
+    states = block.get("thesis_states")
+    if states is not None and (not isinstance(states, list)
+                               or not all(isinstance(s, str) for s in states)):
+        raise ConfigError(source, "model.thesis_states", "expected a list of v(node), "
+                          "v(node,node) or i(inductor)")
     try:
-        cls = model_class(path, inputs, output, hold=block.get("hold"))
+        cls = model_class(path, inputs, output, hold=block.get("hold"), thesis_states=states)
     except NetlistError as exc:
         raise ConfigError(source, "model.netlist", str(exc)) from None
+    if states is not None:
+        try:
+            cls().thesis_map  # noqa: B018 (building the map checks the quantities)
+        except NetlistError as exc:
+            raise ConfigError(source, "model.thesis_states", exc.message) from None
     block["name"] = cls.name

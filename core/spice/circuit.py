@@ -23,7 +23,8 @@ Device laws and their ``.model`` parameters: Shockley diodes with series resista
 (``d``: ``is n rs``; closed form by the Lambert W function), Ebers-Moll NPN/PNP (``npn``,
 ``pnp``: ``ies alpha_f alpha_r vt``, ``I_CS`` by reciprocity unless ``ics`` is given;
 :mod:`estim.devices.ebers_moll`, the thesis' law), EKV NMOS (``nmos``: ``u_t v_t0 eta i_0
-w_l``; the law of :mod:`estim.models.mosfet_ekv`). Jacobian, input Jacobian and Hessian are
+w_l law``; the laws of :mod:`estim.models.mosfet_ekv`, ``law`` the index in
+:data:`NMOS_LAWS`, 0 EKV). Jacobian, input Jacobian and Hessian are
 analytic. ``F`` and ``H`` sources take the current of a voltage source as KCL at the node
 it fixes (no capacitor there; for ``H`` only linear branches: D76).
 """
@@ -92,7 +93,12 @@ DIODE_VT = 0.025852
 """The diode's thermal voltage (300 K), as the BJT model's default ``vt``."""
 DIODE = {"is": 1e-14, "n": 1.0, "rs": 0.0}
 BJT = {"ies": 1e-14, "alpha_f": 0.99, "alpha_r": 0.5, "vt": 0.025852, "ics": None}
-EKV = {"u_t": 0.0256, "v_t0": 0.5, "eta": 1.0, "i_0": 1e-9, "w_l": 1.0}
+EKV = {"u_t": 0.0256, "v_t0": 0.5, "eta": 1.0, "i_0": 1e-9, "w_l": 1.0, "law": 0.0}
+NMOS_LAWS = ("ekv", "weak_inversion", "weak_saturation", "taylor_conduction",
+             "taylor_saturation")
+"""The drain-current laws of an ``nmos`` ``.model``'s ``law`` (its index here): those of
+:mod:`estim.models.mosfet_ekv` (``drain_current``), so that a filter can model the
+transistor with the thesis' approximations as the hand-written model's filters do (D77)."""
 DEFAULTS = {"d": DIODE, "npn": BJT, "pnp": BJT, "nmos": EKV}
 
 
@@ -194,6 +200,10 @@ class Circuit:
                     raise NetlistError(src, model.line, f".model {model.name}: unknown "
                                        f"parameter(s) {sorted(unknown)}; expected "
                                        f"{sorted(DEFAULTS[model.type])}")
+                if model.type == "nmos" and model.params.get("law", 0) not in range(5):
+                    raise NetlistError(src, model.line, f".model {model.name}: law "
+                                       f"{model.params['law']!r}; expected 0-4 ("
+                                       f"{', '.join(f'{i} {n}' for i, n in enumerate(NMOS_LAWS))})")
         self.output_terms = self._output(self.output)
 
     def _fix_nodes(self) -> tuple[dict, dict]:
@@ -407,6 +417,7 @@ class NetlistModel(Model, metaclass=_NetlistClass):
     circuit: Circuit
     from_netlist = True
     hold = "mean"
+    thesis_states: tuple | None = None
 
     def __init__(self, variant: str | None = None, **overrides) -> None:
         super().__init__(variant, **overrides)
@@ -629,9 +640,9 @@ class NetlistModel(Model, metaclass=_NetlistClass):
                                   (base, tc.I_B, tc.dIB_be, tc.dIB_bc)))
             else:
                 d_, g_, s_, b_ = idx
-                cur, dd, dg, ds, db = _ekv(V[..., d_], V[..., g_], V[..., s_], V[..., b_], p)
-                dcur = (dd[..., None] * self._P[d_] + dg[..., None] * self._P[g_]
-                        + ds[..., None] * self._P[s_] + db[..., None] * self._P[b_])
+                cur, grad, _ = _nmos(V[..., d_], V[..., g_], V[..., s_], V[..., b_], p)
+                dcur = (grad[..., 0, None] * self._P[d_] + grad[..., 1, None] * self._P[g_]
+                        + grad[..., 2, None] * self._P[s_] + grad[..., 3, None] * self._P[b_])
                 terms = ((d_, cur, dcur), (s_, -cur, -dcur))
             for node, cur, dcur in terms:
                 for i in (self._rowmap[node], self._crowmap[node]):
@@ -683,7 +694,8 @@ class NetlistModel(Model, metaclass=_NetlistClass):
                           prm["alpha_f"], prm["alpha_r"], prm["vt"]]
                 code = 1.0 if kind == "npn" else 2.0
             else:
-                values = [prm["u_t"], prm["v_t0"], prm["eta"], prm["i_0"] * prm["w_l"], 0.0]
+                values = [prm["u_t"], prm["v_t0"], prm["eta"], prm["i_0"] * prm["w_l"],
+                          float(prm.get("law", 0.0))]
                 code = 3.0
             rows.append([code, *nodes, *values])
         Y = np.vstack([self._linear, (self._L @ self._P)[k:]])
@@ -741,18 +753,7 @@ class NetlistModel(Model, metaclass=_NetlistClass):
                 yield [c, b, e], terms
             else:
                 d_, g_, s_, b_ = idx
-                ut, eta = p["u_t"], p["eta"]
-                Is = p["i_0"] * p["w_l"]
-                vp = (V[g_] - V[b_] - p["v_t0"]) / eta
-                ga_s = np.array([0.0, 1 / eta, -1.0, 1 - 1 / eta]) / (2 * ut)
-                ga_d = np.array([-1.0, 1 / eta, 0.0, 1 - 1 / eta]) / (2 * ut)
-                d1 = np.zeros(4)
-                d2 = np.zeros((4, 4))
-                for a_, ga, sign in (((vp - (V[s_] - V[b_])) / (2 * ut), ga_s, 1.0),
-                                     ((vp - (V[d_] - V[b_])) / (2 * ut), ga_d, -1.0)):
-                    sp, sg = np.logaddexp(0.0, a_), 0.5 * (1.0 + np.tanh(0.5 * a_))
-                    d1 += sign * Is * 2 * sp * sg * ga
-                    d2 += sign * Is * (2 * sg * sg + 2 * sp * sg * (1 - sg)) * np.outer(ga, ga)
+                _, d1, d2 = _nmos(V[d_], V[g_], V[s_], V[b_], p, second=True)
                 yield [d_, g_, s_, b_], [(d_, d1, d2), (s_, -d1, -d2)]
 
     def _node_voltages(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
@@ -795,6 +796,38 @@ class NetlistModel(Model, metaclass=_NetlistClass):
         H = np.zeros((n, m, m))
         H[:k] = -np.einsum("ij,jab->iab", self.circuit.C_inv, Hcur)
         return H
+
+    @property
+    def thesis_map(self) -> np.ndarray | None:
+        """``M`` with ``x = M z + const`` from the quantities ``z`` of ``thesis_states`` (the
+        coordinates a filter's Q and P0 are written in, D77) to this model's states, or
+        None where the config names none (the netlist's own states, :attr:`state_scales`)."""
+        if not self.thesis_states:
+            return None
+        src, n = self.circuit.netlist.source, self.n_states
+        if len(self.thesis_states) != n:
+            raise NetlistError(src, 0, f"thesis_states: {len(self.thesis_states)} given, the "
+                               f"netlist has {n} states ({', '.join(self.state_names)})")
+        rows = []
+        for text in self.thesis_states:
+            term = self.circuit._output(text)
+            if term[0] == "i":
+                rows.append(np.eye(n)[term[1]])
+                continue
+            names = (self.circuit.state_nodes[term[1]], None if term[2] is None else
+                     self.circuit.state_nodes[term[2]]) if term[0] == "v" else term[1:]
+            a, b = (self._node[x] if x else None for x in names)
+            row, qrow = self._P[a].copy(), self._Q[a].copy()
+            if b is not None:
+                row, qrow = row - self._P[b], qrow - self._Q[b]
+            if np.any(qrow != 0):
+                raise NetlistError(src, 0, f"thesis_states: {text!r} follows the model input")
+            rows.append(row)
+        T = np.array(rows)
+        if np.linalg.matrix_rank(T) < n:
+            raise NetlistError(src, 0, "thesis_states: the quantities do not determine the "
+                               "states (one is a combination of the others)")
+        return np.linalg.inv(T)
 
     def h(self, x):
         term = self.circuit.output_terms
@@ -873,22 +906,70 @@ def _diode(vd, p):
     return i, g
 
 
-def _ekv(vd, vg, vs, vb, p):
-    """The EKV drain-to-source current (:meth:`estim.models.mosfet_ekv.MosfetEKV.drain_current`,
-    law ``ekv``) and its derivatives w.r.t. the drain, gate, source and bulk voltages."""
+def _nmos(vd, vg, vs, vb, p, second: bool = False):
+    """The drain-to-source current of an ``nmos`` device by its ``.model``'s ``law``
+    (:data:`NMOS_LAWS`, the laws of :meth:`estim.models.mosfet_ekv.MosfetEKV.drain_current`),
+    its gradient w.r.t. the drain, gate, source and bulk voltages (last axis), and with
+    ``second`` (one point) its 4x4 Hessian."""
     from estim.models.mosfet_ekv import _sigmoid, _softplus
 
     ut, vt0, eta = p["u_t"], p["v_t0"], p["eta"]
     Is = p["i_0"] * p["w_l"]
+    law = NMOS_LAWS[int(p.get("law", 0))]
+    vd, vg, vs, vb = np.broadcast_arrays(*(np.asarray(v, float) for v in (vd, vg, vs, vb)))
+    hess = np.zeros((4, 4))
+    if law == "taylor_conduction":
+        xr = vt0 / (eta * ut)
+        c0 = 1 - xr + xr**2 / 2 - xr**3 / 6
+        c1 = (1 - xr + xr**2 / 2) / (eta * ut)
+        k, q = Is / ut, 1 / (2 * ut)
+        cur = k * (c0 * ((vd - vs) + q * (vs**2 - vd**2 - 2 * (vs * vb - vd * vb)))
+                   + c1 * (vg * vd - vb * vd - vg * vs + vb * vs))
+        grad = k * np.stack([c0 * (1 + q * (2 * vb - 2 * vd)) + c1 * (vg - vb),
+                             c1 * (vd - vs),
+                             c0 * (-1 + q * (2 * vs - 2 * vb)) + c1 * (vb - vg),
+                             c0 * q * 2 * (vd - vs) + c1 * (vs - vd)], axis=-1)
+        hess = k * np.array([[-2 * c0 * q, c1, 0.0, 2 * c0 * q - c1],
+                             [c1, 0.0, -c1, 0.0],
+                             [0.0, -c1, 2 * c0 * q, c1 - 2 * c0 * q],
+                             [2 * c0 * q - c1, 0.0, c1 - 2 * c0 * q, 0.0]])
+        return cur, grad, hess
+    if law == "taylor_saturation":
+        vgs = vg - vs
+        a1 = 1 / ut - vt0 / ut**2
+        cur = Is * ((1 - vt0 / ut + vt0**2 / ut**2) + vgs * a1 + vgs**2 / (2 * ut**2))
+        d = Is * (a1 + vgs / ut**2)
+        zero = np.zeros_like(d)
+        c = Is / ut**2
+        hess = np.array([[0.0, 0.0, 0.0, 0.0], [0.0, c, -c, 0.0], [0.0, -c, c, 0.0],
+                         [0.0, 0.0, 0.0, 0.0]])
+        return cur, np.stack([zero, d, -d, zero], axis=-1), hess
     vp = (vg - vb - vt0) / eta
     a_s = (vp - (vs - vb)) / (2 * ut)
     a_d = (vp - (vd - vb)) / (2 * ut)
-    Fs, Fd = _softplus(a_s) ** 2, _softplus(a_d) ** 2
-    dFs = 2 * _softplus(a_s) * _sigmoid(a_s) / (2 * ut)
-    dFd = 2 * _softplus(a_d) * _sigmoid(a_d) / (2 * ut)
-    cur = Is * (Fs - Fd)
-    dg = Is * (dFs - dFd) / eta
-    db = Is * (dFs - dFd) * (1 - 1 / eta)
-    ds = -Is * dFs
-    dd = Is * dFd
-    return cur, dd, dg, ds, db
+    ga_s = np.array([0.0, 1 / eta, -1.0, 1 - 1 / eta]) / (2 * ut)
+    ga_d = np.array([-1.0, 1 / eta, 0.0, 1 - 1 / eta]) / (2 * ut)
+    if law == "ekv" and second:
+        d1, d2 = np.zeros(4), np.zeros((4, 4))
+        for a_, ga, sign in ((a_s, ga_s, 1.0), (a_d, ga_d, -1.0)):
+            sp, sg = np.logaddexp(0.0, a_), 0.5 * (1.0 + np.tanh(0.5 * a_))
+            d1 += sign * Is * 2 * sp * sg * ga
+            d2 += sign * Is * (2 * sg * sg + 2 * sp * sg * (1 - sg)) * np.outer(ga, ga)
+        return Is * (_softplus(a_s) ** 2 - _softplus(a_d) ** 2), d1, d2
+    if law == "ekv":
+        Fs, Fd = _softplus(a_s) ** 2, _softplus(a_d) ** 2
+        dFs = 2 * _softplus(a_s) * _sigmoid(a_s) / (2 * ut)
+        dFd = 2 * _softplus(a_d) * _sigmoid(a_d) / (2 * ut)
+        cur = Is * (Fs - Fd)
+        grad = np.stack([Is * dFd, Is * (dFs - dFd) / eta, -Is * dFs,
+                         Is * (dFs - dFd) * (1 - 1 / eta)], axis=-1)
+        return cur, grad, hess
+    with np.errstate(over="ignore"):
+        e_s, e_d = np.exp(2 * a_s), np.exp(2 * a_d)
+    if law == "weak_saturation":
+        e_d = np.zeros_like(e_d)
+    cur = Is * (e_s - e_d)
+    grad = Is * (2 * e_s[..., None] * ga_s - 2 * e_d[..., None] * ga_d)
+    if second:
+        hess = Is * (4 * e_s * np.outer(ga_s, ga_s) - 4 * e_d * np.outer(ga_d, ga_d))
+    return cur, grad, hess

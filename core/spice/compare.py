@@ -6,9 +6,11 @@ its rows; an estimation config: each input frequency, the clean sine plus one dr
 noise at the largest level, as the "actual" signal is made) both simulators start from their
 own DC point and follow the same input: estim's integrator at a tight tolerance, ngspice's
 transient analysis (gear, ``reltol`` 1e-7 by default, tightened tenfold up to twice
-while a difference is above its bar) driven by a PWL source of exactly what estim's
-model sees (the staircase of its held values, :meth:`source_to_input`, or, for an input that
-drives through a capacitor, the piecewise-linear source itself). Reported per case:
+while a difference is above its bar, then its largest step cut from a quarter to a fortieth
+of the sample interval and its ``reltol`` tightened once more) driven by a PWL source of
+exactly what estim's model sees (the staircase of its held values,
+:meth:`source_to_input`, or, for an input that drives through a capacitor, the
+piecewise-linear source itself). Reported per case:
 
 * ``dc``: the DC point, the largest node difference over the largest node voltage;
 * ``transient``: each state and the output, the largest difference over the run divided by
@@ -22,7 +24,9 @@ drives through a capacitor, the piecewise-linear source itself). Reported per ca
   analysis, the difference over the largest gain magnitude of the inputs.
 
 Each difference is held against a bar (:data:`BARS`: what an independent check measured
-estim's circuits at against ngspice), and ``holds`` says whether it is within it.
+estim's circuits at against ngspice), and ``holds`` says whether it is within it; a
+difference above its bar is ``undecided`` where ngspice's own last two answers differ by
+more than the bar, else it ``fails`` (``verdict``).
 """
 
 from __future__ import annotations
@@ -85,8 +89,9 @@ def cases(exp) -> list[tuple[str, object, np.ndarray, float, float | None]]:
 
 def compare_case(label: str, model, source: np.ndarray, dt: float, frequency: float | None,
                  executable: str | None, rtol: float = 1e-10,
-                 reltol: float = 1e-7) -> list[dict]:
-    """The rows of :func:`compare` for one case (the AC gain only with a ``frequency``)."""
+                 reltol: float = 1e-7, step: float = 0.25) -> list[dict]:
+    """The rows of :func:`compare` for one case (the AC gain only with a ``frequency``);
+    ngspice's largest step is ``step`` times the sample interval."""
     circuit = model.circuit
     net = circuit.netlist
     steps = source.shape[0] - 1
@@ -102,7 +107,7 @@ def compare_case(label: str, model, source: np.ndarray, dt: float, frequency: fl
         drive = {name: ngspice.staircase(t, u_in[:, k], source[0, k])
                  for k, name in enumerate(circuit.inputs)}
     theirs = ngspice.transient(net, t, drive, list(model.state_names), executable,
-                               reltol=reltol)
+                               reltol=reltol, max_step=step * dt)
     rows = []
     nodes = [i for i, s in enumerate(model.state_names) if s.startswith("v(")]
     node_scale = np.abs(theirs[:, nodes]).max() if nodes else 0.0
@@ -118,7 +123,8 @@ def compare_case(label: str, model, source: np.ndarray, dt: float, frequency: fl
         own = np.abs(b).max()
         scale = node_scale if name.startswith("v(") else own
         rows.append({"case": label, "check": "transient", "quantity": name,
-                     "difference": gap / scale, "own_scale": gap / own if own else np.nan})
+                     "difference": gap / scale, "own_scale": gap / own if own else np.nan,
+                     "_theirs": b, "_scale": scale})
     if frequency is not None:
         A = model.jacobian(x0, u_op)
         B = model.input_jacobian(x0, u_op)
@@ -157,25 +163,48 @@ def compare(exp, executable: str | None = None, rtol: float = 1e-10,
     table = pd.DataFrame(rows)
     table["bar"] = table["check"].map(BARS)
     table["holds"] = table["difference"] <= table["bar"]
+    table["verdict"] = verdict(table)
     return table
 
 
 def _tightening(label, model, source, dt, frequency, executable, rtol, reltol,
                 tighten) -> list[dict]:
     """One case at ngspice's ``reltol``, then, while a difference is above its bar, at a
-    ten times tighter one (up to ``tighten`` times): a difference that shrinks so is
-    ngspice's truncation error, not a disagreement of the circuits. Each row says the
-    ``reltol`` it was measured at; a tighter run that fails (too slow) keeps the last."""
-    rows = None
-    for k in range(tighten + 1):
+    ten times tighter one (up to ``tighten`` times), then at the tightest with ngspice's
+    largest step cut from a quarter to a fortieth of the sample interval, and at ten times
+    tighter again (its step control after the corners of a fast PWL input: D74): a
+    difference that shrinks so is ngspice's truncation error, not a disagreement of the
+    circuits. Each row says the ``reltol`` and ``step`` it was measured at and, for a
+    transient quantity, ``ngspice_spread``: how far ngspice's last two answers differ, over
+    the same scale (:func:`verdict`); a tighter run that fails (too slow) keeps the last."""
+    rows, before = None, None
+    tries = [(reltol / 10 ** k, 0.25) for k in range(tighten + 1)]
+    tries += [(tries[-1][0], 0.025), (tries[-1][0] / 10, 0.025)]
+    for tol, step in tries:
         try:
-            new = compare_case(label, model, source, dt, frequency, executable, rtol,
-                               reltol / 10 ** k)
+            new = compare_case(label, model, source, dt, frequency, executable, rtol, tol,
+                               step)
         except ngspice.NgspiceError:
             if rows is None:
                 raise
             break
-        rows = [{**r, "reltol": reltol / 10 ** k} for r in new]
+        before, rows = rows, [{**r, "reltol": tol, "step": step} for r in new]
         if all(r["difference"] <= BARS[r["check"]] for r in rows):
             break
+    for k, r in enumerate(rows):
+        last = r.pop("_theirs", None)
+        scale = r.pop("_scale", None)
+        prior = before[k].get("_theirs") if before else None
+        r["ngspice_spread"] = (np.abs(last - prior).max() / scale
+                               if prior is not None and scale else np.nan)
     return rows
+
+
+def verdict(table: pd.DataFrame) -> pd.Series:
+    """Per row: ``holds`` (the difference within its bar), ``undecided`` (above it, but
+    ngspice's own answers at its last two settings differ by more than the bar: its
+    truncation error, not a measured disagreement of the circuits) or ``fails``."""
+    over = table["difference"] > table["bar"]
+    loose = table["ngspice_spread"] > table["bar"]
+    return pd.Series(np.where(~over, "holds", np.where(loose, "undecided", "fails")),
+                     index=table.index)

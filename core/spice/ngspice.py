@@ -11,8 +11,8 @@ Translations: an ``npn``/``pnp`` model (``ies alpha_f alpha_r vt``) becomes SPIC
 transport form, ``IS = alpha_f ies``, ``BF = alpha_f / (1 - alpha_f)``, ``BR = alpha_r /
 (1 - alpha_r)`` (the Gummel-Poon model with no other effects is Ebers-Moll), at the
 temperature whose ``kT/q`` is ``vt``; a diode keeps ``is n rs`` (at the same temperature, or
-at the one whose ``kT/q`` is estim's diode ``V_T`` where no transistor sets it); an EKV
-``nmos`` device becomes a behavioural current source (``B``) with the EKV law written out,
+at the one whose ``kT/q`` is estim's diode ``V_T`` where no transistor sets it); an
+``nmos`` device becomes a behavioural current source (``B``) with its law written out,
 and an Ebers-Moll transistor whose ``.model`` sets ``ics`` two of them.
 """
 
@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from estim.errors import EstimError
-from estim.spice.circuit import BJT, DIODE_VT, EKV
+from estim.spice.circuit import BJT, DIODE_VT, EKV, NMOS_LAWS
 from estim.spice.parser import Netlist
 
 K_OVER_Q = 1.38064852e-23 / 1.6021766208e-19
@@ -71,22 +71,40 @@ def _models(net: Netlist) -> tuple[list[str], float | None]:
 
 
 def _ekv_source(e, net: Netlist) -> str:
-    """An EKV NMOS as an ngspice B source from drain to source: the law of
-    :func:`estim.spice.circuit._ekv` written out, the softplus as ``max(a, 0) +
+    """An NMOS as an ngspice B source from drain to source: the law of its ``.model``
+    (:func:`estim.spice.circuit._nmos`) written out; EKV's softplus as ``max(a, 0) +
     ln(1 + exp(-abs(a)))`` (no overflow, no loss for negative ``a``)."""
     p = {**EKV, **net.models[e.ref].params}
     d, g, s, b = (f"v({flat(n)})" if n not in ("0", "gnd") else "0" for n in e.nodes)
-    vp = f"(({g} - {b} - ({p['v_t0']!r})) / {p['eta']!r})"
+    ut, vt0, eta = p["u_t"], p["v_t0"], p["eta"]
+    vp = f"(({g} - {b} - ({vt0!r})) / {eta!r})"
 
     def softplus(a: str) -> str:
         return f"(max({a}, 0) + ln(1 + exp(-abs({a}))))"
 
-    a_s = f"(({vp} - ({s} - {b})) / {2 * p['u_t']!r})"
-    a_d = f"(({vp} - ({d} - {b})) / {2 * p['u_t']!r})"
+    a_s = f"(({vp} - ({s} - {b})) / {2 * ut!r})"
+    a_d = f"(({vp} - ({d} - {b})) / {2 * ut!r})"
     Is = p["i_0"] * p["w_l"]
-    return (f"B{flat(e.name)} {flat(e.nodes[0])} {flat(e.nodes[2])} I={Is!r} * "
-            f"({softplus(a_s)}^2 - "
-            f"{softplus(a_d)}^2)")
+    law = NMOS_LAWS[int(p.get("law", 0))]
+    if law == "ekv":
+        current = f"({softplus(a_s)}^2 - {softplus(a_d)}^2)"
+    elif law == "weak_inversion":
+        current = f"(exp(2 * {a_s}) - exp(2 * {a_d}))"
+    elif law == "weak_saturation":
+        current = f"exp(2 * {a_s})"
+    elif law == "taylor_conduction":
+        xr = vt0 / (eta * ut)
+        c0 = 1 - xr + xr**2 / 2 - xr**3 / 6
+        c1 = (1 - xr + xr**2 / 2) / (eta * ut)
+        q = 1 / (2 * ut)
+        current = (f"({1 / ut!r} * ({c0!r} * (({d} - {s}) + {q!r} * ({s}^2 - {d}^2 - 2 * "
+                   f"({s} * {b} - {d} * {b}))) + {c1!r} * ({g} * {d} - {b} * {d} - {g} * {s} "
+                   f"+ {b} * {s})))")
+    else:
+        a1 = 1 / ut - vt0 / ut**2
+        current = (f"({1 - vt0 / ut + vt0**2 / ut**2!r} + ({g} - {s}) * {a1!r} + "
+                   f"({g} - {s})^2 / {2 * ut**2!r})")
+    return f"B{flat(e.name)} {flat(e.nodes[0])} {flat(e.nodes[2])} I={Is!r} * {current}"
 
 
 def _em_sources(e, net: Netlist) -> list[str]:
