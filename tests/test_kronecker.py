@@ -256,25 +256,26 @@ def test_burden_counts_equal_the_closed_forms_of_what_the_code_does():
     assert 2.5 < slopes[("Kronecker EKF", "counted")] < 3.0
 
 
-def test_deviations_quote_the_stored_burden_timings():
-    """docs/deviations.md's wall-time sentences on Table 4.3/4.4 against the stored tables."""
+def test_the_stored_burden_timings_say_what_the_deviations_say():
+    """docs/deviations.md's wall-time sentences on Tables 4.3/4.4 as properties of the
+    stored timing.csv and slopes.csv that hold from run to run (the digits do not, so the
+    text quotes none: a fresh `estim reproduce` rewrites them before the tests run): one
+    run's time is nearly flat in n_x (slope below 1, against the counted 2.90); batched, it
+    grows more slowly than the count; the LMS grows near its count (within 0.6 of it); the
+    LMS takes microseconds per sample."""
     import pandas as pd
 
-    text = open("docs/deviations.md").read()
+    text = " ".join(open("docs/deviations.md").read().split())
+    assert "none are quoted here" in text and "against the counted 2.90" in text
     slopes = pd.read_csv("results/kronecker_burden/slopes.csv").set_index(
         ["estimator", "quantity"])["slope"]
+    one, batched = "Kronecker EKF", "Kronecker EKF, 256 runs batched (per run)"
+    lms = "wavelet LMS (per sample of a block)"
+    assert f"{slopes[(one, 'counted')]:.2f}" == "2.90"
+    assert f"{slopes[(lms, 'counted')]:.2f}" == "1.91"
+    assert slopes[(one, "seconds")] < 1.0
+    assert 0.0 < slopes[(batched, "seconds")] < slopes[(batched, "counted")]
+    assert abs(slopes[(lms, "seconds")] - slopes[(lms, "counted")]) < 0.6
     timing = pd.read_csv("results/kronecker_burden/timing.csv")
-    one = timing[timing["estimator"] == "Kronecker EKF"]["seconds_per_step"] * 1e3
-    lms = timing[timing["estimator"].str.startswith("wavelet LMS")].set_index("n_x")
-    quoted = {
-        f"one run: {one.min():.2f}–{one.max():.2f} ms from n_x = 4 to 32, slope "
-        f"{slopes[('Kronecker EKF', 'seconds')]:.1f}",
-        f"256 runs filtered together, per run: slope "
-        f"{slopes[('Kronecker EKF, 256 runs batched (per run)', 'seconds')]:.1f}",
-        f"{lms.loc[4, 'seconds_per_step'] * 1e6:.1f} µs at n_x = 4 to "
-        f"{lms.loc[32, 'seconds_per_step'] * 1e6:.0f} µs at 32, slope "
-        f"{slopes[('wavelet LMS (per sample of a block)', 'seconds')]:.1f}",
-        f"against the counted {slopes[('wavelet LMS (per sample of a block)', 'counted')]:.2f}",
-    }
-    missing = [q for q in quoted if " ".join(q.split()) not in " ".join(text.split())]
-    assert not missing, missing
+    per_sample = timing[timing["estimator"] == lms]["seconds_per_step"]
+    assert ((per_sample > 1e-7) & (per_sample < 1e-4)).all()
