@@ -920,3 +920,14 @@ def test_report_renders_deviations_and_leaves_out_empty_tables_and_missing_metad
     section = report.sections(results, "", None, ANALYSES)[0]
     assert sorted(c.split(":")[0] for c in section.empty) == ["distortion", "gain"]
     assert [m for m, _, _ in section.tables] == ["claims"]
+
+
+def test_the_readme_counts_the_rows_table_rmse_formats():
+    """The README's start-up paragraph: `estim table rmse` over the shipped results formats
+    3,138 rows (one CSV line each, after the header)."""
+    result = CliRunner().invoke(main, ["table", "rmse", "--results", str(ROOT / "results"),
+                                       "--format", "csv"])
+    assert result.exit_code == 0
+    rows = len(result.output.strip().splitlines()) - 1
+    assert f"{rows:,}" == "3,138"
+    assert "(3,138 since Chapter 3's netlist configs" in (ROOT / "README.md").read_text()

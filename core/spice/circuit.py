@@ -232,6 +232,14 @@ class Circuit:
             pending.remove(e)
         return fixed, root
 
+    def fixed_by(self, source) -> str:
+        """The node that voltage source ``source`` fixes (:meth:`_fix_nodes`)."""
+        return next(n for n, v in self.fixed.items() if v[0] is source)
+
+    def control_index(self, ref: str) -> int:
+        """The row among :attr:`controls` of the controlling source named ``ref``."""
+        return next(i for i, ctl in enumerate(self.controls) if ctl[0].name == ref)
+
     def _follows(self, node: str, cap) -> tuple | None:
         """What a capacitor's terminal at ``node`` moves with: ``("x", i)`` a state (the
         node's own or its supernode's), ``("u", j)`` the slope of input ``j``, or None (a
@@ -265,7 +273,7 @@ class Circuit:
             if e.kind not in "fh":
                 continue
             vx = net.element(e.ref)
-            node = next(n for n, v in self.fixed.items() if v[0] is vx)
+            node = self.fixed_by(vx)
             sign = -1.0 if node == vx.nodes[0] else 1.0
             for x in net.elements:
                 if x is vx or node not in (x.nodes[:2] if x.kind in "veghf" else x.nodes):
@@ -325,7 +333,7 @@ class Circuit:
         kinds = set()
         for name in self.inputs:
             e = net.element(name)
-            node = next(n for n, v in self.fixed.items() if v[0] is e)
+            node = self.fixed_by(e)
             if root[node] not in GROUND:
                 raise NetlistError(src, e.line, f"{e.name}: a model input must be tied to "
                                    "ground or to a node a DC source fixes; it floats between "
@@ -499,7 +507,7 @@ class NetlistModel(Model, metaclass=_NetlistClass):
                 L[j, self._node[a]] += 1 / e.value
                 L[j, self._node[b]] -= 1 / e.value
             elif e.kind == "f":
-                j = next(i for i, ctl in enumerate(c.controls) if ctl[0].name == e.ref)
+                j = c.control_index(e.ref)
                 for node, sign in ((e.nodes[0], 1.0), (e.nodes[1], -1.0)):
                     i = self._rowmap[self._node[node]]
                     if i >= 0:
@@ -566,7 +574,7 @@ class NetlistModel(Model, metaclass=_NetlistClass):
 
     def _control_nodes(self, ref: str) -> list[str]:
         """The nodes whose voltages set the current of source ``ref`` (an H's control)."""
-        vx, node, _ = next(ctl for ctl in self.circuit.controls if ctl[0].name == ref)
+        vx, node, _ = self.circuit.controls[self.circuit.control_index(ref)]
         out = [node]
         for e in self.circuit.netlist.elements:
             if e is not vx and node in e.nodes[:2] and e.kind in "rg":
@@ -577,7 +585,7 @@ class NetlistModel(Model, metaclass=_NetlistClass):
         """SPICE's current through source ``ref`` from the linear branches (R, G, I, L) at
         the node it fixes (:meth:`Circuit._controls`)."""
         c = self.circuit
-        vx, node, sign = next(ctl for ctl in c.controls if ctl[0].name == ref)
+        vx, node, sign = c.controls[c.control_index(ref)]
         total = 0.0
         for e in c.netlist.elements:
             if e is vx or node not in e.nodes[:2]:
