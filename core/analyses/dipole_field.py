@@ -465,6 +465,35 @@ def source_analysis(su: _Setup, before: np.ndarray, after: np.ndarray, amps: np.
     return _levels(rows), Xs[:, -2] + 1j * Xs[:, -1], rows, rank, nis
 
 
+def source_analysis_on_basis(su: _Setup, amps: np.ndarray, basis_now: np.ndarray,
+                             basis_readings: np.ndarray, basis_fields: dict,
+                             y_rows: np.ndarray, inflation: float) -> tuple:
+    """:func:`source_analysis` for an ensemble that differs only in the source amplitude.
+
+    The leapfrog and its Mur faces are linear in the state and the source, and every
+    member starts from rest, so member ``i`` is ``Re(a_i) B_1 + Im(a_i) B_2`` at every
+    step, ``B_1``, ``B_2`` the runs driven by 1 and by j; an analysis replaces the members
+    by affine combinations of themselves, and ``a_i`` by the same combination, so that stays
+    true. The transform depends only on the predicted readings, which are the same
+    combination of the basis runs' readings. So the filter is carried by its amplitudes:
+    ``basis_now`` holds the basis runs' level ``t`` ``(2, fields, points)``, for the
+    effective rank; ``basis_readings`` their predicted readings ``(2, sensors, 6)``;
+    ``basis_fields`` their E and H at ``t`` (``(2, 3, points)`` each). Returns the analysed
+    amplitudes, E and H of the analysed mean, the forecast's effective rank and NIS. Equal
+    to :func:`source_analysis` on the stepped members to rounding (tested)."""
+    coef = np.stack([amps.real, amps.imag], axis=1)                 # (m, 2)
+    Y = np.einsum("mb,bsk->msk", coef, basis_readings)
+    m = Y.shape[0]
+    rank = letkf.effective_rank_on_basis(coef, basis_now)
+    nis = _nis(Y - Y.mean(axis=0), y_rows - Y.mean(axis=0), su.R_source)
+    W = etkf.transform(Y.reshape(m, -1), y_rows.ravel(), su.R_source.ravel(), inflation)
+    mean = coef.mean(axis=0)
+    coef = W @ (coef - mean) + mean
+    a = coef.mean(axis=0)
+    fields = {F: a[0] * basis_fields[F][:1] + a[1] * basis_fields[F][1:] for F in ("E", "H")}
+    return coef[:, 0] + 1j * coef[:, 1], fields, rank, nis
+
+
 def cycle(exp: Experiment, su: _Setup, nominal: complex, rng: np.random.Generator,
           euler: bool = False) -> dict:
     """One run: spin-up, then ``record`` steps of forecast, sensors and both filters'
@@ -494,13 +523,14 @@ def _cycle(exp: Experiment, su: _Setup, nominal: complex, rng: np.random.Generat
     omega_dt = dipole.omega * dt
     draws = rng.standard_normal(m) + 1j * rng.standard_normal(m)
     amps = nominal + fcfg["amplitude_spread"] * draws / np.sqrt(2)
-    state = np.zeros((m + 3, 2, 2, grid.size))
+    free = np.zeros((3, 2, 2, grid.size))
     t = 0.0
-    everything = np.concatenate([amps, free_amps])
     for _ in range(su.spin):
-        state = sim.step(state, t, everything)
+        free = sim.step(free, t, free_amps)
         t += dt
-    field, src, free = state[:m].copy(), state[:m].copy(), state[m:]
+    # the members are still the basis runs' combinations (see source_analysis_on_basis)
+    field = (amps.real[:, None, None, None] * free[1] + amps.imag[:, None, None, None]
+             * free[2])
     amp_field, amp_src = amps.copy(), amps.copy()
     run_euler = _EulerRun(sim, nominal) if euler else None
     if run_euler is not None:
@@ -510,8 +540,7 @@ def _cycle(exp: Experiment, su: _Setup, nominal: complex, rng: np.random.Generat
     basis_traces, basis_sensors, measured, times, health = [], [], [], [], []
     mu0, ops = dipole.mu0, plan.sensor_ops
     for step in range(su.record):
-        both = sim.step(np.concatenate([src, free]), t, np.concatenate([amp_src, free_amps]))
-        src_next, free_next = both[:m], both[m:]
+        free_next = sim.step(free, t, free_amps)
         field_next = sim.step(field, t, amp_field)
         jitter = model_error.smooth_noise(rng, 2 * m, grid.n, su.smoother)
         field_next = model_error.perturb(field_next, omega_dt, jitter[:m], jitter[m:],
@@ -523,13 +552,14 @@ def _cycle(exp: Experiment, su: _Setup, nominal: complex, rng: np.random.Generat
         field, amp_field, X, rank_f, nis_f = field_analysis(su, field, field_next, amp_field,
                                                             y_rows, Y, infl)
         traces[KF].append(_fields_of(grid, X, dt, mu0))
-        Y = _sensor_rows(grid, src, src_next, dt, mu0, ops)
-        src, amp_src, X, rank_s, nis_s = source_analysis(su, src, src_next, amp_src, y_rows, Y,
-                                                         infl)
-        traces[SOURCE_ONLY].append(_fields_of(grid, X, dt, mu0))
+        basis = _observe(grid, free[1:], free_next[1:], dt, mu0)
+        basis_y = _sensor_rows(grid, free[1:], free_next[1:], dt, mu0, ops)
+        amp_src, fields_s, rank_s, nis_s = source_analysis_on_basis(
+            su, amp_src, free_next[1:, 0], basis_y, basis, y_rows, infl)
+        traces[SOURCE_ONLY].append(fields_s)
         traces[PLAIN].append(_observe(grid, free[:1], free_next[:1], dt, mu0))
-        basis_traces.append(_observe(grid, free[1:], free_next[1:], dt, mu0))
-        basis_sensors.append(_sensor_rows(grid, free[1:], free_next[1:], dt, mu0, ops))
+        basis_traces.append(basis)
+        basis_sensors.append(basis_y)
         free = free_next
         if run_euler is not None:
             traces[EULER].append(run_euler.fields())

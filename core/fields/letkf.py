@@ -140,6 +140,21 @@ def effective_rank(X: np.ndarray, threshold: float = 1e-6) -> int:
     the largest (from the members' Gram matrix: ``m`` eigenvalues, not an SVD of the
     field)."""
     A = (X - X.mean(axis=0)).reshape(X.shape[0], -1)
-    ev = np.clip(np.linalg.eigvalsh(A @ A.T), 0.0, None)
-    sv = np.sqrt(ev)
+    return rank_of_gram(A @ A.T, threshold)
+
+
+def effective_rank_on_basis(coef: np.ndarray, basis: np.ndarray,
+                            threshold: float = 1e-6) -> int:
+    """:func:`effective_rank` of members ``X_i = sum_b coef[i, b] basis[b]``, from the
+    coefficients ``(m, b)`` and the basis ``(b, ...)``: the Gram matrix of the anomalies is
+    ``D (B B^T) D^T`` with ``D`` the coefficients' anomalies."""
+    D = coef - coef.mean(axis=0)
+    B = basis.reshape(basis.shape[0], -1)
+    return rank_of_gram(D @ (B @ B.T) @ D.T, threshold)
+
+
+def rank_of_gram(gram: np.ndarray, threshold: float = 1e-6) -> int:
+    """How many singular values (square roots of the Gram matrix' eigenvalues) exceed
+    ``threshold`` times the largest."""
+    sv = np.sqrt(np.clip(np.linalg.eigvalsh(gram), 0.0, None))
     return int(np.sum(sv > threshold * sv.max())) if sv.max() > 0 else 0
