@@ -410,9 +410,9 @@ def _rows_of(before: np.ndarray, after: np.ndarray) -> np.ndarray:
     return np.concatenate([before[:, 0, 0][:, None], after[:, 0], after[:, 1]], axis=1)
 
 
-def _fields_of(grid: grids.Grid, X: np.ndarray, dt: float, mu0: float) -> dict[str, np.ndarray]:
-    """E and H at ``t`` of the mean of ``X (m, 5, points)`` (:func:`_rows_of`)."""
-    mean = X.mean(axis=0)
+def _fields_of(grid: grids.Grid, mean: np.ndarray, dt: float,
+               mu0: float) -> dict[str, np.ndarray]:
+    """E and H at ``t`` of an ensemble mean of the rows ``(5, points)`` (:func:`_rows_of`)."""
     return fdtd.fields_from(grid, mean[None, 1], mean[None, 2], (mean[None, 3] - mean[None, 0])
                        / (2 * dt), mu0)
 
@@ -439,16 +439,18 @@ def field_analysis(su: _Setup, before: np.ndarray, after: np.ndarray, amps: np.n
                    y_rows: np.ndarray, Y: np.ndarray, inflation: float) -> tuple:
     """One analysis of the field filter: local ETKF transforms of the field (levels ``t - dt``
     to ``t + dt``, :func:`_rows_of`) from the sensors around each cube, and of the source
-    amplitude from the sensors around the source. Returns the analysed leapfrog state, the
-    amplitudes, the analysed rows and the forecast's effective rank and NIS."""
+    amplitude from the sensors around the source. ``after`` (the forecast leapfrog state,
+    C-ordered) is analysed in place; of ``A(t - dt)`` only the analysed mean is formed
+    (nothing steps from it). Returns the analysed leapfrog state, the amplitudes, the
+    analysed ensemble mean of the rows ``(5, points)`` and the forecast's effective rank
+    and NIS."""
     Yp, dy = Y - Y.mean(axis=0), y_rows - Y.mean(axis=0)
-    X = _rows_of(before, after)
     rank, nis = letkf.effective_rank(after[:, 0]), _nis(Yp, dy, su.R_field)
     W = letkf.transforms(Yp, dy, su.R_field, su.local.taper, inflation)
-    X = letkf.analyse(X, su.local, W)
+    means = letkf.analyse_levels(after, before[:, 0, 0], su.local, W)
     W0 = letkf.transforms(Yp, dy, su.R_field, su.amplitude_taper[None], inflation)[0]
     amps = amps.mean() + W0 @ (amps - amps.mean())
-    return _levels(X), amps, X, rank, nis
+    return after, amps, means, rank, nis
 
 
 def source_analysis(su: _Setup, before: np.ndarray, after: np.ndarray, amps: np.ndarray,
@@ -549,9 +551,9 @@ def _cycle(exp: Experiment, su: _Setup, nominal: complex, rng: np.random.Generat
         y = truth + sigma_obs * rng.standard_normal(truth.shape)
         y_rows = y.reshape(6, -1).T                      # (sensors, 6)
         Y = _sensor_rows(grid, field, field_next, dt, mu0, ops)
-        field, amp_field, X, rank_f, nis_f = field_analysis(su, field, field_next, amp_field,
-                                                            y_rows, Y, infl)
-        traces[KF].append(_fields_of(grid, X, dt, mu0))
+        field, amp_field, means, rank_f, nis_f = field_analysis(su, field, field_next,
+                                                                amp_field, y_rows, Y, infl)
+        traces[KF].append(_fields_of(grid, means, dt, mu0))
         basis = _observe(grid, free[1:], free_next[1:], dt, mu0)
         basis_y = _sensor_rows(grid, free[1:], free_next[1:], dt, mu0, ops)
         amp_src, fields_s, rank_s, nis_s = source_analysis_on_basis(

@@ -87,8 +87,13 @@ def transforms(Yp: np.ndarray, innovation: np.ndarray, R: np.ndarray, taper: np.
     ``taper (cubes, sensors)``."""
     m, sensors = Yp.shape[:2]
     scaled = Yp / R                                              # Yp R^-1
-    outer = np.einsum("msk,nsk->smn", scaled, Yp).reshape(sensors, m * m)
-    Pinv = (taper @ outer).reshape(-1, m, m)
+    outer = (np.ascontiguousarray(scaled.transpose(1, 0, 2))
+             @ np.ascontiguousarray(Yp.transpose(1, 2, 0)))     # (sensors, m, m)
+    upper = np.triu_indices(m)                                   # Pinv is symmetric
+    half = taper @ outer.reshape(sensors, m * m)[:, upper[0] * m + upper[1]]
+    Pinv = np.empty((taper.shape[0], m, m))
+    Pinv[:, upper[0], upper[1]] = half
+    Pinv[:, upper[1], upper[0]] = half
     Pinv += (m - 1) / inflation * np.eye(m)
     rhs = taper @ np.einsum("msk,sk->sm", scaled, innovation)   # (cubes, m)
     s, V = np.linalg.eigh(Pinv)
@@ -133,6 +138,79 @@ def analyse(X: np.ndarray, local: Localisation, W: np.ndarray) -> np.ndarray:
     out = np.array(X, dtype=float, order="C", copy=True)
     _analyse_cubes(out, local.points, np.ascontiguousarray(W, dtype=float))
     return out
+
+
+@jit
+def _analyse_levels(L, first, points, W, means):  # pragma: no cover - compiled
+    """In place, per cube: the anomalies of the four leapfrog rows ``(m, 4 x points)``
+    multiplied by the cube's transform, the mean added back; the analysed means of
+    ``first`` and of the four rows into ``means[0]``, ``means[1:5]``. ``first`` is only
+    needed as a mean: ``mean + (1^T W / m) A``, a vector, not a matrix, product."""
+    m = L.shape[0]
+    cubes, size = points.shape
+    cols = 4 * size
+    A = np.empty((m, cols))
+    mean = np.empty(cols)
+    wbar = np.empty(m)
+    for c in range(cubes):
+        for r in range(4):
+            for q in range(size):
+                col = r * size + q
+                p = points[c, q]
+                s = 0.0
+                for i in range(m):
+                    v = L[i, r // 2, r % 2, p]
+                    A[i, col] = v
+                    s += v
+                mean[col] = s / m
+        for i in range(m):
+            for col in range(cols):
+                A[i, col] -= mean[col]
+        Wc = np.ascontiguousarray(W[c])
+        B = np.dot(Wc, A)
+        for r in range(4):
+            for q in range(size):
+                col = r * size + q
+                p = points[c, q]
+                s = 0.0
+                for i in range(m):
+                    v = mean[col] + B[i, col]
+                    L[i, r // 2, r % 2, p] = v
+                    s += v
+                means[1 + r, p] = s / m
+        for j in range(m):
+            s = 0.0
+            for i in range(m):
+                s += Wc[i, j]
+            wbar[j] = s / m
+        for q in range(size):
+            p = points[c, q]
+            s = 0.0
+            for i in range(m):
+                s += first[i, p]
+            x = s / m
+            s = 0.0
+            for j in range(m):
+                s += wbar[j] * (first[j, p] - x)
+            means[0, p] = x + s
+
+
+def analyse_levels(levels: np.ndarray, first: np.ndarray, local: Localisation,
+                   W: np.ndarray) -> np.ndarray:
+    """:func:`analyse` of the rows ``[first, A(t), Phi(t), A(t + dt), Phi(t + dt)]`` where
+    only the leapfrog's ``levels (m, 2, 2, n^3)`` (C order, analysed in place) go on and
+    of ``first (m, n^3)`` (``A(t - dt)``) only the analysed mean is wanted. Returns the
+    analysed ensemble mean of the five rows ``(5, n^3)``; equal to :func:`analyse` to
+    rounding (tested)."""
+    if not (levels.flags.c_contiguous and levels.dtype == np.float64):
+        raise ValueError("levels must be a C-ordered float64 array: they are analysed in place")
+    points = levels.shape[-1]
+    means = np.empty((5, points))
+    if local.points.size < points:                       # cubes no sensor reaches
+        means[0] = first.mean(axis=0)
+        means[1:] = levels.mean(axis=0).reshape(4, points)
+    _analyse_levels(levels, first, local.points, np.ascontiguousarray(W, dtype=float), means)
+    return means
 
 
 def effective_rank(X: np.ndarray, threshold: float = 1e-6) -> int:
