@@ -53,14 +53,49 @@ def _carry_left(Xa, Pa, left, m):  # pragma: no cover
 
 
 @njit(cache=True)
+def _product(A, B, out, add):  # pragma: no cover
+    """``out = A @ B`` (``out += A @ B`` with ``add``) by loops: at these sizes (5 x 5) a
+    BLAS call and its temporaries cost more than the arithmetic."""
+    for i in range(A.shape[0]):
+        for j in range(B.shape[1]):
+            s = 0.0
+            for k in range(A.shape[1]):
+                s += A[i, k] * B[k, j]
+            out[i, j] = out[i, j] + s if add else s
+
+
+@njit(cache=True)
+def _sandwich(F, P, out, tmp):  # pragma: no cover
+    """``out += F P F'`` (``tmp``: scratch of ``F``'s shape)."""
+    _product(F, P, tmp, False)
+    n = F.shape[0]
+    for i in range(n):
+        for j in range(n):
+            s = 0.0
+            for k in range(n):
+                s += tmp[i, k] * F[j, k]
+            out[i, j] += s
+
+
+@njit(cache=True)
 def _step(Xa, Pa, m, c, F10, F01, M, sigma_e2, sigma_v2, y):  # pragma: no cover
     """Eqs 13a-e at pixel ``(m, c)``; stores the posterior and returns ``(x_a, P_a, K,
     innovation, its variance, I - K C, P_b)``."""
     n = F10.shape[0]
     left_x, left_P = Xa[m + 1, c], Pa[m + 1, c]
     up_x, up_P = Xa[m, c + 1 + M], Pa[m, c + 1 + M]
-    xb = F10 @ left_x + F01 @ up_x
-    Pb = F10 @ left_P @ F10.T + F01 @ up_P @ F01.T
+    xb = np.empty(n)
+    for i in range(n):
+        a = 0.0
+        b = 0.0
+        for k in range(n):
+            a += F10[i, k] * left_x[k]
+            b += F01[i, k] * up_x[k]
+        xb[i] = a + b
+    tmp = np.empty((n, n))
+    Pb = np.zeros((n, n))
+    _sandwich(F10, left_P, Pb, tmp)
+    _sandwich(F01, up_P, Pb, tmp)
     Pb[0, 0] += sigma_e2
     S = Pb[0, 0] + sigma_v2
     K = Pb[:, 0] / S
@@ -68,8 +103,15 @@ def _step(Xa, Pa, m, c, F10, F01, M, sigma_e2, sigma_v2, y):  # pragma: no cover
     xa = xb + K * z
     L = np.eye(n)
     L[:, 0] -= K
-    P = L @ Pb @ L.T + np.outer(K, K) * sigma_v2
-    P = 0.5 * (P + P.T)
+    Pj = np.zeros((n, n))
+    _sandwich(L, Pb, Pj, tmp)
+    P = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            P[i, j] = Pj[i, j] + K[i] * K[j] * sigma_v2
+    for i in range(n):
+        for j in range(i + 1, n):
+            P[i, j] = P[j, i] = 0.5 * (P[i, j] + P[j, i])
     Xa[m + 1, c + 1] = xa
     Pa[m + 1, c + 1] = P
     return xa, P, K, z, S, L, Pb
@@ -139,14 +181,34 @@ def _gain_derivative(F10, F01, pmat, pcol, left_P, up_P, dleft, dup, Pb, K, L, S
     d, n = pmat.size, F10.shape[0]
     kappa = np.zeros((n, d))
     dPa = np.zeros((d, n, n))
+    tmp = np.empty((n, n))
+    r = np.empty(n)
+    g = np.empty(n)
+    for i in range(n):                                          # K s_v^2 - L P_b[0]
+        s = 0.0
+        for k in range(n):
+            s += L[i, k] * Pb[0, k]                             # P_b is symmetric
+        g[i] = K[i] * sigma_v2 - s
     for j in range(d):
-        r = F10 @ left_P[pcol[j]] if pmat[j] == 0 else F01 @ up_P[pcol[j]]
-        dPb = F10 @ dleft[j] @ F10.T + F01 @ dup[j] @ F01.T
-        dPb[0, :] += r
-        dPb[:, 0] += r
-        kappa[:, j] = dPb[:, 0] / S - Pb[:, 0] * dPb[0, 0] / (S * S)
-        b = np.outer(kappa[:, j], K * sigma_v2 - L @ Pb[0])       # P_b is symmetric
-        dPa[j] = b + b.T + L @ dPb @ L.T
+        F, row = (F10, left_P[pcol[j]]) if pmat[j] == 0 else (F01, up_P[pcol[j]])
+        for i in range(n):
+            s = 0.0
+            for k in range(n):
+                s += F[i, k] * row[k]
+            r[i] = s
+        dPb = np.zeros((n, n))
+        _sandwich(F10, dleft[j], dPb, tmp)
+        _sandwich(F01, dup[j], dPb, tmp)
+        for k in range(n):
+            dPb[0, k] += r[k]
+        for k in range(n):
+            dPb[k, 0] += r[k]
+        for i in range(n):
+            kappa[i, j] = dPb[i, 0] / S - Pb[i, 0] * dPb[0, 0] / (S * S)
+        _sandwich(L, dPb, dPa[j], tmp)
+        for i in range(n):
+            for k in range(n):
+                dPa[j, i, k] += kappa[i, j] * g[k] + kappa[k, j] * g[i]
     return kappa, dPa
 
 
@@ -199,19 +261,25 @@ def _adaptive(y, A10, A01, left, pmat, pcol, phi0, sigma_e2, sigma_v2, boundary_
             lam = 0.99 * lam + 0.01
             v = 1.0 / (1.0 + lam / v)
             delta = Sb[0, :].copy()
-            H = H + v * (np.outer(delta, delta) / Rz - H)
+            for i in range(d):
+                for j in range(d):
+                    H[i, j] = H[i, j] + v * (delta[i] * delta[j] / Rz - H[i, j])
             phi = phi + v * np.linalg.solve(H, delta) * (z / Rz)
-            Sa = L @ Sb
+            Sa = np.empty((n, d))
+            _product(L, Sb, Sa, False)
             if full:
-                Sa += kappa * z
+                for i in range(n):
+                    for j in range(d):
+                        Sa[i, j] += kappa[i, j] * z
                 Sa_rows[here, c + 1] = Sa
                 dP_rows[here, c + 1] = dPa
             _set_phi(F10, F01, pmat, pcol, phi)
             # Sigma_b for the next pixel (eq 21a): A10 Sigma_a(left) + A01 Sigma_a(above)
             # + Gamma, the regressors of the next pixel
-            Sb = F10 @ Sa
+            Sb = np.empty((n, d))
+            _product(F10, Sa, Sb, False)
             if full:
-                Sb += F01 @ Sa_rows[above, min(c + 2 + M, cols + M)]
+                _product(F01, Sa_rows[above, min(c + 2 + M, cols + M)], Sb, True)
             Sb[0] += _regressors(Xa, m, c + 1, pmat, pcol, M, cols)
             out[m, c] = xa[0]
             sens[m, c] = Sa[0]
