@@ -50,20 +50,9 @@ def expm(A: np.ndarray) -> np.ndarray:
     """Matrix exponential of every matrix in a stack ``(..., n, n)``.
 
     Each matrix gets its own scaling ``2^-s`` (as in the one-matrix algorithm), so one
-    large matrix in a batch does not cost the others accuracy. Non-finite matrices give
-    NaN. Compiled matrix by matrix (:mod:`estim.compiled_expm`) where numba is installed,
-    else :func:`expm_numpy`.
+    large matrix in a batch does not cost the others accuracy; matrices sharing ``s`` are
+    processed together. Non-finite matrices give NaN.
     """
-    A = np.asarray(A, float)
-    from estim import compiled_expm
-
-    if compiled_expm.AVAILABLE and A.ndim >= 2:
-        return compiled_expm.expm(A, _B, _THETA_13)
-    return expm_numpy(A)
-
-
-def expm_numpy(A: np.ndarray) -> np.ndarray:
-    """:func:`expm` in numpy: the matrices sharing ``s`` are processed together."""
     A = np.asarray(A, float)
     shape = A.shape
     flat = A.reshape((-1,) + shape[-2:])

@@ -27,24 +27,3 @@ def test_batched_expm_of_diagonal_and_nonfinite():
     d = np.array([[-1.0, 0.0], [0.0, 2.0]])
     np.testing.assert_allclose(expm(d[None])[0], np.diag(np.exp([-1.0, 2.0])), rtol=1e-14)
     assert np.isnan(expm(np.full((1, 2, 2), np.inf))).all()
-
-
-@pytest.mark.parametrize("scale", [1e-3, 1.0, 30.0, 300.0])
-def test_compiled_expm_is_the_numpy_form_to_rounding(scale):
-    """The compiled expm (matrix by matrix) and the numpy form (grouped by the scaling
-    exponent) run the same algorithm; they differ in the order of each inner product
-    (and LAPACK's solve) only."""
-    from estim import compiled_expm
-    from estim.linalg import _B, _THETA_13, expm_numpy
-
-    A = np.random.default_rng(3).normal(size=(200, 6, 6)) * scale
-    A -= 2 * scale * np.eye(6)
-    A[7, 2, 3] = np.nan                      # a non-finite matrix: NaN, the others unharmed
-    A[8] = 0.0
-    ours = compiled_expm.expm(A, _B, _THETA_13)
-    theirs = expm_numpy(A)
-    assert np.isnan(ours[7]).all() and np.isnan(theirs[7]).all()
-    np.testing.assert_array_equal(ours[8], np.eye(6))
-    keep = np.arange(len(A)) != 7
-    np.testing.assert_allclose(ours[keep], theirs[keep], rtol=1e-13,
-                               atol=1e-13 * np.abs(theirs[keep]).max())
