@@ -103,9 +103,10 @@ def transforms(Yp: np.ndarray, innovation: np.ndarray, R: np.ndarray, taper: np.
 
 
 @jit
-def _analyse_cubes(X, points, W):  # pragma: no cover - compiled
+def _analyse_cubes(X, points, W, means):  # pragma: no cover - compiled
     """In place: for each cube, gather its anomalies ``(m, fields x points)``, multiply by
-    the cube's transform, add the mean back."""
+    the cube's transform, add the mean back; the analysed ensemble mean of every row at
+    the cube's points into ``means (fields, n^3)``."""
     m, fields = X.shape[0], X.shape[1]
     cubes, size = points.shape
     A = np.empty((m, fields * size))
@@ -128,60 +129,26 @@ def _analyse_cubes(X, points, W):  # pragma: no cover - compiled
             for q in range(size):
                 col = f * size + q
                 p = points[c, q]
-                for i in range(m):
-                    X[i, f, p] = mean[col] + B[i, col]
-
-
-def analyse(X: np.ndarray, local: Localisation, W: np.ndarray) -> np.ndarray:
-    """Apply each cube's transform to its points: ``X (m, fields, n^3)`` -> analysed copy
-    (cubes no sensor reaches keep their forecast)."""
-    out = np.array(X, dtype=float, order="C", copy=True)
-    _analyse_cubes(out, local.points, np.ascontiguousarray(W, dtype=float))
-    return out
-
-
-@jit
-def _analyse_levels(L, first, points, W, means):  # pragma: no cover - compiled
-    """In place, per cube: the anomalies of the four leapfrog rows ``(m, 4 x points)``
-    multiplied by the cube's transform, the mean added back; the analysed means of
-    ``first`` and of the four rows into ``means[0]``, ``means[1:5]``. ``first`` is only
-    needed as a mean: ``mean + (1^T W / m) A``, a vector, not a matrix, product."""
-    m = L.shape[0]
-    cubes, size = points.shape
-    cols = 4 * size
-    A = np.empty((m, cols))
-    mean = np.empty(cols)
-    wbar = np.empty(m)
-    for c in range(cubes):
-        for r in range(4):
-            for q in range(size):
-                col = r * size + q
-                p = points[c, q]
-                s = 0.0
-                for i in range(m):
-                    v = L[i, r // 2, r % 2, p]
-                    A[i, col] = v
-                    s += v
-                mean[col] = s / m
-        for i in range(m):
-            for col in range(cols):
-                A[i, col] -= mean[col]
-        Wc = np.ascontiguousarray(W[c])
-        B = np.dot(Wc, A)
-        for r in range(4):
-            for q in range(size):
-                col = r * size + q
-                p = points[c, q]
                 s = 0.0
                 for i in range(m):
                     v = mean[col] + B[i, col]
-                    L[i, r // 2, r % 2, p] = v
+                    X[i, f, p] = v
                     s += v
-                means[1 + r, p] = s / m
+                means[f, p] = s / m
+
+
+@jit
+def _analysed_mean(first, points, W, out):  # pragma: no cover - compiled
+    """The analysed ensemble mean of the row ``first (m, n^3)`` at the cubes' points:
+    ``mean + (1^T W / m) A``, a vector, not a matrix, product."""
+    m = first.shape[0]
+    cubes, size = points.shape
+    wbar = np.empty(m)
+    for c in range(cubes):
         for j in range(m):
             s = 0.0
             for i in range(m):
-                s += Wc[i, j]
+                s += W[c, i, j]
             wbar[j] = s / m
         for q in range(size):
             p = points[c, q]
@@ -192,7 +159,16 @@ def _analyse_levels(L, first, points, W, means):  # pragma: no cover - compiled
             s = 0.0
             for j in range(m):
                 s += wbar[j] * (first[j, p] - x)
-            means[0, p] = x + s
+            out[p] = x + s
+
+
+def analyse(X: np.ndarray, local: Localisation, W: np.ndarray) -> np.ndarray:
+    """Apply each cube's transform to its points: ``X (m, fields, n^3)`` -> analysed copy
+    (cubes no sensor reaches keep their forecast)."""
+    out = np.array(X, dtype=float, order="C", copy=True)
+    _analyse_cubes(out, local.points, np.ascontiguousarray(W, dtype=float),
+                   np.empty(out.shape[1:]))
+    return out
 
 
 def analyse_levels(levels: np.ndarray, first: np.ndarray, local: Localisation,
@@ -204,12 +180,14 @@ def analyse_levels(levels: np.ndarray, first: np.ndarray, local: Localisation,
     rounding (tested)."""
     if not (levels.flags.c_contiguous and levels.dtype == np.float64):
         raise ValueError("levels must be a C-ordered float64 array: they are analysed in place")
-    points = levels.shape[-1]
+    m, points = levels.shape[0], levels.shape[-1]
     means = np.empty((5, points))
     if local.points.size < points:                       # cubes no sensor reaches
         means[0] = first.mean(axis=0)
         means[1:] = levels.mean(axis=0).reshape(4, points)
-    _analyse_levels(levels, first, local.points, np.ascontiguousarray(W, dtype=float), means)
+    W = np.ascontiguousarray(W, dtype=float)
+    _analyse_cubes(levels.reshape(m, 4, points), local.points, W, means[1:])
+    _analysed_mean(first, local.points, W, means[0])
     return means
 
 
