@@ -52,10 +52,21 @@ def _carry_left(Xa, Pa, left, m):  # pragma: no cover
         Pa[m + 1, 0, i, i] = Pa[m, col + 1, j, j]
 
 
+BLAS_FROM = 9
+"""State size from which the small products go to BLAS (M = 1 has 5 states, M = 2 13)."""
+
+
 @njit(cache=True)
 def _product(A, B, out, add):  # pragma: no cover
-    """``out = A @ B`` (``out += A @ B`` with ``add``) by loops: at these sizes (5 x 5) a
-    BLAS call and its temporaries cost more than the arithmetic."""
+    """``out = A @ B`` (``out += A @ B`` with ``add``) by loops: at M = 1 (5 x 5) a BLAS
+    call and its temporaries cost more than the arithmetic; from :data:`BLAS_FROM` states
+    (M = 2: 13) BLAS is faster again (measured, bench/bench_image.py)."""
+    if A.shape[0] >= BLAS_FROM:
+        if add:
+            out += A @ B
+        else:
+            out[:, :] = A @ B
+        return
     for i in range(A.shape[0]):
         for j in range(B.shape[1]):
             s = 0.0
@@ -67,8 +78,11 @@ def _product(A, B, out, add):  # pragma: no cover
 @njit(cache=True)
 def _sandwich(F, P, out, tmp):  # pragma: no cover
     """``out += F P F'`` (``tmp``: scratch of ``F``'s shape)."""
-    _product(F, P, tmp, False)
     n = F.shape[0]
+    if n >= BLAS_FROM:
+        out += F @ P @ F.T
+        return
+    _product(F, P, tmp, False)
     for i in range(n):
         for j in range(n):
             s = 0.0
