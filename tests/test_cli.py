@@ -930,4 +930,4 @@ def test_the_readme_counts_the_rows_table_rmse_formats():
     assert result.exit_code == 0
     rows = len(result.output.strip().splitlines()) - 1
     assert f"{rows:,}" == "3,138"
-    assert "(3,138 since Chapter 3's netlist configs" in (ROOT / "README.md").read_text()
+    assert "`table rmse` formats 3,138 rows" in (ROOT / "README.md").read_text()
