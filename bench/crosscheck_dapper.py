@@ -159,25 +159,6 @@ def _dapper_field_analysis(su, before, after, amps, y_rows, Y, inflation):
     return after, A[:, 0] + 1j * A[:, 1], X.mean(axis=0), rank, nis
 
 
-def _dapper_source_on_basis(su, amps, basis_now, basis_readings, basis_fields, y_rows,
-                            inflation):
-    """:func:`estim.analyses.dipole_field.source_analysis_on_basis` with DAPPER's ETKF on
-    the members' amplitudes (the analysis is the same affine combination of the members
-    whatever their state, so DAPPER analyses the two coefficients)."""
-    from estim.analyses import dipole_field as df
-    from estim.fields import letkf
-
-    coef = np.stack([amps.real, amps.imag], axis=1)
-    Y = np.einsum("mb,bsk->msk", coef, basis_readings)
-    rank = letkf.effective_rank_on_basis(coef, basis_now)
-    nis = df._nis(Y - Y.mean(axis=0), y_rows - Y.mean(axis=0), su.R_source)
-    coef = dapper_analysis(coef, Y.reshape(len(coef), -1), y_rows.ravel(),
-                           su.R_source.ravel(), inflation)
-    a = coef.mean(axis=0)
-    fields = {F: a[0] * basis_fields[F][:1] + a[1] * basis_fields[F][1:] for F in ("E", "H")}
-    return coef[:, 0] + 1j * coef[:, 1], fields, rank, nis
-
-
 def _largest_relative(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.max(np.abs(a - b)) / np.max(np.abs(b)))
 
@@ -219,6 +200,7 @@ def check_cycle(full: bool) -> list[tuple[str, float, float]]:
 
     from estim.analyses import dipole_field
     from estim.config import parse_data
+    from estim.fields import etkf
 
     root = Path(__file__).resolve().parents[1]
     spec = yaml.safe_load((root / "configs" / "dipole_field.yaml").read_text())
@@ -230,16 +212,16 @@ def check_cycle(full: bool) -> list[tuple[str, float, float]]:
             for r in range(len(spec["noise"]["readings"]))
             for lv in range(len(spec["noise"]["source_levels"]))]
     ours, theirs = [], []
-    original = dipole_field.source_analysis_on_basis, dipole_field.field_analysis
+    original = etkf.analysis, dipole_field.field_analysis
     try:
         for key in keys:
             ours += dipole_field.run_point(exp, key)[0]
-            dipole_field.source_analysis_on_basis = _dapper_source_on_basis
+            etkf.analysis = dapper_analysis
             dipole_field.field_analysis = _dapper_field_analysis
             theirs += dipole_field.run_point(exp, key)[0]
-            dipole_field.source_analysis_on_basis, dipole_field.field_analysis = original
+            etkf.analysis, dipole_field.field_analysis = original
     finally:
-        dipole_field.source_analysis_on_basis, dipole_field.field_analysis = original
+        etkf.analysis, dipole_field.field_analysis = original
     a, b = pd.DataFrame(ours), pd.DataFrame(theirs)
     kf = a["estimator"].isin([dipole_field.KF, dipole_field.SOURCE_ONLY])
     numeric = [c for c in a.columns if a[c].dtype.kind == "f"]

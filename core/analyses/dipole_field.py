@@ -456,7 +456,9 @@ def field_analysis(su: _Setup, before: np.ndarray, after: np.ndarray, amps: np.n
 def source_analysis(su: _Setup, before: np.ndarray, after: np.ndarray, amps: np.ndarray,
                     y_rows: np.ndarray, Y: np.ndarray, inflation: float) -> tuple:
     """One analysis of the source-only filter: one global ETKF of the field and the source
-    amplitude together, R including the representation error (D60)."""
+    amplitude together, R including the representation error (D60). Its definition, for
+    any members; the cycle carries it by its amplitudes (:func:`source_analysis_on_basis`,
+    tested equal to this)."""
     m = Y.shape[0]
     rows = _rows_of(before, after)
     rank = letkf.effective_rank(after[:, 0])
@@ -477,7 +479,8 @@ def source_analysis_on_basis(su: _Setup, amps: np.ndarray, basis_now: np.ndarray
     step, ``B_1``, ``B_2`` the runs driven by 1 and by j; an analysis replaces the members
     by affine combinations of themselves, and ``a_i`` by the same combination, so that stays
     true. The transform depends only on the predicted readings, which are the same
-    combination of the basis runs' readings. So the filter is carried by its amplitudes:
+    combination of the basis runs' readings. So the filter is carried by its amplitudes
+    (the ETKF analyses the members' coefficients on the basis in place of their fields):
     ``basis_now`` holds the basis runs' level ``t`` ``(2, fields, points)``, for the
     effective rank; ``basis_readings`` their predicted readings ``(2, sensors, 6)``;
     ``basis_fields`` their E and H at ``t`` (``(2, 3, points)`` each). Returns the analysed
@@ -488,9 +491,8 @@ def source_analysis_on_basis(su: _Setup, amps: np.ndarray, basis_now: np.ndarray
     m = Y.shape[0]
     rank = letkf.effective_rank_on_basis(coef, basis_now)
     nis = _nis(Y - Y.mean(axis=0), y_rows - Y.mean(axis=0), su.R_source)
-    W = etkf.transform(Y.reshape(m, -1), y_rows.ravel(), su.R_source.ravel(), inflation)
-    mean = coef.mean(axis=0)
-    coef = W @ (coef - mean) + mean
+    coef = etkf.analysis(coef, Y.reshape(m, -1), y_rows.ravel(), su.R_source.ravel(),
+                         inflation)
     a = coef.mean(axis=0)
     fields = {F: a[0] * basis_fields[F][:1] + a[1] * basis_fields[F][1:] for F in ("E", "H")}
     return coef[:, 0] + 1j * coef[:, 1], fields, rank, nis

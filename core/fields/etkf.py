@@ -21,13 +21,12 @@ from __future__ import annotations
 import numpy as np
 
 
-def transform(Y: np.ndarray, y: np.ndarray, R: np.ndarray, inflation: float = 1.0) -> np.ndarray:
-    """The ensemble transform ``w + T`` ``(m, m)`` of the analysis from the predicted
-    observations ``Y (m, p)``, the observation ``y`` and the diagonal variances ``R (p,)``:
-    row ``i`` of ``(w + T) A`` is member ``i``'s analysed anomaly. It does not depend on the
-    state, so a state known to be a linear function of a few parameters of every member can
-    be analysed through those parameters alone."""
-    m = Y.shape[0]
+def analysis(E: np.ndarray, Y: np.ndarray, y: np.ndarray, R: np.ndarray,
+             inflation: float = 1.0) -> np.ndarray:
+    """The analysis ensemble ``(m, n)``; ``R`` the diagonal observation variances ``(p,)``."""
+    m = E.shape[0]
+    x = E.mean(axis=0)
+    A = E - x
     yf = Y.mean(axis=0)
     Yp = Y - yf
     C = Yp / R                                   # (m, p): Yp R^-1
@@ -35,13 +34,6 @@ def transform(Y: np.ndarray, y: np.ndarray, R: np.ndarray, inflation: float = 1.
     Pt = (V / s) @ V.T
     w = Pt @ (C @ (y - yf))
     T = (V * np.sqrt((m - 1) / s)) @ V.T
-    return w[None, :] + T
-
-
-def analysis(E: np.ndarray, Y: np.ndarray, y: np.ndarray, R: np.ndarray,
-             inflation: float = 1.0) -> np.ndarray:
-    """The analysis ensemble ``(m, n)``; ``R`` the diagonal observation variances ``(p,)``."""
-    x = E.mean(axis=0)
-    out = transform(Y, y, R, inflation) @ (E - x)
+    out = (w[None, :] + T) @ A
     out += x
     return out

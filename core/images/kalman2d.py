@@ -76,6 +76,16 @@ def _product(A, B, out, add):  # pragma: no cover
 
 
 @njit(cache=True)
+def _matvec(A, x, out):  # pragma: no cover
+    """``out = A @ x`` by a loop (summed in index order)."""
+    for i in range(A.shape[0]):
+        s = 0.0
+        for k in range(A.shape[1]):
+            s += A[i, k] * x[k]
+        out[i] = s
+
+
+@njit(cache=True)
 def _sandwich(F, P, out, tmp):  # pragma: no cover
     """``out += F P F'`` (``tmp``: scratch of ``F``'s shape)."""
     n = F.shape[0]
@@ -99,13 +109,10 @@ def _step(Xa, Pa, m, c, F10, F01, M, sigma_e2, sigma_v2, y):  # pragma: no cover
     left_x, left_P = Xa[m + 1, c], Pa[m + 1, c]
     up_x, up_P = Xa[m, c + 1 + M], Pa[m, c + 1 + M]
     xb = np.empty(n)
-    for i in range(n):
-        a = 0.0
-        b = 0.0
-        for k in range(n):
-            a += F10[i, k] * left_x[k]
-            b += F01[i, k] * up_x[k]
-        xb[i] = a + b
+    up = np.empty(n)
+    _matvec(F10, left_x, xb)
+    _matvec(F01, up_x, up)
+    xb += up
     tmp = np.empty((n, n))
     Pb = np.zeros((n, n))
     _sandwich(F10, left_P, Pb, tmp)
@@ -198,18 +205,13 @@ def _gain_derivative(F10, F01, pmat, pcol, left_P, up_P, dleft, dup, Pb, K, L, S
     tmp = np.empty((n, n))
     r = np.empty(n)
     g = np.empty(n)
-    for i in range(n):                                          # K s_v^2 - L P_b[0]
-        s = 0.0
-        for k in range(n):
-            s += L[i, k] * Pb[0, k]                             # P_b is symmetric
-        g[i] = K[i] * sigma_v2 - s
+    _matvec(L, Pb[0], g)                                        # P_b is symmetric
+    g[:] = K * sigma_v2 - g                                     # K s_v^2 - L P_b[0]
     for j in range(d):
-        F, row = (F10, left_P[pcol[j]]) if pmat[j] == 0 else (F01, up_P[pcol[j]])
-        for i in range(n):
-            s = 0.0
-            for k in range(n):
-                s += F[i, k] * row[k]
-            r[i] = s
+        if pmat[j] == 0:
+            _matvec(F10, left_P[pcol[j]], r)
+        else:
+            _matvec(F01, up_P[pcol[j]], r)
         dPb = np.zeros((n, n))
         _sandwich(F10, dleft[j], dPb, tmp)
         _sandwich(F01, dup[j], dPb, tmp)
