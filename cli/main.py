@@ -15,11 +15,17 @@ from pathlib import Path
 import click
 
 import estim
-from estim import checking, config, io, runner, tables, tuning
+from estim import checking, config, io, runner, scheduler, tables, tuning
 from estim.analyses import ANALYSES
 from estim.cli import arguments, project
 from estim.cli.group import Group, fail
-from estim.cli.output import progress_lines, run_and_report
+from estim.cli.output import (
+    longest_first,
+    progress_lines,
+    run_and_report,
+    run_together,
+    runs_alone,
+)
 from estim.config import MAX_WORK
 from estim.errors import UsageError
 from estim.executors import executor as executor_for
@@ -181,11 +187,14 @@ def merge(configs, sources, out, runs, seed, quick, jobs, max_work, quiet) -> No
 def reproduce(out, jobs, max_work, everything, quiet) -> None:
     """Run every config of configs/ (the thesis tables on the default settings)."""
     where = project.locate()
-    if not quiet:
-        click.echo(where.describe(), err=True)
-    exps = config.load_files(where.configs(everything), max_work=max_work)
     folder = out or where.results
+    if not quiet:
+        click.echo(where.describe(folder), err=True)
+    exps = config.load_files(where.configs(everything), max_work=max_work)
     io.ensure_writable(folder)
+    if jobs > 1 and len(exps) > 1:
+        run_together(exps, folder, jobs, quiet, where.results)
+        return
     for exp in exps:
         run_and_report(exp, folder, jobs, quiet)
 
@@ -239,12 +248,30 @@ def check(configs, results, jobs, max_work, everything) -> None:
     results = results or where.results
     differing = 0
     with tempfile.TemporaryDirectory() as tmp:
-        for exp in exps:
-            differing += checking.check(
-                exp, results / exp.name, Path(tmp), jobs, click.echo,
-                same_config=not overrides,
-                on_done=progress_lines(exp.name, runner.work_units(exp)),
-                note=lambda text_: click.echo(text_, err=True))
+        if jobs > 1 and len(exps) > 1:
+            with scheduler.process_pool(jobs) as pool:
+                def work(exp) -> tuple[int, list[str]]:
+                    said: list[str] = []
+                    found = checking.check(
+                        exp, results / exp.name, Path(tmp), jobs, said.append,
+                        same_config=not overrides,
+                        on_done=progress_lines(exp.name, runner.work_units(exp)),
+                        note=lambda text_: click.echo(text_, err=True), pool=pool)
+                    return found, said
+
+                for _exp, (found, said) in scheduler.run_each(
+                        longest_first(exps, results), work, jobs, alone=runs_alone,
+                        on_error=lambda: scheduler.stop(pool)):
+                    for line in said:
+                        click.echo(line)
+                    differing += found
+        else:
+            for exp in exps:
+                differing += checking.check(
+                    exp, results / exp.name, Path(tmp), jobs, click.echo,
+                    same_config=not overrides,
+                    on_done=progress_lines(exp.name, runner.work_units(exp)),
+                    note=lambda text_: click.echo(text_, err=True))
     if differing:
         click.echo(f"check: {differing} difference(s)")
         sys.exit(1)

@@ -10,7 +10,9 @@ from pathlib import Path
 
 import click
 
-from estim import runner
+from estim import runner, scheduler
+from estim.analyses import ANALYSES
+from estim.analyses.base import Result
 from estim.schema import Experiment
 
 
@@ -33,8 +35,8 @@ class Progress:
     work unit otherwise. :meth:`start` once the run's folder is open (a run refused before
     any work prints none of it), :meth:`done` per finished unit, :meth:`close` at the end."""
 
-    def __init__(self, exp: Experiment, quiet: bool) -> None:
-        self.exp, self.quiet = exp, quiet
+    def __init__(self, exp: Experiment, quiet: bool, bar: bool = True) -> None:
+        self.exp, self.quiet, self.bar = exp, quiet, bar
         self._bar = None
         self._line: Callable[[], None] | None = None
 
@@ -42,7 +44,7 @@ class Progress:
         if self.quiet:
             return
         total = runner.work_units(self.exp)
-        if sys.stderr.isatty():
+        if self.bar and sys.stderr.isatty():
             self._bar = click.progressbar(length=total, label=self.exp.name, file=sys.stderr)
             self._bar.__enter__()
         else:
@@ -70,10 +72,19 @@ def run_and_report(exp: Experiment, folder: Path, jobs: int, quiet: bool,
     try:
         result, resumed = runner.run_to_folder(
             exp, folder, jobs, on_done=shown.done, executor=executor, resume=resume,
-            figure_format=figure_format, command=" ".join(["estim", *sys.argv[1:]]),
-            overrides=overrides, on_start=shown.start)
+            figure_format=figure_format, command=_command(), overrides=overrides,
+            on_start=shown.start)
     finally:
         shown.close()
+    report(exp, folder, result, resumed, quiet)
+
+
+def _command() -> str:
+    return " ".join(["estim", *sys.argv[1:]])
+
+
+def report(exp: Experiment, folder: Path, result: Result, resumed: int, quiet: bool) -> None:
+    """Where a run's results went and its analysis' summary (nothing when quiet)."""
     if quiet:
         return
     if resumed:
@@ -83,3 +94,32 @@ def run_and_report(exp: Experiment, folder: Path, jobs: int, quiet: bool,
     text = runner.summary(exp, result)
     if text:
         click.echo(text)
+
+
+def longest_first(exps: list[Experiment], recorded: Path) -> list[Experiment]:
+    """``exps`` by the wall time each one's manifest in ``recorded`` records, longest first
+    (one without a manifest first of all)."""
+    return sorted(exps, key=lambda e: -runner.recorded_seconds(recorded / e.name))
+
+
+def runs_alone(exp: Experiment) -> bool:
+    return bool(getattr(ANALYSES[exp.analysis], "RUNS_ALONE", False))
+
+
+def run_together(exps: list[Experiment], folder: Path, jobs: int, quiet: bool,
+                 recorded: Path) -> None:
+    """Every config of ``exps``, up to ``jobs`` at once, their work units on one pool of
+    ``jobs`` processes (:mod:`estim.scheduler`), longest first by the manifests in
+    ``recorded``; each one's summary is printed as it finishes, its progress one line per
+    finished work unit."""
+    with scheduler.process_pool(jobs) as pool:
+        def work(exp: Experiment) -> tuple[Result, int]:
+            shown = Progress(exp, quiet, bar=False)
+            return runner.run_to_folder(exp, folder, jobs, on_done=shown.done,
+                                        command=_command(), on_start=shown.start, pool=pool)
+
+        for exp, (result, resumed) in scheduler.run_each(
+                longest_first(exps, recorded), work, jobs, alone=runs_alone,
+                on_error=lambda: scheduler.stop(pool)):
+            report(exp, folder, result, resumed, quiet)
+

@@ -90,12 +90,15 @@ class Where:
                                   f"baseline {self.results}/ (--update-baseline to replace it)")
         return self.results, ""
 
-    def describe(self) -> str:
+    def describe(self, results: Path | None = None) -> str:
+        """Where the configs come from, and where the results go (``results``: a command's
+        --out, else the project's)."""
+        results = results or self.results
         if self.root is not None:
             return (f"project {self.root}: configs from {self.config_dir}/, "
-                    f"results in {self.results}/")
+                    f"results in {results}/")
         return (f"no estim project at or above {self.base}: using the configs shipped with "
-                f"estim ({self.config_dir}/), results in {self.results}/")
+                f"estim ({self.config_dir}/), results in {results}/")
 
 
 def shipped_configs() -> Path:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from concurrent.futures import Executor
 from pathlib import Path
 
 from estim import io, runner, tables
@@ -30,11 +31,11 @@ def config_differences(stored: dict, current: dict, path: str = "") -> list[str]
 
 def check(exp: Experiment, stored_dir: Path, tmp: Path, jobs: int, say: Callable[[str], None],
           same_config: bool = True, on_done: Callable[[], None] | None = None,
-          note: Callable[[str], None] | None = None) -> int:
+          note: Callable[[str], None] | None = None, pool: Executor | None = None) -> int:
     """Re-run ``exp`` into ``tmp`` and compare it with the stored results in ``stored_dir``:
     the number of differences, each reported through ``say`` (one line each; ``note`` gets
     progress, e.g. the run's time). With ``same_config`` the stored manifest must record
-    this config."""
+    this config. ``pool``: a process pool shared with other configs (:mod:`estim.scheduler`)."""
     note = note or (lambda _text: None)
     if not stored_dir.is_dir():
         say(f"{exp.name}: no stored results in {stored_dir}")
@@ -53,7 +54,7 @@ def check(exp: Experiment, stored_dir: Path, tmp: Path, jobs: int, say: Callable
     total = runner.work_units(exp)
     note(f"{exp.name}: running {total} work units ...")
     start = time.perf_counter()
-    result, _ = runner.run_to_folder(exp, tmp, jobs, on_done=on_done)
+    result, _ = runner.run_to_folder(exp, tmp, jobs, on_done=on_done, pool=pool)
     note(f"{exp.name}: ran in {time.perf_counter() - start:.0f} s")
     tol = exp.spec["check"]["tolerances"]
     for column in sorted(c for c, t in tol.items() if t.get("skip")):

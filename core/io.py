@@ -186,7 +186,9 @@ def write_figure(fig, path: Path) -> None:
     buf = io.BytesIO()
     import matplotlib
 
-    with matplotlib.rc_context({"svg.hashsalt": "estim"}):
+    from estim.plots import DRAWING
+
+    with DRAWING, matplotlib.rc_context({"svg.hashsalt": "estim"}):
         fig.savefig(buf, format=fmt, dpi=fig.dpi, metadata=meta)
     atomic_write_bytes(path, buf.getvalue())
 

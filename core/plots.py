@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import functools
 import textwrap
-from typing import TYPE_CHECKING
+import threading
+from collections.abc import Callable
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 
@@ -11,20 +14,35 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
 
-class _Pyplot:
-    """``matplotlib.pyplot`` on the Agg backend, imported at the first figure: a command that
-    draws nothing (``estim validate``, ``estim table``) does not pay matplotlib's import."""
+DRAWING = threading.RLock()
+"""Held while a figure is built or rendered: matplotlib is not thread-safe (its mathtext
+parser is one shared object), and :mod:`estim.scheduler` runs several configs' drivers in
+threads. :func:`estim.io.write_figure` renders under it too."""
 
-    def __getattr__(self, name: str):
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot
-
-        return getattr(matplotlib.pyplot, name)
+F = TypeVar("F", bound=Callable)
 
 
-plt = _Pyplot()
+def _one_at_a_time(draw: F) -> F:
+    """``draw`` under :data:`DRAWING`."""
+    @functools.wraps(draw)
+    def drawn(*args, **kwargs):
+        with DRAWING:
+            return draw(*args, **kwargs)
+    return drawn  # type: ignore[return-value]
+
+
+def subplots(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float],
+             **grid) -> tuple[Figure, object]:
+    """A new figure and its grid of axes (``pyplot.subplots`` without pyplot): the figure is
+    nobody's but the caller's (pyplot's registry of open figures is shared by every thread,
+    and two configs may draw at once, :mod:`estim.scheduler`), rendered by Agg when saved.
+    matplotlib is imported at the first figure: a command that draws nothing (``estim
+    validate``, ``estim table``) does not pay for it."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=figsize)
+    return fig, fig.subplots(nrows, ncols, **grid)
+
 
 SIZE = (8.0, 6.0)
 LINESTYLES = ("-", "--", "-.", ":")
@@ -132,6 +150,7 @@ def _output_panels(axes, trace: dict, t_ms: np.ndarray, zoom: slice, zoom_headin
     ax_zoom.set_ylabel(ylabel)
 
 
+@_one_at_a_time
 def estimates(trace: dict, title: str, period_s: float | None = None,
               window_periods: int = 3) -> Figure:
     """Input and output, actual, measured and every estimate (Figs 3.2-3.5): (a) the input;
@@ -141,7 +160,7 @@ def estimates(trace: dict, title: str, period_s: float | None = None,
     waveform can be read; (d) each estimate's error. Legends sit outside the data."""
     t = trace["t"]
     zoom = (period_s is not None and t[-1] - t[0] > 2 * window_periods * period_s)
-    fig, axes = plt.subplots(4, 1, figsize=(10.0, 11.0))
+    fig, axes = subplots(4, 1, figsize=(10.0, 11.0))
     t_ms = t * 1e3
     _input_panel(axes[0], trace, t_ms, title)
     axes[0].set_xlabel("time [ms]")
@@ -156,7 +175,7 @@ def estimates(trace: dict, title: str, period_s: float | None = None,
 
 
 def _series(trace: dict, key: str, ylabel: str, title: str) -> Figure:
-    fig, ax = plt.subplots(figsize=(10.0, 4.5))
+    fig, ax = subplots(figsize=(10.0, 4.5))
     t_ms = trace["t"] * 1e3
     for i, (label, values) in enumerate(trace[key].items()):
         values = np.asarray(values, float)
@@ -174,11 +193,13 @@ def _series(trace: dict, key: str, ylabel: str, title: str) -> Figure:
     return fig
 
 
+@_one_at_a_time
 def running_rmse(trace: dict, title: str) -> Figure:
     """RMSE across the Monte Carlo runs that did not diverge, at each sample (Fig 3.6)."""
     return _series(trace, "running_rmse", "RMSE over runs [V]", title)
 
 
+@_one_at_a_time
 def residuals(trace: dict, title: str) -> Figure:
     """Residual (prior innovation) of one run over time (Fig 3.7)."""
     return _series(trace, "innovation", "residual [V]", title)
@@ -198,11 +219,12 @@ def with_unit(name: str, value: float) -> str:
     return f"{name} = {EngFormatter(unit=unit, sep=' ')(float(value))}"
 
 
+@_one_at_a_time
 def perturbation(trace: dict, title: str) -> Figure:
     """Input (a); zeroth-order, zeroth + first-order and full nonlinear output (b); the
     first-order output beside the true nonlinear part ``full - zeroth`` (c), on one time
     axis (Figs 2.2, 2.4, 2.6, 2.8)."""
-    fig, (ax_in, ax_out, ax_nl) = plt.subplots(3, 1, figsize=(10.0, 8.0), sharex=True)
+    fig, (ax_in, ax_out, ax_nl) = subplots(3, 1, figsize=(10.0, 8.0), sharex=True)
     t, unit = trace["t"], "s"
     for scale, name in ((1e3, "ms"), (1e6, "us"), (1e9, "ns")):
         if t[-1] * scale >= 1.0:
@@ -230,10 +252,11 @@ def perturbation(trace: dict, title: str) -> Figure:
     return fig
 
 
+@_one_at_a_time
 def burden(timing, slopes) -> Figure:
     """Multiplications counted and wall time per step against ``n_x``, log-log (Tables 4.3,
     4.4), with the fitted slopes in the legend."""
-    fig, (ax_c, ax_t) = plt.subplots(1, 2, figsize=(10.0, 4.5))
+    fig, (ax_c, ax_t) = subplots(1, 2, figsize=(10.0, 4.5))
     for est, part in timing.groupby("estimator", sort=False):
         fit = slopes[slopes["estimator"] == est].set_index("quantity")["slope"]
         ax_c.loglog(part["n_x"], part["counted_per_step"], "o-",
@@ -251,12 +274,13 @@ def burden(timing, slopes) -> Figure:
     return fig
 
 
+@_one_at_a_time
 def estimates_clipped(trace: dict, title: str) -> Figure:
     """Input (a) and output like :func:`estimates` (Figs 4.3-4.7): (b) the whole record on
     an axis that spans the estimates (one that runs away is drawn until it leaves and named
     with the time it left), (c) the same record held to the actual signal's range, (d) each
     estimate's error. Legends outside the data."""
-    fig, axes = plt.subplots(4, 1, figsize=(10.0, 11.0), sharex=True)
+    fig, axes = subplots(4, 1, figsize=(10.0, 11.0), sharex=True)
     t_ms = trace["t"] * 1e3
     _input_panel(axes[0], trace, t_ms, title)
     _output_panels(axes[1:], trace, t_ms, slice(None), "whole record", "output v_D [V]")
@@ -266,6 +290,7 @@ def estimates_clipped(trace: dict, title: str) -> Figure:
     return fig
 
 
+@_one_at_a_time
 def field_slices(data: dict, title: str) -> Figure:
     """|E| (top) and |H| (bottom) in a plane, one panel per entry of ``data["labels"]``
     (default: truth, filter, RLS baseline, the filter's error), one shared logarithmic
@@ -273,7 +298,7 @@ def field_slices(data: dict, title: str) -> Figure:
     from matplotlib.colors import LogNorm
 
     labels = tuple(data.get("labels", ("truth", "KF", "RLS", "KF error")))
-    fig, axes = plt.subplots(2, 4, figsize=(14.0, 7.0), sharex=True, sharey=True)
+    fig, axes = subplots(2, 4, figsize=(14.0, 7.0), sharex=True, sharey=True)
     for row, field in enumerate(("E", "H")):
         truth = data[f"{field}|truth"]
         top = float(np.nanmax(truth))
@@ -293,10 +318,11 @@ def field_slices(data: dict, title: str) -> Figure:
     return fig
 
 
+@_one_at_a_time
 def ensemble_rank(health) -> Figure:
     """The ensembles' effective rank over the record, per filter and scenario (lowest over
     runs and noise rows), with the NIS per reading on a second panel (Chapter 5)."""
-    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8.0, 6.0), sharex=True)
+    fig, (top, bottom) = subplots(2, 1, figsize=(8.0, 6.0), sharex=True)
     for (scenario, name), g in health.groupby(["scenario", "estimator"], sort=False):
         by_step = g.groupby("time", sort=True)
         top.plot(by_step["effective_rank_min"].min(), lw=1.0, label=f"{name}, {scenario}")
@@ -312,13 +338,14 @@ def ensemble_rank(health) -> Figure:
     return fig
 
 
+@_one_at_a_time
 def field_study(df, setting: str, estimators) -> Figure:
     """Relative RMSE (real part) against the studied setting's value: one panel per zone
     and component, one line per estimator and scenario (Chapter 5 studies)."""
     real = df[df["part"] == "real"]
     zones = list(dict.fromkeys(real["zone"]))
     comps = list(dict.fromkeys(real["field_component"]))
-    fig, axes = plt.subplots(len(zones), len(comps), figsize=(4.0 * len(comps),
+    fig, axes = subplots(len(zones), len(comps), figsize=(4.0 * len(comps),
                                                               3.2 * len(zones)),
                              squeeze=False, sharex=True)
     styles = ("-", "--", ":", "-.")
@@ -346,10 +373,11 @@ def field_study(df, setting: str, estimators) -> Figure:
     return fig
 
 
+@_one_at_a_time
 def relative_error_curves(w_over_pi, curves: dict) -> Figure:
     """RE in dB against ``w / pi`` for several orders (the FIR differentiator paper's
     Fig 3); RE -> -inf at ``pi``, so the axis stops at -160 dB."""
-    fig, ax = plt.subplots(figsize=(8.0, 5.0))
+    fig, ax = subplots(figsize=(8.0, 5.0))
     for n, re in curves.items():
         ax.plot(w_over_pi, np.maximum(re, -160.0), lw=1.0, label=f"n = {n} (N2 = {2 * n})")
     ax.set_ylim(-160, 10)
@@ -362,9 +390,10 @@ def relative_error_curves(w_over_pi, curves: dict) -> Figure:
     return fig
 
 
+@_one_at_a_time
 def differentiator_response(f_hz, curves: dict) -> Figure:
     """Magnitude and phase of optimum differentiators against the ideal ``s``."""
-    fig, (ax_m, ax_p) = plt.subplots(2, 1, figsize=(8.0, 6.0), sharex=True)
+    fig, (ax_m, ax_p) = subplots(2, 1, figsize=(8.0, 6.0), sharex=True)
     s = 2 * np.pi * np.asarray(f_hz)
     ax_m.loglog(f_hz, s, "k--", lw=1.0, label="ideal |s|")
     ax_p.semilogx(f_hz, np.full_like(s, 90.0), "k--", lw=1.0, label="ideal")
@@ -382,9 +411,10 @@ def differentiator_response(f_hz, curves: dict) -> Figure:
     return fig
 
 
+@_one_at_a_time
 def noisy_signal(t, clean: np.ndarray, noisy: np.ndarray, title: str) -> Figure:
     """A noisy record and the signal in it (the passive-network paper's Figs 4 and 6)."""
-    fig, ax = plt.subplots(figsize=(8.0, 3.2))
+    fig, ax = subplots(figsize=(8.0, 3.2))
     ax.plot(t, noisy, lw=0.8, color="0.55", label="x + N (measured)")
     ax.plot(t, clean, lw=1.4, color="C0", label="x")
     ax.set_title(title, fontsize=9)
@@ -401,10 +431,11 @@ DIVERGED_PLOT = 1e100
 axis cannot span values near the float limit."""
 
 
+@_one_at_a_time
 def absolute_errors(t, data: dict, title: str) -> Figure:
     """Absolute estimation error against time, one panel per reading (the passive-network
     paper's Figs 5 and 7), log scale."""
-    fig, axes = plt.subplots(len(data), 1, figsize=(8.0, 2.6 * len(data)), sharex=True,
+    fig, axes = subplots(len(data), 1, figsize=(8.0, 2.6 * len(data)), sharex=True,
                              squeeze=False)
     for ax, (reading, curves) in zip(axes[:, 0], data.items(), strict=True):
         for name, err in curves.items():
@@ -422,12 +453,13 @@ def absolute_errors(t, data: dict, title: str) -> Figure:
     return fig
 
 
+@_one_at_a_time
 def image_panels(images: dict, title: str) -> Figure:
     """Grey-scale panels on the 0-255 scale, two rows (the original, the noisy and the
     restored images)."""
     n = len(images)
     cols = (n + 1) // 2
-    fig, axes = plt.subplots(2, cols, figsize=(3.2 * cols, 7.2), squeeze=False)
+    fig, axes = subplots(2, cols, figsize=(3.2 * cols, 7.2), squeeze=False)
     for ax, (name, img) in zip(axes.ravel(), images.items(), strict=False):
         ax.imshow(np.clip(img, 0, 255), cmap="gray", vmin=0, vmax=255,
                   interpolation="nearest")
@@ -439,9 +471,10 @@ def image_panels(images: dict, title: str) -> Figure:
     return fig
 
 
+@_one_at_a_time
 def pixel_series(pixels, series: dict, ylabel: str, title: str) -> Figure:
     """Quantities along a row of pixels, one line each (the 2-D Kalman paper's Figs 5-7)."""
-    fig, ax = plt.subplots(figsize=(8.0, 3.6))
+    fig, ax = subplots(figsize=(8.0, 3.6))
     for name, values in series.items():
         ax.plot(pixels, values, lw=1.2, marker=".", ms=3, label=name)
     ax.set_xlabel("pixel")

@@ -6,6 +6,7 @@ import hashlib
 import itertools
 import time
 from collections.abc import Callable
+from concurrent.futures import Executor
 from pathlib import Path
 
 from estim import io, lazy
@@ -110,7 +111,8 @@ def run_to_folder(exp: Experiment, out: Path, jobs: int = 1,
                   on_done: Callable[[], None] | None = None, executor: Callable | None = None,
                   resume: bool = True, figure_format: str = "png", command: str = "",
                   overrides: dict | None = None,
-                  on_start: Callable[[], None] | None = None) -> tuple[Result, int]:
+                  on_start: Callable[[], None] | None = None,
+                  pool: Executor | None = None) -> tuple[Result, int]:
     """Run ``exp`` and write ``out/<name>/`` as a unit, all old or all new (:mod:`estim.io`):
     its tables as CSV, its figures (each written and closed as its sweep cell finishes) and
     ``manifest.json``. Returns the result (its tables, and the names of the figures written)
@@ -119,20 +121,19 @@ def run_to_folder(exp: Experiment, out: Path, jobs: int = 1,
     Each finished work unit is kept in ``out/.<name>.cells-<hash>/`` (of the config and of
     estim's source) until the run is written, so a run stopped by a crash or Ctrl-C resumes
     with the cells it has (unless not ``resume``); ``executor`` runs the units elsewhere
-    (:mod:`estim.executors`); ``on_start`` is called once the folder is open (its space and
+    (:mod:`estim.executors`) or on a process ``pool`` shared with other configs
+    (:mod:`estim.scheduler`); ``on_start`` is called once the folder is open (its space and
     lock checked), ``on_done`` once per finished work unit."""
-    import matplotlib.pyplot as plt
-
     start = time.perf_counter()
     store = cell_store(exp, out)
     if not resume:
         store.clear()
     written: dict[str, None] = {}
-    with io.ResultFolder(Path(out), exp.name) as folder, execution(executor, store):
+    with io.ResultFolder(Path(out), exp.name) as folder, execution(executor, store,
+                                                                    pool=pool):
         def write_figures(figures: dict) -> None:
             for name, fig in figures.items():
                 io.write_figure(fig, folder.path / "figures" / f"{name}.{figure_format}")
-                plt.close(fig)
                 written[name] = None
 
         if on_start is not None:
@@ -147,6 +148,15 @@ def run_to_folder(exp: Experiment, out: Path, jobs: int = 1,
     resumed = store.hits
     store.clear()
     return Result(tables=result.tables, figures=written), resumed
+
+
+def recorded_seconds(folder: Path) -> float:
+    """The wall time the manifest in ``folder`` records (how long the config's last run
+    took), or infinity when there is none: the longest-first order of
+    :mod:`estim.scheduler`, which starts a config it knows nothing of early."""
+    manifest = io.read_manifest(folder) or {}
+    seconds = manifest.get("wall_time_s")
+    return float(seconds) if isinstance(seconds, int | float) and seconds >= 0 else float("inf")
 
 
 def run_shard(exp: Experiment, out: Path, k: int, n: int, jobs: int = 1) -> tuple[int, bool]:

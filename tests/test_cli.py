@@ -857,27 +857,30 @@ def test_gain_table_skips_a_swept_experiment_without_gain_values(tmp_path):
 
 
 def test_a_sweep_holds_one_cells_figures_at_a_time(tmp_path, monkeypatch):
-    import matplotlib.pyplot as plt
+    import gc
+    import weakref
 
     from estim import io as estim_io
 
     spec = tiny_config()
     spec["sweep"] = {"noise.measurement_sigma": [0.05, 0.1, 0.15, 0.2]}
     path = write(tmp_path, spec)
-    open_counts = []
+    seen: weakref.WeakSet = weakref.WeakSet()
+    alive_counts = []
     real = estim_io.write_figure
 
     def counting(fig, where):
-        open_counts.append(len(plt.get_fignums()))
+        seen.add(fig)
+        gc.collect()
+        alive_counts.append(len(seen))          # figures drawn so far and still held
         real(fig, where)
 
     monkeypatch.setattr(estim_io, "write_figure", counting)
-    plt.close("all")
     result = CliRunner().invoke(main, ["run", str(path), "--runs", "2", "--quiet", "--out",
                                        str(tmp_path / "r")])
     assert result.exit_code == 0, result.output
-    per_cell = len(open_counts) // 4
-    assert per_cell >= 1 and max(open_counts) <= per_cell
+    per_cell = len(alive_counts) // 4
+    assert per_cell >= 1 and max(alive_counts) <= per_cell
     assert len(list((tmp_path / "r" / "tiny" / "figures").glob("*_sweep4.png"))) == per_cell
 
 

@@ -30,7 +30,6 @@ def test_estimates_name_diverged_filters_and_keep_legends_off_the_data():
         assert ax.get_legend().get_window_extent().x0 >= ax.get_window_extent().x1
     start, end = axes[2].get_xlim()
     assert end - start < 4.0                              # ms: three periods of 1 ms, zoomed
-    plots.plt.close(fig)
 
 
 def _narrow_trace(n=400, dt=1e-4):
@@ -68,7 +67,6 @@ def test_every_plotted_estimate_has_points_inside_its_axes():
         assert "off the axis throughout: offset" in whole.get_title()
         assert zoom.get_ylim()[1] - zoom.get_ylim()[0] < 0.05     # the waveform, readable
         assert fig.axes[3].get_yscale() == "log"            # and each estimate's error
-        plots.plt.close(fig)
 
 
 def test_series_says_when_every_run_diverged():
@@ -77,7 +75,6 @@ def test_series_says_when_every_run_diverged():
                                                         "RLS": np.ones(10)}}, "test")
     labels = [x.get_text() for x in fig.axes[0].get_legend().get_texts()]
     assert labels == ["EKF (no finite value: every run diverged)", "RLS"]
-    plots.plt.close(fig)
 
 
 def test_parameters_carry_their_units():

@@ -17,19 +17,21 @@ An analysis is a module registered by one line in :data:`estim.analyses.ANALYSES
 ``run(exp, jobs, on_done) -> Result``  tables (one DataFrame per metric) and figures
 ``summary(result) -> str``          what ``estim run`` prints after a run
 ``tiny(spec) -> spec``              the experiment shrunk to seconds (contract tests)
+``RUNS_ALONE``  optional, True for an analysis whose tables are timings: run with no other
+                config's work beside it (:mod:`estim.scheduler`)
 """
 
 from __future__ import annotations
 
-import signal
 from collections.abc import Callable, Iterable, Iterator
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass, field
 from typing import Any
 
 from estim import lazy
+from estim.scheduler import ignore_interrupts, stop
 from estim.tablespec import TableSpec
 
 pd = lazy.load("pandas")
@@ -43,11 +45,6 @@ class Result:
     figures: dict[str, Any] = field(default_factory=dict)
 
 
-def _ignore_interrupts() -> None:
-    """Workers leave Ctrl-C to the parent, which stops them and reports once."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
 @dataclass
 class Execution:
     """How :func:`map_tasks` runs inside :func:`execution`: ``executor`` (``None``: this
@@ -57,10 +54,13 @@ class Execution:
     (:class:`estim.io.CellStore`), keyed by the sweep cell, the map call's number within it
     and the task's index. ``offsets`` counts the tasks of each map call number over the
     sweep cells so far (empty: the analysis made no map call, so a shard cannot share it
-    out); ``computed`` counts the cells computed here."""
+    out); ``computed`` counts the cells computed here. ``pool`` is a process pool shared
+    with other configs' drivers (:mod:`estim.scheduler`): the tasks go there, whatever
+    ``jobs`` says."""
 
     executor: Callable | None = None
     store: Any = None
+    pool: Executor | None = None
     calls: int = 0
     shard: tuple[int, int] | None = None
     cell: int = 0
@@ -79,12 +79,13 @@ _EXECUTION: ContextVar[Execution | None] = ContextVar("estim_execution", default
 
 @contextmanager
 def execution(executor: Callable | None = None, store: Any = None,
-              shard: tuple[int, int] | None = None) -> Iterator[Execution]:
-    """Run the analyses called inside on ``executor``, saving each finished cell in
-    ``store`` and taking the ones it already has from it (a resumed run); with ``shard =
-    (k, n)`` compute only the cells whose number, counted over the sweep cells of a swept
-    run, is ``k - 1`` modulo ``n`` (:class:`ShardDone`)."""
-    token = _EXECUTION.set(Execution(executor, store, shard=shard))
+              shard: tuple[int, int] | None = None,
+              pool: Executor | None = None) -> Iterator[Execution]:
+    """Run the analyses called inside on ``executor`` (or on the shared ``pool``), saving
+    each finished cell in ``store`` and taking the ones it already has from it (a resumed
+    run); with ``shard = (k, n)`` compute only the cells whose number, counted over the
+    sweep cells of a swept run, is ``k - 1`` modulo ``n`` (:class:`ShardDone`)."""
+    token = _EXECUTION.set(Execution(executor, store, shard=shard, pool=pool))
     try:
         yield _EXECUTION.get()
     finally:
@@ -154,17 +155,24 @@ def map_tasks(fn: Callable[[Any], Any], tasks: Iterable, jobs: int = 1,
     if ctx is not None and ctx.executor is not None and pending:
         for i, value in ctx.executor(fn, {i: tasks[i] for i in pending}):
             finished(i, value)
+    elif ctx is not None and ctx.pool is not None and pending:
+        futures = {ctx.pool.submit(fn, tasks[i]): i for i in pending}
+        try:
+            for future in as_completed(futures):
+                finished(futures[future], future.result())
+        except BaseException:
+            for future in futures:
+                future.cancel()
+            raise
     elif jobs > 1 and len(pending) > 1:
         pool = ProcessPoolExecutor(max_workers=min(jobs, len(pending)),
-                                   initializer=_ignore_interrupts)
+                                   initializer=ignore_interrupts)
         try:
             for i, value in zip(pending, pool.map(fn, [tasks[i] for i in pending]),
                                 strict=True):
                 finished(i, value)
         except BaseException:
-            for process in list(getattr(pool, "_processes", {}).values()):
-                process.terminate()
-            pool.shutdown(wait=False, cancel_futures=True)
+            stop(pool)
             raise
         pool.shutdown()
     else:

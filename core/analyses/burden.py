@@ -266,6 +266,11 @@ def _measure_wavelet(est: WaveletLMS, model, samples: int, repeats: int, dt: flo
     return tally, round(fit["kept_fraction"] * samples), float(np.median(seconds))
 
 
+RUNS_ALONE = True
+"""Its tables are timings: ``estim reproduce`` and ``estim check`` run it after every other
+config, with no other work on the machine's cores (:mod:`estim.scheduler`)."""
+
+
 def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = None) -> Result:
     """Counts and timings, one chain length after another in this process (timings are
     ratios within one process; parallel jobs would disturb them)."""

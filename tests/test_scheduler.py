@@ -1,0 +1,159 @@
+"""issue 27: several configs at once on one shared pool (estim.scheduler), longest first, an
+analysis that times itself alone, and the same tables as one config after another."""
+
+import json
+import os
+import threading
+import time
+
+import pytest
+import yaml
+from click.testing import CliRunner
+from test_cli import fake_project, tiny_config
+
+from estim import scheduler
+from estim.analyses import ANALYSES
+from estim.analyses.base import execution, map_tasks
+from estim.cli.main import main
+from estim.cli.output import longest_first
+from estim.config import load_file
+
+
+class Log:
+    """What the work did, in order, from every thread."""
+
+    def __init__(self) -> None:
+        self.events: list[tuple[str, str]] = []
+        self.lock = threading.Lock()
+
+    def work(self, item: str, seconds: float = 0.02) -> str:
+        with self.lock:
+            self.events.append(("start", item))
+        time.sleep(seconds)
+        if item.startswith("fail"):
+            raise RuntimeError(item)
+        with self.lock:
+            self.events.append(("end", item))
+        return item.upper()
+
+
+def test_every_item_runs_once_started_in_the_order_given():
+    log = Log()
+    items = [f"c{i}" for i in range(7)]
+    got = dict(scheduler.run_each(items, log.work, threads=3))
+    assert got == {i: i.upper() for i in items}
+    assert [i for kind, i in log.events if kind == "start"][:3] == ["c0", "c1", "c2"]
+    one = Log()
+    list(scheduler.run_each(items, one.work, threads=1))
+    assert [i for kind, i in one.events if kind == "start"] == items
+
+
+def test_an_item_that_runs_alone_waits_for_the_others_and_has_the_machine_to_itself():
+    log = Log()
+    items = ["timing", "a", "b", "c", "d"]
+    got = [i for i, _ in scheduler.run_each(items, log.work, threads=2,
+                                            alone=lambda i: i == "timing")]
+    assert got[-1] == "timing" and sorted(got) == sorted(items)
+    start = log.events.index(("start", "timing"))
+    assert sum(kind == "end" for kind, _ in log.events[:start]) == 4
+    assert log.events[start + 1] == ("end", "timing")
+
+
+def test_the_first_failure_stops_the_rest_and_is_raised():
+    log = Log()
+    stopped = []
+    seen = []
+    with pytest.raises(RuntimeError, match="fail-1"):
+        for item, _ in scheduler.run_each(["ok", "fail-1", "later", "last"], log.work,
+                                          threads=1, on_error=lambda: stopped.append(1)):
+            seen.append(item)
+    assert seen == ["ok"] and stopped == [1]
+    assert ("start", "later") not in log.events and ("start", "last") not in log.events
+
+
+def _pid_and_square(x: int) -> tuple[int, int]:
+    return os.getpid(), x * x
+
+
+def test_map_tasks_sends_its_tasks_to_the_shared_pool():
+    with scheduler.process_pool(2) as pool, execution(pool=pool):
+        done = map_tasks(_pid_and_square, range(6), jobs=1)
+    assert [v for _, v in done] == [x * x for x in range(6)]
+    assert os.getpid() not in {pid for pid, _ in done}
+
+
+def test_longest_first_follows_the_recorded_wall_times(tmp_path):
+    exps = []
+    for name, seconds in (("short", 2.0), ("long", 90.0), ("new", None), ("mid", 30.0)):
+        spec = tiny_config(name=name)
+        path = tmp_path / f"{name}.yaml"
+        path.write_text(yaml.safe_dump(spec))
+        exps.append(load_file(path))
+        if seconds is not None:
+            (tmp_path / "res" / name).mkdir(parents=True)
+            (tmp_path / "res" / name / "manifest.json").write_text(
+                json.dumps({"wall_time_s": seconds}))
+    assert [e.name for e in longest_first(exps, tmp_path / "res")] == ["new", "long", "mid",
+                                                                      "short"]
+
+
+def test_only_the_timing_analysis_runs_alone():
+    assert [name for name in ANALYSES if getattr(ANALYSES[name], "RUNS_ALONE", False)] == [
+        "burden"]
+
+
+def test_reproduce_on_a_shared_pool_writes_what_one_config_after_another_writes(
+        tmp_path, monkeypatch):
+    root = fake_project(tmp_path, monkeypatch)
+    (root / "configs" / "tiny2.yaml").write_text(yaml.safe_dump(
+        tiny_config(name="tiny2", **{"monte_carlo.seed": 7, "monte_carlo.runs": 2})))
+    runner = CliRunner()
+    alone = runner.invoke(main, ["reproduce", "--jobs", "1", "--quiet", "--out",
+                                 str(tmp_path / "one")])
+    assert alone.exit_code == 0, alone.output
+    shared = runner.invoke(main, ["reproduce", "--jobs", "2", "--out", str(tmp_path / "two")])
+    assert shared.exit_code == 0, shared.output
+    for name in ("tiny", "tiny2"):
+        assert f"{name} -> {tmp_path / 'two' / name}" in shared.output
+        for table in (tmp_path / "one" / name).glob("*.csv"):
+            assert table.read_bytes() == (tmp_path / "two" / name / table.name).read_bytes()
+        figures = sorted(p.name for p in (tmp_path / "one" / name / "figures").iterdir())
+        assert figures and figures == sorted(
+            p.name for p in (tmp_path / "two" / name / "figures").iterdir())
+    checked = runner.invoke(main, ["check", "--jobs", "2", "--results", str(tmp_path / "two")])
+    assert checked.exit_code == 0, checked.output
+    lines = [line for line in checked.output.splitlines() if "rows match" in line]
+    names = [line.split("/")[0] for line in lines]
+    assert sorted(set(names)) == ["tiny", "tiny2"]
+    assert names == sorted(names, key=names.index)          # each config's lines together
+    assert checked.output.rstrip().endswith("check: all tables match")
+
+
+def test_ctrl_c_during_a_shared_reproduce_is_one_line_exit_130_and_stops_the_workers(
+        tmp_path):
+    import signal
+    import subprocess
+    import sys
+
+    root = tmp_path / "proj"
+    (root / "configs").mkdir(parents=True)
+    (root / "pyproject.toml").write_text('[project]\nname = "estim"\n')
+    for name in ("slow", "slower"):
+        spec = tiny_config(name=name, **{"monte_carlo.runs": 200, "input.periods": 40,
+                                         "input.frequencies_hz": [100, 1000, 10000]})
+        (root / "configs" / f"{name}.yaml").write_text(yaml.safe_dump(spec))
+    out = tmp_path / "out"
+    run = subprocess.Popen([sys.executable, "-m", "estim.cli.main", "reproduce", "--jobs", "2",
+                            "--out", str(out)], cwd=root, stdout=subprocess.PIPE,
+                           stderr=subprocess.PIPE, text=True)
+    assert run.stderr.readline().strip().endswith(f"results in {out}/")
+    assert "work units" in run.stderr.readline()       # the computation has started
+    time.sleep(1.0)
+    run.send_signal(signal.SIGINT)
+    assert run.wait(timeout=60) == 130
+    rest = [line for line in run.stderr.read().splitlines() if "work units" not in line]
+    assert rest == ["error: interrupted"], rest
+    assert not (out / "slow").exists() and not (out / "slower").exists()
+    time.sleep(0.5)
+    left = subprocess.run(["pgrep", "-f", f"--out {out}"], capture_output=True, text=True)
+    assert left.stdout.strip() == "", left.stdout
