@@ -2,11 +2,12 @@
 
 Each config's driver (its analysis' ``run``: the work units it hands to
 :func:`estim.analyses.base.map_tasks`, then its tables and figures) runs in a thread of this
-process, as many at once as the pool has processes, the longest config first; every work unit of every config runs in one shared pool
-of ``jobs`` worker processes. So while one config draws its figures or waits for its last
-unit, the pool works on the next config's units, and a small config fills a core the big
-one leaves idle. Where a unit runs does not change what it computes (each draws from its own
-seed), so the tables are those of ``--jobs 1``.
+process, as many at once as the pool has processes, the longest config first; every work
+unit of every config runs in one shared pool of ``jobs`` worker processes. So while one
+config draws its figures or waits for its last unit, the pool works on the next config's
+units, and a small config fills a core the big one leaves idle. Where a unit runs does not
+change what it computes (each draws from its own seed), so the tables are those of
+``--jobs 1``.
 
 An analysis that times itself (``RUNS_ALONE = True``: :mod:`estim.analyses.burden`) runs
 after every other config has finished, alone, so no other work shares its clock.
