@@ -61,8 +61,9 @@ class _NamedPath(click.Path):
 
 _jobs = click.option("--jobs", type=click.IntRange(1, 256), default=usable_cores,
                      show_default="the usable cores",
-                     help="Worker processes over work units (never more than a config's "
-                          "work units).")
+                     help="Worker processes over work units (for one config never more than "
+                          "its work units; several configs share one pool of them, the "
+                          "longest config first).")
 _max_work = click.option("--max-work", type=click.IntRange(1), default=MAX_WORK,
                          show_default=True,
                          help="Refuse a config whose work (state-samples) exceeds this.")
@@ -132,6 +133,10 @@ def run(configs, out, runs, seed, update_baseline, quick, jobs, max_work, execut
             else:
                 click.echo(f"{exp.name}: shard {k}/{n}: {computed} cell(s) in "
                            f"{runner.cell_store(exp, folder).folder}; finish with 'estim merge'")
+        return
+    if executor == "local" and jobs > 1 and len(exps) > 1:
+        run_together(exps, folder, jobs, quiet, folder, overrides, resume=not no_resume,
+                     figure_format=figure_format)
         return
     with executor_for(executor, scheduler, jobs) as units:
         for exp in exps:

@@ -107,7 +107,8 @@ def runs_alone(exp: Experiment) -> bool:
 
 
 def run_together(exps: list[Experiment], folder: Path, jobs: int, quiet: bool,
-                 recorded: Path) -> None:
+                 recorded: Path, overrides: dict | None = None, resume: bool = True,
+                 figure_format: str = "png") -> None:
     """Every config of ``exps``, up to ``jobs`` at once, their work units on one pool of
     ``jobs`` processes (:mod:`estim.scheduler`), longest first by the manifests in
     ``recorded``; each one's summary is printed as it finishes, its progress one line per
@@ -115,11 +116,11 @@ def run_together(exps: list[Experiment], folder: Path, jobs: int, quiet: bool,
     with scheduler.process_pool(jobs) as pool:
         def work(exp: Experiment) -> tuple[Result, int]:
             shown = Progress(exp, quiet, bar=False)
-            return runner.run_to_folder(exp, folder, jobs, on_done=shown.done,
-                                        command=_command(), on_start=shown.start, pool=pool)
+            return runner.run_to_folder(exp, folder, jobs, on_done=shown.done, resume=resume,
+                                        figure_format=figure_format, command=_command(),
+                                        overrides=overrides, on_start=shown.start, pool=pool)
 
         for exp, (result, resumed) in scheduler.run_each(
                 longest_first(exps, recorded), work, jobs, alone=runs_alone,
                 on_error=lambda: scheduler.stop(pool)):
             report(exp, folder, result, resumed, quiet)
-

@@ -157,3 +157,24 @@ def test_ctrl_c_during_a_shared_reproduce_is_one_line_exit_130_and_stops_the_wor
     time.sleep(0.5)
     left = subprocess.run(["pgrep", "-f", f"--out {out}"], capture_output=True, text=True)
     assert left.stdout.strip() == "", left.stdout
+
+
+def test_run_of_several_configs_shares_the_pool_and_writes_what_jobs_1_writes(tmp_path):
+    paths = []
+    for name, seed in (("first", 1), ("second", 2)):
+        path = tmp_path / f"{name}.yaml"
+        path.write_text(yaml.safe_dump(tiny_config(name=name, **{"monte_carlo.seed": seed})))
+        paths.append(str(path))
+    runner = CliRunner()
+    tables = {}
+    for jobs in ("1", "2"):
+        out = tmp_path / f"jobs{jobs}"
+        done = runner.invoke(main, ["run", *paths, "monte_carlo.runs=2", "--jobs", jobs,
+                                    "--figure-format", "svg", "--out", str(out)])
+        assert done.exit_code == 0, done.output
+        assert "first -> " in done.output and "second -> " in done.output
+        assert len(list((out / "second" / "figures").glob("*.svg"))) >= 1
+        manifest = json.loads((out / "first" / "manifest.json").read_text())
+        assert manifest["overrides"] == {"monte_carlo.runs": 2}
+        tables[jobs] = {p.relative_to(out): p.read_bytes() for p in sorted(out.glob("*/*.csv"))}
+    assert tables["1"] and tables["1"] == tables["2"]
