@@ -15,7 +15,7 @@ from pathlib import Path
 import click
 
 import estim
-from estim import checking, config, io, runner, scheduler, tables, tuning
+from estim import checking, config, io, lazy, runner, scheduler, tables, tuning
 from estim.analyses import ANALYSES
 from estim.cli import arguments, project
 from estim.cli.group import Group, fail
@@ -62,8 +62,8 @@ class _NamedPath(click.Path):
 _jobs = click.option("--jobs", type=click.IntRange(1, 256), default=usable_cores,
                      show_default="the usable cores",
                      help="Worker processes over work units (for one config never more than "
-                          "its work units; several configs share one pool of them, the "
-                          "longest config first).")
+                          "its work units; reproduce, check and a run of several configs on "
+                          "this machine share one pool of them, the longest config first).")
 _max_work = click.option("--max-work", type=click.IntRange(1), default=MAX_WORK,
                          show_default=True,
                          help="Refuse a config whose work (state-samples) exceeds this.")
@@ -252,8 +252,9 @@ def check(configs, results, jobs, max_work, everything) -> None:
                    + ": comparing tables only, not the stored config")
     results = results or where.results
     differing = 0
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory(ignore_cleanup_errors=True) as tmp:
         if jobs > 1 and len(exps) > 1:
+            lazy.import_all_now()
             with scheduler.process_pool(jobs) as pool:
                 def work(exp) -> tuple[int, list[str]]:
                     said: list[str] = []

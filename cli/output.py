@@ -10,7 +10,7 @@ from pathlib import Path
 
 import click
 
-from estim import runner, scheduler
+from estim import lazy, runner, scheduler
 from estim.analyses import ANALYSES
 from estim.analyses.base import Result
 from estim.schema import Experiment
@@ -113,6 +113,7 @@ def run_together(exps: list[Experiment], folder: Path, jobs: int, quiet: bool,
     ``jobs`` processes (:mod:`estim.scheduler`), longest first by the manifests in
     ``recorded``; each one's summary is printed as it finishes, its progress one line per
     finished work unit."""
+    lazy.import_all_now()
     with scheduler.process_pool(jobs) as pool:
         def work(exp: Experiment) -> tuple[Result, int]:
             shown = Progress(exp, quiet, bar=False)

@@ -1,4 +1,5 @@
-"""Several configs at once on one pool of processes (``estim reproduce``, ``estim check``).
+"""Several configs at once on one pool of processes (``estim reproduce``, ``estim check``,
+``estim run`` of several configs on this machine).
 
 Each config's driver (its analysis' ``run``: the work units it hands to
 :func:`estim.analyses.base.map_tasks`, then its tables and figures) runs in a thread of this
@@ -35,17 +36,20 @@ def ignore_interrupts() -> None:
 
 
 def stop(pool: Executor) -> None:
-    """Stop ``pool`` now: its queued units are cancelled and its workers terminated."""
+    """Stop ``pool`` now: its workers are terminated, which breaks the pool, and every unit
+    it has not finished fails with ``BrokenProcessPool`` (waking whoever waits for it; units
+    cancelled instead would not wake a waiter on Python 3.11, a run that hung in a test)."""
     for process in list((getattr(pool, "_processes", None) or {}).values()):
         process.terminate()
-    pool.shutdown(wait=False, cancel_futures=True)
+    pool.shutdown(wait=False)
 
 
 @contextlib.contextmanager
 def process_pool(jobs: int) -> Iterator[ProcessPoolExecutor]:
-    """A pool of ``jobs`` worker processes, every worker started before this returns (so no
-    process is forked later, while the drivers' threads run), stopped on an error or
-    Ctrl-C and shut down after its last unit otherwise."""
+    """A pool of ``jobs`` worker processes, stopped on an error or Ctrl-C and shut down after
+    its last unit otherwise. With the fork start method every worker is started before this
+    returns, so no process is forked while the drivers' threads run (spawn and forkserver
+    start workers on demand, from a clean process)."""
     pool = ProcessPoolExecutor(max_workers=jobs, initializer=ignore_interrupts)
     try:
         pool.submit(int).result()

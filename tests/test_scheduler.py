@@ -178,3 +178,59 @@ def test_run_of_several_configs_shares_the_pool_and_writes_what_jobs_1_writes(tm
         assert manifest["overrides"] == {"monte_carlo.runs": 2}
         tables[jobs] = {p.relative_to(out): p.read_bytes() for p in sorted(out.glob("*/*.csv"))}
     assert tables["1"] and tables["1"] == tables["2"]
+
+
+def test_import_all_now_imports_the_lazy_modules_and_later_loads_at_once(monkeypatch):
+    """Python's lazy modules are not thread-safe before 3.12.3: the drivers' threads must
+    find every module estim registered lazily already imported."""
+    import sys
+    import types
+
+    from estim import lazy
+
+    monkeypatch.setattr(lazy, "_eager", False)
+    monkeypatch.setattr(lazy, "_registered", [])
+    for name in ("tabnanny", "netrc"):
+        monkeypatch.delitem(sys.modules, name, raising=False)
+    waiting = lazy.load("tabnanny")
+    assert type(waiting) is not types.ModuleType              # not imported yet
+    lazy.import_all_now()
+    assert type(waiting) is types.ModuleType and callable(waiting.check)
+    at_once = lazy.load("netrc")
+    assert type(at_once) is types.ModuleType and "netrc" in vars(at_once)
+
+
+def test_a_failing_config_stops_a_shared_run_without_hanging():
+    """The first failure stops the pool; a driver whose units were still queued is woken
+    (units cancelled instead of failed woke no waiter on Python 3.11: the run hung)."""
+    import threading as th
+
+    release = th.Event()
+
+    def work(item: str):
+        if item == "fails":
+            release.wait(5)
+            time.sleep(0.5)                     # the queued driver has submitted its units
+            raise RuntimeError("boom")
+        if item == "queued":
+            release.set()
+            return map_tasks(time.sleep, [0.3] * 20, jobs=1)
+        return map_tasks(time.sleep, [0.3] * 8, jobs=1)
+
+    outcome: list[str] = []
+
+    def scenario() -> None:                 # in a thread: a hang fails the test, not CI
+        try:
+            with scheduler.process_pool(2) as pool:
+                def driven(item):
+                    with execution(pool=pool):
+                        return work(item)
+                list(scheduler.run_each(["long", "queued", "fails"], driven, threads=3,
+                                        on_error=lambda: scheduler.stop(pool)))
+        except RuntimeError as exc:
+            outcome.append(str(exc))
+
+    runner = th.Thread(target=scenario, daemon=True)
+    runner.start()
+    runner.join(60)
+    assert outcome == ["boom"], "the run hung or did not raise the first failure"

@@ -24,7 +24,13 @@ An analysis is a module registered by one line in :data:`estim.analyses.ANALYSES
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator
-from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
+from concurrent.futures import (
+    FIRST_COMPLETED,
+    CancelledError,
+    Executor,
+    ProcessPoolExecutor,
+    wait,
+)
 from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass, field
@@ -157,9 +163,14 @@ def map_tasks(fn: Callable[[Any], Any], tasks: Iterable, jobs: int = 1,
             finished(i, value)
     elif ctx is not None and ctx.pool is not None and pending:
         futures = {ctx.pool.submit(fn, tasks[i]): i for i in pending}
+        left = set(futures)
         try:
-            for future in as_completed(futures):
-                finished(futures[future], future.result())
+            while left:
+                done, left = wait(left, timeout=1.0, return_when=FIRST_COMPLETED)
+                for future in done:
+                    finished(futures[future], future.result())
+                if any(future.cancelled() for future in left):   # a cancel wakes no waiter
+                    raise CancelledError("the shared pool was stopped")
         except BaseException:
             for future in futures:
                 future.cancel()

@@ -267,8 +267,9 @@ def _measure_wavelet(est: WaveletLMS, model, samples: int, repeats: int, dt: flo
 
 
 RUNS_ALONE = True
-"""Its tables are timings: ``estim reproduce`` and ``estim check`` run it after every other
-config, with no other work on the machine's cores (:mod:`estim.scheduler`)."""
+"""Its tables are timings: ``estim reproduce``, ``estim check`` and ``estim run`` of several
+configs run it after every other config, with no other work on the machine's cores
+(:mod:`estim.scheduler`)."""
 
 
 def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = None) -> Result:
