@@ -15,16 +15,15 @@ from pathlib import Path
 import click
 
 import estim
-from estim import checking, config, io, lazy, runner, scheduler, tables, tuning
+from estim import checking, config, io, runner, tables, tuning
 from estim.analyses import ANALYSES
 from estim.cli import arguments, project
 from estim.cli.group import Group, fail
 from estim.cli.output import (
-    longest_first,
+    on_shared_pool,
     progress_lines,
     run_and_report,
     run_together,
-    runs_alone,
 )
 from estim.config import MAX_WORK
 from estim.errors import UsageError
@@ -253,31 +252,24 @@ def check(configs, results, jobs, max_work, everything) -> None:
     results = results or where.results
     differing = 0
     with tempfile.TemporaryDirectory(ignore_cleanup_errors=True) as tmp:
-        if jobs > 1 and len(exps) > 1:
-            lazy.import_all_now()
-            with scheduler.process_pool(jobs) as pool:
-                def work(exp) -> tuple[int, list[str]]:
-                    said: list[str] = []
-                    found = checking.check(
-                        exp, results / exp.name, Path(tmp), jobs, said.append,
-                        same_config=not overrides,
-                        on_done=progress_lines(exp.name, runner.work_units(exp)),
-                        note=lambda text_: click.echo(text_, err=True), pool=pool)
-                    return found, said
+        def one(exp, say, pool=None) -> int:
+            return checking.check(exp, results / exp.name, Path(tmp), jobs, say,
+                                  same_config=not overrides,
+                                  on_done=progress_lines(exp.name, runner.work_units(exp)),
+                                  note=lambda text_: click.echo(text_, err=True), pool=pool)
 
-                for _exp, (found, said) in scheduler.run_each(
-                        longest_first(exps, results), work, jobs, alone=runs_alone,
-                        on_error=lambda: scheduler.stop(pool)):
-                    for line in said:
-                        click.echo(line)
-                    differing += found
+        if jobs > 1 and len(exps) > 1:
+            def said_of(exp, pool) -> tuple[int, list[str]]:
+                said: list[str] = []                # printed whole once the config is done
+                return one(exp, said.append, pool), said
+
+            for _exp, (found, said) in on_shared_pool(exps, jobs, results, said_of):
+                for line in said:
+                    click.echo(line)
+                differing += found
         else:
             for exp in exps:
-                differing += checking.check(
-                    exp, results / exp.name, Path(tmp), jobs, click.echo,
-                    same_config=not overrides,
-                    on_done=progress_lines(exp.name, runner.work_units(exp)),
-                    note=lambda text_: click.echo(text_, err=True))
+                differing += one(exp, click.echo)
     if differing:
         click.echo(f"check: {differing} difference(s)")
         sys.exit(1)

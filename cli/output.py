@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from concurrent.futures import Executor
 from pathlib import Path
+from typing import TypeVar
 
 import click
 
@@ -14,6 +16,8 @@ from estim import lazy, runner, scheduler
 from estim.analyses import ANALYSES
 from estim.analyses.base import Result
 from estim.schema import Experiment
+
+T = TypeVar("T")
 
 
 def progress_lines(name: str, total: int, prefix: str = "") -> Callable[[], None]:
@@ -106,22 +110,29 @@ def runs_alone(exp: Experiment) -> bool:
     return bool(getattr(ANALYSES[exp.analysis], "RUNS_ALONE", False))
 
 
+def on_shared_pool(exps: list[Experiment], jobs: int, recorded: Path,
+                   work: Callable[[Experiment, Executor], T]) -> Iterator[tuple[Experiment, T]]:
+    """``work(exp, pool)`` for every config of ``exps``, up to ``jobs`` at once, their work
+    units on one pool of ``jobs`` processes (:mod:`estim.scheduler`), longest first by the
+    manifests in ``recorded``; yields ``(exp, value)`` as each finishes. Every lazily
+    registered module is imported first (:func:`estim.lazy.import_all_now`)."""
+    lazy.import_all_now()
+    with scheduler.process_pool(jobs) as pool:
+        yield from scheduler.run_each(longest_first(exps, recorded),
+                                      lambda exp: work(exp, pool), jobs, alone=runs_alone,
+                                      on_error=lambda: scheduler.stop(pool))
+
+
 def run_together(exps: list[Experiment], folder: Path, jobs: int, quiet: bool,
                  recorded: Path, overrides: dict | None = None, resume: bool = True,
                  figure_format: str = "png") -> None:
-    """Every config of ``exps``, up to ``jobs`` at once, their work units on one pool of
-    ``jobs`` processes (:mod:`estim.scheduler`), longest first by the manifests in
-    ``recorded``; each one's summary is printed as it finishes, its progress one line per
-    finished work unit."""
-    lazy.import_all_now()
-    with scheduler.process_pool(jobs) as pool:
-        def work(exp: Experiment) -> tuple[Result, int]:
-            shown = Progress(exp, quiet, bar=False)
-            return runner.run_to_folder(exp, folder, jobs, on_done=shown.done, resume=resume,
-                                        figure_format=figure_format, command=_command(),
-                                        overrides=overrides, on_start=shown.start, pool=pool)
+    """Every config of ``exps`` run :func:`on_shared_pool`; each one's summary is printed as
+    it finishes, its progress one line per finished work unit."""
+    def work(exp: Experiment, pool: Executor) -> tuple[Result, int]:
+        shown = Progress(exp, quiet, bar=False)
+        return runner.run_to_folder(exp, folder, jobs, on_done=shown.done, resume=resume,
+                                    figure_format=figure_format, command=_command(),
+                                    overrides=overrides, on_start=shown.start, pool=pool)
 
-        for exp, (result, resumed) in scheduler.run_each(
-                longest_first(exps, recorded), work, jobs, alone=runs_alone,
-                on_error=lambda: scheduler.stop(pool)):
-            report(exp, folder, result, resumed, quiet)
+    for exp, (result, resumed) in on_shared_pool(exps, jobs, recorded, work):
+        report(exp, folder, result, resumed, quiet)
