@@ -44,8 +44,8 @@ class Group(click.Group):
         except (KeyboardInterrupt, click.Abort):
             click.echo("error: interrupted", err=True)
             sys.exit(130)
-        except (click.exceptions.Exit, click.ClickException, SystemExit):
-            raise
+        except (click.exceptions.Exit, click.ClickException, SystemExit, BrokenPipeError):
+            raise                   # a closed output pipe (estim table | head): exit 1, quiet
         except (UsageError, ConfigError) as exc:
             fail(str(exc))
         except OSError as exc:

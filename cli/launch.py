@@ -8,6 +8,7 @@ worker pool broken by the same Ctrl-C) is still reported as an interruption.
 
 from __future__ import annotations
 
+import os
 import signal
 import sys
 
@@ -25,11 +26,30 @@ def interrupted() -> bool:
 
 
 def main() -> None:
+    """Run the commands with click's standalone mode off: click's own handling would turn a
+    Ctrl-C that lands in its argument parsing, before any command runs, into "Aborted!" and
+    exit 1; here every interrupt is exit 130, and click's other outcomes are mapped as
+    standalone mode maps them (its usage errors exit 2, a closed output pipe exits 1)."""
     signal.signal(signal.SIGINT, _on_interrupt)
     try:
+        import click
+
         from estim.cli.entry import main as commands
 
-        commands()
+        try:
+            code = commands(standalone_mode=False)
+        except click.Abort:
+            if not interrupted():
+                sys.stderr.write("error: aborted\n")
+                sys.exit(1)
+            raise KeyboardInterrupt from None
+        except click.ClickException as exc:
+            exc.show()
+            sys.exit(exc.exit_code)
+        except BrokenPipeError:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            sys.exit(1)
+        sys.exit(code if isinstance(code, int) else 0)
     except KeyboardInterrupt:
         sys.stderr.write("error: interrupted\n")
         sys.exit(130)

@@ -836,6 +836,51 @@ def test_ctrl_c_while_python_imports_is_one_line_and_exit_130(delay):
     assert err.strip().splitlines() == ["error: interrupted"], err
 
 
+def test_ctrl_c_inside_clicks_argument_parsing_is_exit_130_not_aborted(monkeypatch, capsys):
+    """A SIGINT that lands in click's own parsing, after the commands are imported and before
+    any command runs (click's standalone mode prints "Aborted!" and exits 1 there), is one
+    line and exit 130 like every other interrupt."""
+    from estim.cli import entry, launch
+
+    def interrupted_while_parsing(*args, **kwargs):
+        launch._on_interrupt(signal.SIGINT, None)       # what the real SIGINT runs
+
+    monkeypatch.setattr(entry.main, "make_context", interrupted_while_parsing)
+    monkeypatch.setattr(sys, "argv", ["estim", "list"])
+    previous = signal.getsignal(signal.SIGINT)
+    try:
+        with pytest.raises(SystemExit) as stop:
+            launch.main()
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        launch.INTERRUPTED[0] = False
+    assert stop.value.code == 130       # (click first ends the terminal's ^C line)
+    assert capsys.readouterr().err.strip().splitlines() == ["error: interrupted"]
+
+
+@pytest.mark.parametrize("argv, code, last", [
+    (["--version"], 0, None), (["nosuch"], 2, "Error: No such command 'nosuch'."),
+    (["run"], 2, "Error: Missing argument 'CONFIGS...'.")])
+def test_the_console_script_maps_clicks_outcomes_as_click_would(argv, code, last):
+    result = subprocess.run([sys.executable, "-c", "from estim.cli import launch; launch.main()",
+                             *argv], cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert result.returncode == code, result.stderr
+    if last:
+        assert result.stderr.startswith("Usage: ") and "Traceback" not in result.stderr
+        assert result.stderr.strip().splitlines()[-1] == last, result.stderr
+    else:
+        assert result.stdout.startswith("estim, version ")
+
+
+def test_a_closed_output_pipe_is_a_quiet_exit_1():
+    run = subprocess.Popen([sys.executable, "-c", "from estim.cli import launch; launch.main()",
+                            "list"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    run.stdout.close()                  # the reader went away, as `estim list | head -0`
+    err = run.stderr.read().decode()
+    assert run.wait(timeout=60) == 1, err
+    assert [line for line in err.splitlines() if not line.startswith("project ")] == []
+
+
 def test_a_valid_override_longer_than_a_file_name_is_an_override():
     values = ",".join(str(f) for f in range(1000, 1500, 10))
     override = f"input.frequencies_hz=[{values}]"
