@@ -26,8 +26,10 @@ they never judge (``tests/test_analyses.py`` checks that every claims table come
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from fractions import Fraction
 
 import numpy as np
 
@@ -83,13 +85,23 @@ def sign_interval_rank(n: int, level: float = LEVEL) -> int:
     """The largest ``k`` with ``P(Binomial(n, 1/2) <= k - 1) <= (1 - level) / 2``: the
     interval ``[d_(k), d_(n-k+1)]`` covers the median with probability at least ``level``.
     0 when no such interval exists (``n < 6`` at 95 %)."""
-    from scipy import stats
-
-    tail = (1.0 - level) / 2.0
-    k = 0
-    while k + 1 <= n // 2 + 1 and stats.binom.cdf(k, n, 0.5) <= tail:
+    tail = Fraction((1.0 - level) / 2.0)
+    k, below = 0, 1                          # below: 2^n P(Binomial(n, 1/2) <= k), exact
+    while k + 1 <= n // 2 + 1 and Fraction(below, 2**n) <= tail:
         k += 1
+        below += math.comb(n, k)
     return k
+
+
+def t_quantile(n: int, level: float = LEVEL) -> float:
+    """The two-sided ``level`` quantile of Student's t with ``n - 1`` degrees of freedom
+    (``inf`` for one run): ``stdtrit``, the computation of ``scipy.stats.t.ppf`` (tested
+    equal), without importing scipy.stats."""
+    if n < 2:
+        return float("inf")
+    from scipy import special
+
+    return float(special.stdtrit(n - 1, 0.5 + level / 2))
 
 
 def _verdict(low: float, high: float) -> str:
@@ -140,9 +152,7 @@ def judge(better: Losses, worse: Losses, level: float = LEVEL, exact: bool = Fal
         d = b - w
         mean = float(np.mean(d))
         se = float(np.std(d, ddof=1) / np.sqrt(n)) if n > 1 else float("nan")
-        from scipy import stats
-
-        q = float(stats.t.ppf(0.5 + level / 2, n - 1)) if n > 1 else float("inf")
+        q = t_quantile(n, level)
         low, high = mean - q * se, mean + q * se
         mw = np.mean(w)
         with np.errstate(divide="ignore", invalid="ignore"):

@@ -80,6 +80,22 @@ def test_too_few_runs_with_a_divergence_are_undecided():
     assert claims.sign_interval_rank(5) == 0 and claims.sign_interval_rank(6) == 1
 
 
+def test_the_sign_rank_and_the_t_quantile_match_scipy_stats():
+    """The sign interval's rank is computed exactly (integer binomial sums) and the t
+    quantile with scipy.special.stdtrit, scipy.stats.t.ppf's own computation: the same
+    ranks and quantiles as scipy.stats for every number of runs up to 400."""
+    from scipy import stats
+
+    for level in (0.9, 0.95, 0.99):
+        for n in range(1, 401):
+            tail, k = (1 - level) / 2, 0
+            while k + 1 <= n // 2 + 1 and stats.binom.cdf(k, n, 0.5) <= tail:
+                k += 1
+            assert claims.sign_interval_rank(n, level) == k, (n, level)
+            expected = float(stats.t.ppf(0.5 + level / 2, n - 1)) if n > 1 else float("inf")
+            assert claims.t_quantile(n, level) == expected, (n, level)
+
+
 def test_a_deterministic_value_is_judged_exactly_with_a_rounding_tie():
     def exact(a, b):
         return claims.judge(Losses([a]), Losses([b]), exact=True)

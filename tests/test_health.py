@@ -54,6 +54,17 @@ def test_band_is_the_chi_square_quantile_of_the_run_average():
     assert (lo, hi) == pytest.approx((3.05, 5.07), abs=0.01)   # the audit's [3.05, 5.07]
 
 
+def test_the_chi_square_functions_are_scipy_stats_own_computation_bit_for_bit():
+    """health computes chi-square quantiles and tails with scipy.special (a run need not
+    import scipy.stats, 0.3 s); the stored bands and p-values stay what scipy.stats gives."""
+    for dof in (1, 4, 10, 120, 4000, 30000):
+        for p in (0.0025, 0.025, 0.05, 0.5, 0.975, 0.9975):
+            assert health.chi2_ppf(p, dof) == float(stats.chi2.ppf(p, dof))
+    x = np.concatenate([np.linspace(-1.0, 200.0, 2001), [np.nan, np.inf, -np.inf, 0.0]])
+    for lag in (1, 5, 10):
+        assert np.array_equal(health.chi2_sf(x, lag), stats.chi2.sf(x, lag), equal_nan=True)
+
+
 def test_ljung_box_p_values_are_uniform_for_white_noise_and_small_for_ar1():
     rng = np.random.default_rng(3)
     p = health.ljung_box(rng.normal(size=(400, 300)), lag=10)
