@@ -543,9 +543,17 @@ def test_read_only_folder_is_found_before_any_work(tmp_path):
         out.chmod(0o755)
 
 
+def interruptible() -> None:
+    """A child's SIGINT back at its default. A job a non-interactive shell starts in the
+    background ignores SIGINT, its children inherit that, and Python then keeps ignoring it:
+    a Ctrl-C test run so would see the command finish (exit 0) instead of stop."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def estim(*args, cwd):
     return subprocess.Popen([sys.executable, "-m", "estim.cli.main", *args], cwd=cwd,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=interruptible)
 
 
 def test_killed_run_leaves_the_folder_all_old_or_all_new(tmp_path):
@@ -827,7 +835,7 @@ def test_ctrl_c_while_python_imports_is_one_line_and_exit_130(delay):
              "sys.stderr.write('in\\n'); sys.stderr.flush(); launch.main()")
     launch = [sys.executable, "-c", child, "validate", "configs/mosfet_saturation.yaml"]
     run = subprocess.Popen(launch, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                           text=True)
+                           text=True, preexec_fn=interruptible)
     assert run.stderr.readline() == "in\n"
     time.sleep(delay + 0.005)               # main's first line installs the handler
     run.send_signal(signal.SIGINT)
