@@ -10,6 +10,7 @@ import pytest
 import yaml
 from click.testing import CliRunner
 from test_cli import fake_project, tiny_config
+from test_hostile import interruptible
 
 from estim import scheduler
 from estim.analyses import ANALYSES
@@ -145,8 +146,7 @@ def test_ctrl_c_during_a_shared_reproduce_is_one_line_exit_130_and_stops_the_wor
     out = tmp_path / "out"
     run = subprocess.Popen([sys.executable, "-m", "estim.cli.main", "reproduce", "--jobs", "2",
                             "--out", str(out)], cwd=root, stdout=subprocess.PIPE,
-                           stderr=subprocess.PIPE, text=True,      # SIGINT at its default:
-                           preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+                           stderr=subprocess.PIPE, text=True, preexec_fn=interruptible)
     assert run.stderr.readline().strip().endswith(f"results in {out}/")
     assert "work units" in run.stderr.readline()       # the computation has started
     time.sleep(1.0)
