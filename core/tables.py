@@ -146,11 +146,44 @@ def number(value) -> str:
     return str(value)
 
 
+def text_blocks(columns: list[list[str]], width: int = TEXT_WIDTH) -> str:
+    """Columns of cell strings (each headed by its name) as text: right-justified, one space
+    apart, wrapped into blocks of at most ``width`` characters, a block that continues ending
+    its lines in `` \\``. The layout of pandas' ``to_string(index=False, line_width=width)``
+    for string cells, without its cut of cells over 50 characters; written out because
+    pandas' formatter took half of ``estim table rmse``'s time on 3,000 rows."""
+    fixed = []
+    for column in columns:
+        w = max(map(len, column))
+        fixed.append([cell.rjust(w) for cell in column])
+    widths = [len(column[0]) for column in fixed]
+    ends, used = [], 0
+    for i, w in enumerate(widths):
+        used += w + 1
+        if i > 0 and used + (1 if i == len(widths) - 1 else 2) > width:
+            ends.append(i)
+            used = w + 1
+    ends.append(len(widths))
+    rows, blocks, start = len(fixed[0]), [], 0
+    for k, end in enumerate(ends):
+        block = fixed[start:end]
+        if len(ends) > 1:
+            block = [*block, [" \\"] + ["  "] * (rows - 1) if k < len(ends) - 1
+                     else [" "] * rows]
+        lines = [" ".join(cells[:-1]) + " " + cells[-1] if len(cells) > 1 else cells[0]
+                 for cells in zip(*block, strict=True)]
+        blocks.append("\n".join(lines))
+        start = end
+    return "\n\n".join(blocks)
+
+
 def render(df: pd.DataFrame, fmt: str) -> str:
     """Text (wrapped at :data:`TEXT_WIDTH`), CSV, Markdown or LaTeX (booktabs, escaped)
     rendering of a table."""
     if fmt == "csv":
         return df.to_csv(index=False)
+    if fmt == "text" and len(df) and len(df.columns):
+        return text_blocks([[str(name), *map(number, df[name].tolist())] for name in df.columns])
     cells = df.astype(object).map(number) if len(df) else df.astype(object)
     if fmt == "markdown":
         align = ["right" if df[c].dtype.kind in "iuf" else "left" for c in df.columns]

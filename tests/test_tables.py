@@ -80,3 +80,21 @@ def test_render_latex_markdown_and_text_are_fit_for_a_paper():
     assert md.splitlines()[1].startswith("|---") or "--:" in md.splitlines()[1]
     assert tables.latex_escape("a<b>c|d") == r"a\textless{}b\textgreater{}c\textbar{}d"
     assert tables.number(np.float32("nan")) == "--" and tables.number(np.float32(2.5)) == "2.5"
+
+
+def test_text_layout_is_pandas_to_string_without_its_cut_of_long_cells():
+    import pandas as pd
+
+    from estim import tables
+
+    rng = np.random.default_rng(3)
+    for columns in (1, 3, 9, 14, 30):
+        df = pd.DataFrame({f"c{i}" + "x" * int(rng.integers(0, 15)): rng.normal(size=7) * 10.0**i
+                           for i in range(columns)})
+        df["label"] = [f"estimator {k}" for k in range(7)]
+        expected = df.astype(object).map(tables.number).to_string(
+            index=False, line_width=tables.TEXT_WIDTH)
+        assert tables.render(df, "text") == expected
+    long = "strip Kalman, model from the clean image, on line, wide strips"
+    text = tables.render(pd.DataFrame({"estimator": [long, "EKF"], "rmse": [0.1, 0.2]}), "text")
+    assert long in text and "..." not in text
