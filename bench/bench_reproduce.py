@@ -8,8 +8,9 @@ baseline, then on this checkout, so drift in the machine's load hits both alike.
 ``--quick`` run of each config comes first on each side and is not counted: it loads (or
 compiles) numba's kernels into that checkout's cache. CPU-seconds are the child processes'
 user + system time (``resource.RUSAGE_CHILDREN``). The last column says whether this
-checkout's tables equal the stored ``results/`` byte for byte (a benchmark that changed a
-table has changed a result, not only a speed).
+checkout's tables equal the stored ``results/`` byte for byte, or else within the config's
+declared tolerances, as ``estim check`` judges (another machine's arithmetic moves the last
+bits; a benchmark that changed a table beyond them has changed a result, not only a speed).
 
 The baseline runs from a folder of symbolic links that lays its ``core/``, ``cli/``,
 ``configs/`` and ``circuits/`` out as the package ``estim`` (as pyproject.toml maps them),
@@ -96,12 +97,26 @@ def cpu_run(args: list[str], env: dict, cwd: Path) -> tuple[float, float, int]:
     return cpu, wall, out.returncode
 
 
-def same_tables(new: Path, stored: Path) -> bool:
-    """Every CSV of ``stored`` is in ``new`` with the same bytes (kronecker_burden's
-    timing.csv and slopes.csv excepted: they hold wall-clock times)."""
+def tables_verdict(new: Path, stored: Path, config: str) -> str:
+    """``identical``: every CSV of ``stored`` is in ``new`` with the same bytes
+    (kronecker_burden's timing.csv and slopes.csv excepted: they hold wall-clock times);
+    ``within tolerances``: not, but every cell passes the config's ``check.tolerances`` (the
+    rule of ``estim check``, which another machine's arithmetic needs); else ``DIFFER``."""
     csvs = [p for p in stored.glob("*.csv") if p.name not in ("timing.csv", "slopes.csv")]
-    return bool(csvs) and all((new / p.name).is_file()
-                              and (new / p.name).read_bytes() == p.read_bytes() for p in csvs)
+    if not csvs or not all((new / p.name).is_file() for p in csvs):
+        return "DIFFER"
+    if all((new / p.name).read_bytes() == p.read_bytes() for p in csvs):
+        return "identical"
+    from estim import api, io
+    from estim.analyses import ANALYSES
+
+    exp = api.experiment(ROOT / config)
+    tol, specs = exp.spec["check"]["tolerances"], ANALYSES[exp.analysis].TABLES
+    for p in csvs:
+        if io.compare_tables(io.read_table(p, specs.get(p.stem)), io.read_table(new / p.name),
+                             tol):
+            return "DIFFER"
+    return "within tolerances"
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -136,10 +151,11 @@ def main(argv: list[str] | None = None) -> None:
                 total[side] += c
                 wall[side] = w
             name = Path(config).stem
-            same = same_tables(scratch / "out-this" / name, ROOT / "results" / name)
+            verdict = tables_verdict(scratch / "out-this" / name, ROOT / "results" / name,
+                                     config)
             print(f"{name:<28}{cpu['baseline']:>11.1f}{cpu['this']:>9.1f}"
-                  f"{cpu['this'] / cpu['baseline']:>8.2f}{wall['this']:>9.1f}  "
-                  f"{'identical' if same else 'DIFFER'}", flush=True)
+                  f"{cpu['this'] / cpu['baseline']:>8.2f}{wall['this']:>9.1f}  {verdict}",
+                  flush=True)
         print(f"{'total':<28}{total['baseline']:>11.1f}{total['this']:>9.1f}"
               f"{total['this'] / total['baseline']:>8.2f}")
 
