@@ -59,23 +59,25 @@ def _solve(M, b):
 solve = jit(_solve)
 
 
-def _radau_step(kind, P, x, u, h, newton_tol, max_newton, A, E, mu, work, Js, M, fresh):
-    """One Radau IIA step of size ``h`` from ``x``: the new state, whether Newton converged
-    to a finite error estimate, and the embedded error estimate. ``work``, ``Js`` and ``M``
-    are scratch arrays of shapes ``(9, n)``, ``(4, n, n)`` and ``(3n, 3n)``; ``work[6]`` and
-    ``Js[3]`` hold the drift and Jacobian at ``x``, evaluated here when ``fresh`` (not for a
-    retry from the same ``x`` and ``u`` after a rejected step, whose values they still hold).
-    The first Newton iteration starts from ``Z = 0``, where every stage sits at ``x``: it
-    takes the values at ``x`` instead of evaluating them three times more."""
+def _radau_step(kind, P, x, u, h, newton_tol, max_newton, A, E, mu, work, Js, M, L, fresh):
+    """One Radau IIA step of size ``h`` from ``x``: whether Newton converged to a finite
+    error estimate. The new state is left in ``work[2]`` (the last stage's ``Z`` plus ``x``)
+    and the embedded error estimate in ``work[9]``. ``work``, ``Js``, ``M`` and ``L`` are
+    scratch arrays of shapes ``(11, 3n)``, ``(4, n, n)``, ``(3n, 3n)`` and ``(n, n)``, so a
+    step allocates nothing; ``work[6]`` and ``Js[3]`` hold the drift and Jacobian at ``x``,
+    evaluated here when ``fresh`` (not for a retry from the same ``x`` and ``u`` after a
+    rejected step, whose values they still hold). The first Newton iteration starts from
+    ``Z = 0``, where every stage sits at ``x``: it takes the values at ``x`` instead of
+    evaluating them three times more."""
     n = x.shape[0]
-    Z = work[0:3]
-    F = work[3:6]
-    f0, X, G3 = work[6], work[7], work[8]
+    Z = work[0:3, :n]
+    F = work[3:6, :n]
+    f0, X, G3, error = work[6, :n], work[7, :n], work[8, :n], work[9, :n]
+    G = work[10]
     Z[:] = 0.0
     J0 = Js[3]
     if fresh:
         evaluate(kind, x, u, P, f0, J0)
-    G = np.empty(3 * n)
     done = False
     for iteration in range(max_newton):
         for i in range(3):
@@ -86,14 +88,14 @@ def _radau_step(kind, P, x, u, h, newton_tol, max_newton, A, E, mu, work, Js, M,
             for a in range(n):
                 X[a] = x[a] + Z[i, a]
             evaluate(kind, X, u, P, F[i], Js[i])
-        finite = True
+        check = 0.0             # stays 0 while every entry is finite (inf * 0 and nan * 0 are nan)
         for i in range(3):
             for a in range(n):
                 g = Z[i, a]
                 for j in range(3):
                     g -= h * A[i, j] * F[j, a]
                 G[i * n + a] = -g
-                finite &= np.isfinite(g)
+                check += g * 0.0
                 for j in range(3):
                     c = h * A[i, j]
                     for b in range(n):
@@ -101,27 +103,29 @@ def _radau_step(kind, P, x, u, h, newton_tol, max_newton, A, E, mu, work, Js, M,
                         if i == j and a == b:
                             m += 1.0
                         M[i * n + a, j * n + b] = m
-                        finite &= np.isfinite(m)
-        if not finite:
+                        check += m * 0.0
+        if check != 0.0:
             break
         solve(M, G)
-        dZ = G
         size = 0.0
         bad = False
         for q in range(3 * n):
-            if not np.isfinite(dZ[q]):
+            if not np.isfinite(G[q]):
                 bad = True
         if bad:
             break
+        biggest = 0.0
         for i in range(3):
             for a in range(n):
-                Z[i, a] += dZ[i * n + a]
-                size = max(size, abs(dZ[i * n + a]))
-        scale = 1.0 + np.max(np.abs(Z))
+                Z[i, a] += G[i * n + a]
+                size = max(size, abs(G[i * n + a]))
+        for i in range(3):
+            for a in range(n):
+                biggest = max(biggest, abs(Z[i, a]))
+        scale = 1.0 + biggest
         if size <= newton_tol * scale:
             done = True
             break
-    L = np.empty((n, n))
     ok = True
     for a in range(n):
         ze = 0.0
@@ -133,12 +137,17 @@ def _radau_step(kind, P, x, u, h, newton_tol, max_newton, A, E, mu, work, Js, M,
             L[a, b] = -J0[a, b]
             ok &= np.isfinite(L[a, b])
         L[a, a] += mu / h
-    error = np.full(n, np.nan)
     if ok:
-        error[:] = G3
+        for a in range(n):
+            error[a] = G3[a]
         solve(L, error)
-    new = x + Z[2]
-    return new, done and np.all(np.isfinite(error)), error
+    else:
+        error[:] = np.nan
+    finite_error = True
+    for a in range(n):
+        finite_error &= np.isfinite(error[a])
+        Z[2, a] += x[a]
+    return done and finite_error
 
 
 radau_step = jit(_radau_step)
@@ -149,24 +158,31 @@ def _integrate(kind, P, x0, u, dt, rtol, atol, newton_tol, max_newton, max_itera
     runs, steps, _ = u.shape
     n = x0.shape[1]
     out = np.empty((runs, steps, n))
-    work = np.empty((9, n))
+    work = np.empty((11, 3 * n))
     Js = np.empty((4, n, n))
     M = np.empty((3 * n, 3 * n))
+    L = np.empty((n, n))
+    x = np.empty(n)
+    new = work[2, :n]
+    error = work[9, :n]
     for r in range(runs):
-        x = x0[r].copy()
+        x[:] = x0[r]
         h = dt / 4
         iterations = 0
         for k in range(steps):
             uk = u[r, k]
-            t = 0.0 if np.all(np.isfinite(x)) else dt
+            finite_x = True
+            for a in range(n):
+                finite_x &= np.isfinite(x[a])
+            t = 0.0 if finite_x else dt
             fresh = True
             while t < dt * (1 - 1e-12):
                 iterations += 1
                 if iterations > max_iterations:
                     return out, TOO_MANY_STEPS, r, k
                 hh = min(h, dt - t)
-                new, ok, error = radau_step(kind, P, x, uk, hh, newton_tol, max_newton,
-                                            A, E, mu, work, Js, M, fresh)
+                ok = radau_step(kind, P, x, uk, hh, newton_tol, max_newton,
+                                A, E, mu, work, Js, M, L, fresh)
                 acc = 0.0
                 for a in range(n):
                     scale = atol + rtol * max(abs(x[a]), abs(new[a]))
@@ -176,7 +192,7 @@ def _integrate(kind, P, x0, u, dt, rtol, atol, newton_tol, max_newton, max_itera
                 accept = ok and err <= 1.0
                 fresh = accept
                 if accept:
-                    x = new
+                    x[:] = new
                     t += hh
                 if ok:
                     factor = min(max(0.9 * max(err, 1e-10) ** (-0.25), 0.2), 10.0)
@@ -190,7 +206,7 @@ def _integrate(kind, P, x0, u, dt, rtol, atol, newton_tol, max_newton, max_itera
                 if not h >= dt * 1e-14:
                     if not nan_on_failure:
                         return out, STEP_UNDERFLOW, r, k
-                    x = np.full(n, np.nan)
+                    x[:] = np.nan
                     t = dt
                     h = dt / 4
             out[r, k] = x
