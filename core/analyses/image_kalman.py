@@ -207,7 +207,7 @@ def tiny(spec: dict) -> dict:
     spec["images"] = spec["images"][:1]
     spec["figures"]["image"] = spec["images"][0]
     spec["monte_carlo"]["runs"] = 1
-    spec["crop"] = min(QUICK_CROP, spec["crop"] or QUICK_CROP)
+    spec["crop"] = min(QUICK_CROP, spec.get("crop") or QUICK_CROP)
     spec["figures"]["row"] = min(spec["figures"]["row"], spec["crop"])
     spec["figures"]["pixels"] = min(spec["figures"]["pixels"], spec["crop"])
     return spec
