@@ -62,8 +62,8 @@ solve = jit(_solve)
 def _radau_step(kind, P, x, u, h, newton_tol, max_newton, A, E, mu, work, Js, M, L, fresh):
     """One Radau IIA step of size ``h`` from ``x``: whether Newton converged to a finite
     error estimate. The new state is left in ``work[2]`` (the last stage's ``Z`` plus ``x``)
-    and the embedded error estimate in ``work[9]``. ``work``, ``Js``, ``M`` and ``L`` are
-    scratch arrays of shapes ``(11, 3n)``, ``(4, n, n)``, ``(3n, 3n)`` and ``(n, n)``, so a
+    and the embedded error estimate in ``work[8]``. ``work``, ``Js``, ``M`` and ``L`` are
+    scratch arrays of shapes ``(10, 3n)``, ``(4, n, n)``, ``(3n, 3n)`` and ``(n, n)``, so a
     step allocates nothing; ``work[6]`` and ``Js[3]`` hold the drift and Jacobian at ``x``,
     evaluated here when ``fresh`` (not for a retry from the same ``x`` and ``u`` after a
     rejected step, whose values they still hold). The first Newton iteration starts from
@@ -72,8 +72,8 @@ def _radau_step(kind, P, x, u, h, newton_tol, max_newton, A, E, mu, work, Js, M,
     n = x.shape[0]
     Z = work[0:3, :n]
     F = work[3:6, :n]
-    f0, X, G3, error = work[6, :n], work[7, :n], work[8, :n], work[9, :n]
-    G = work[10]
+    f0, X, error = work[6, :n], work[7, :n], work[8, :n]
+    G = work[9]
     Z[:] = 0.0
     J0 = Js[3]
     if fresh:
@@ -107,20 +107,18 @@ def _radau_step(kind, P, x, u, h, newton_tol, max_newton, A, E, mu, work, Js, M,
         if check != 0.0:
             break
         solve(M, G)
-        size = 0.0
         bad = False
         for q in range(3 * n):
             if not np.isfinite(G[q]):
                 bad = True
         if bad:
             break
+        size = 0.0
         biggest = 0.0
         for i in range(3):
             for a in range(n):
                 Z[i, a] += G[i * n + a]
                 size = max(size, abs(G[i * n + a]))
-        for i in range(3):
-            for a in range(n):
                 biggest = max(biggest, abs(Z[i, a]))
         scale = 1.0 + biggest
         if size <= newton_tol * scale:
@@ -131,15 +129,13 @@ def _radau_step(kind, P, x, u, h, newton_tol, max_newton, A, E, mu, work, Js, M,
         ze = 0.0
         for j in range(3):
             ze += E[j] * Z[j, a]
-        G3[a] = f0[a] + ze / h
-        ok &= np.isfinite(G3[a])
+        error[a] = f0[a] + ze / h
+        ok &= np.isfinite(error[a])
         for b in range(n):
             L[a, b] = -J0[a, b]
             ok &= np.isfinite(L[a, b])
         L[a, a] += mu / h
     if ok:
-        for a in range(n):
-            error[a] = G3[a]
         solve(L, error)
     else:
         error[:] = np.nan
@@ -158,13 +154,13 @@ def _integrate(kind, P, x0, u, dt, rtol, atol, newton_tol, max_newton, max_itera
     runs, steps, _ = u.shape
     n = x0.shape[1]
     out = np.empty((runs, steps, n))
-    work = np.empty((11, 3 * n))
+    work = np.empty((10, 3 * n))
     Js = np.empty((4, n, n))
     M = np.empty((3 * n, 3 * n))
     L = np.empty((n, n))
     x = np.empty(n)
     new = work[2, :n]
-    error = work[9, :n]
+    error = work[8, :n]
     for r in range(runs):
         x[:] = x0[r]
         h = dt / 4
