@@ -202,7 +202,14 @@ def parse_data(data: dict, source: str, default_name: str,
     (``estim list`` reads titles, not plans)."""
     data = copy.deepcopy(data)
     sweep = data.pop("sweep", None) if isinstance(data, dict) else None
-    load_plugins(data.get("plugins") if isinstance(data, dict) else None, source)
+    plugins = load_plugins(data.get("plugins") if isinstance(data, dict) else None, source)
+    with registry.plugin_scope(plugins):
+        return _parse_checked(data, sweep, source, default_name, max_work, plan)
+
+
+def _parse_checked(data: dict, sweep: Any, source: str, default_name: str, max_work: int,
+                   plan: bool) -> Experiment:
+    """:func:`parse_data` once the config's plugins are loaded: only theirs are visible."""
     spice.resolve_model_block(data, source)
     analysis = data.get("analysis") or "estimation"
     validate(analysis, text(ANALYSES), source, "analysis")
@@ -258,13 +265,14 @@ def _wrong_analysis(exc: ConfigErrors, data: dict, analysis: str,
 MAX_PLUGIN_BYTES = 1 << 20
 
 
-def load_plugins(plugins: Any, source: str) -> None:
+def load_plugins(plugins: Any, source: str) -> list[str]:
     """Import the config's ``plugins`` (Python files, relative to the config's folder) so the
-    models and estimators they define register themselves before the config is validated. A
-    file that is missing, not a regular ``.py`` file of at most 1 MiB, or fails to import is
-    a ``ConfigError`` naming it."""
+    models and estimators they define register themselves before the config is validated;
+    their module names (:func:`estim.registry.plugin_scope`). A file that is missing, not a
+    regular ``.py`` file of at most 1 MiB, or fails to import is a ``ConfigError`` naming
+    it."""
     if plugins is None:
-        return
+        return []
     validate(plugins, COMMON["plugins"][0], source, "plugins")
     base = Path(source).parent if source else Path.cwd()
     paths = []
@@ -281,13 +289,15 @@ def load_plugins(plugins: Any, source: str) -> None:
         if info.st_size > MAX_PLUGIN_BYTES:
             raise ConfigError(source, where, f"{name!r} is larger than 1 MiB")
         paths.append((where, path))
+    names = []
     for where, path in paths:
         try:
-            registry.load_plugins([path])
+            names += registry.load_plugins([path])
         except Exception as exc:  # noqa: BLE001 - the user's code: any failure is theirs
             first = (str(exc).strip().splitlines() or [type(exc).__name__])[0][:200]
             raise ConfigError(source, where, f"importing {path.name} failed: "
                               f"{type(exc).__name__}: {first}") from None
+    return names
 
 
 MAX_SWEEP_CELLS = 10_000

@@ -19,13 +19,37 @@ import importlib
 import importlib.util
 import pkgutil
 import sys
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
+from contextlib import contextmanager
+from contextvars import ContextVar
 from pathlib import Path
 
 NOT_REGISTERED = ("base",)
+"""Modules of the model and estimator packages that hold no registered class."""
 PLUGIN_PREFIX = "estim_plugin_"
 """Modules imported from a config's ``plugins:`` are named with this prefix."""
-"""Modules of the model and estimator packages that hold no registered class."""
+
+_SCOPE: ContextVar[frozenset[str] | None] = ContextVar("estim_plugin_scope", default=None)
+"""Inside :func:`plugin_scope`: the plugin modules whose classes are visible."""
+
+
+@contextmanager
+def plugin_scope(modules: Iterable[str]) -> Iterator[None]:
+    """Within the block, a class a plugin registered is visible only if its module is one of
+    ``modules`` (the config's own ``plugins:``, as :func:`load_plugins` names them), so a
+    config never validates against a plugin another config of the same process loaded.
+    Outside any scope (``import estim`` in a notebook) every registered class is visible."""
+    token = _SCOPE.set(frozenset(modules))
+    try:
+        yield
+    finally:
+        _SCOPE.reset(token)
+
+
+def _visible(cls: type) -> bool:
+    scope = _SCOPE.get()
+    return scope is None or not cls.__module__.startswith(PLUGIN_PREFIX) \
+        or cls.__module__ in scope
 
 
 class Registry(Mapping):
@@ -61,32 +85,45 @@ class Registry(Mapping):
         if name not in self._classes and isinstance(name, str) and name in self._builtin():
             importlib.import_module(f"{self.package}.{name}")
         try:
-            return self._classes[name]
+            cls = self._classes[name]
         except (KeyError, TypeError):
             raise KeyError(name) from None
+        if not _visible(cls):
+            raise KeyError(name)
+        return cls
+
+    def _names(self) -> set[str]:
+        return set(self._builtin()) | {name for name, cls in self._classes.items()
+                                       if _visible(cls)}
 
     def __contains__(self, name: object) -> bool:
-        return isinstance(name, str) and (name in self._classes or name in self._builtin())
+        if not isinstance(name, str):
+            return False
+        cls = self._classes.get(name)
+        return (cls is not None and _visible(cls)) or name in self._builtin()
 
     def __iter__(self) -> Iterator[str]:
-        return iter(sorted(set(self._builtin()) | set(self._classes)))
+        return iter(sorted(self._names()))
 
     def __len__(self) -> int:
-        return len(set(self._builtin()) | set(self._classes))
+        return len(self._names())
 
 
 MODELS = Registry("estim.models", "model")
 ESTIMATORS = Registry("estim.estimators", "estimator")
 
 
-def load_plugins(paths: list[Path]) -> None:
+def load_plugins(paths: list[Path]) -> list[str]:
     """Import each Python file of ``paths`` once per content (by its resolved path and its
     bytes: an edited file is imported again), so the models and estimators it defines
-    register themselves. Whatever the import raises propagates."""
+    register themselves; the modules' names (for :func:`plugin_scope`). Whatever the import
+    raises propagates."""
+    names = []
     for path in paths:
         path = Path(path).resolve()
         digest = hashlib.sha256(str(path).encode() + b"\0" + path.read_bytes())
         module = PLUGIN_PREFIX + digest.hexdigest()[:16]
+        names.append(module)
         if module in sys.modules:
             continue
         spec = importlib.util.spec_from_file_location(module, path)
@@ -99,3 +136,4 @@ def load_plugins(paths: list[Path]) -> None:
         except BaseException:
             del sys.modules[module]
             raise
+    return names

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+import yaml
 from click.testing import CliRunner
 
 from estim.cli.main import main
@@ -82,6 +83,27 @@ def test_the_guides_iterated_ekf_is_the_ekf_for_a_linear_output(tmp_path):
         iekf = registry.ESTIMATORS["iekf"](Q=1e-6, R=4e-4, P0=1e-4, iterations=iterations)
         b = iekf.run(model, z, u, 5e-4, x0=x0)
         np.testing.assert_allclose(b.y_hat, a.y_hat, rtol=1e-12, atol=1e-14)
+
+
+def test_a_plugin_is_seen_only_by_the_config_that_loads_it(tmp_path):
+    """Validating the guide's config first (which loads its plugins into this process) does
+    not make their names valid for another config: the second file fails exactly as it does
+    alone, and the estimator list it is told of leaves the plugin's out."""
+    config = guide_files(tmp_path)
+    spec = yaml.safe_load(config.read_text())
+    del spec["plugins"]
+    spec["name"] = "no_plugins"
+    other = tmp_path / "sub" / "no_plugins.yaml"
+    other.parent.mkdir()
+    other.write_text(yaml.safe_dump(spec))
+    alone = CliRunner().invoke(main, ["validate", str(other)])
+    both = CliRunner().invoke(main, ["validate", str(config), str(other)])
+    assert alone.exit_code == both.exit_code == 2, both.output
+    assert f"{other}: model.name: " in both.output
+    assert alone.output.splitlines()[-1] == both.output.splitlines()[-1]
+    from estim import registry
+
+    assert "iekf" in registry.ESTIMATORS                 # visible outside any config
 
 
 def test_a_bad_plugin_is_one_line_naming_the_config_and_the_file(tmp_path):
