@@ -106,60 +106,70 @@ def transforms(Yp: np.ndarray, innovation: np.ndarray, R: np.ndarray, taper: np.
 def _analyse_cubes(X, points, W, means):  # pragma: no cover - compiled
     """In place: for each cube, gather its anomalies ``(m, fields x points)``, multiply by
     the cube's transform, add the mean back; the analysed ensemble mean of every row at
-    the cube's points into ``means (fields, n^3)``."""
+    the cube's points into ``means (fields, n^3)``. Member by member (one member's field is
+    contiguous; the members of one point lie a field apart), each column's sums still taken
+    over the members in order."""
     m, fields = X.shape[0], X.shape[1]
     cubes, size = points.shape
-    A = np.empty((m, fields * size))
-    mean = np.empty(fields * size)
+    width = fields * size
+    A = np.empty((m, width))
+    mean = np.empty(width)
+    total = np.empty(width)
     for c in range(cubes):
-        for f in range(fields):
-            for q in range(size):
-                col = f * size + q
-                p = points[c, q]
-                s = 0.0
-                for i in range(m):
-                    A[i, col] = X[i, f, p]
-                    s += X[i, f, p]
-                mean[col] = s / m
+        mean[:] = 0.0
         for i in range(m):
-            for col in range(fields * size):
+            for f in range(fields):
+                for q in range(size):
+                    x = X[i, f, points[c, q]]
+                    A[i, f * size + q] = x
+                    mean[f * size + q] += x
+        for col in range(width):
+            mean[col] = mean[col] / m
+        for i in range(m):
+            for col in range(width):
                 A[i, col] -= mean[col]
         B = np.dot(np.ascontiguousarray(W[c]), A)
+        total[:] = 0.0
+        for i in range(m):
+            for f in range(fields):
+                for q in range(size):
+                    col = f * size + q
+                    v = mean[col] + B[i, col]
+                    X[i, f, points[c, q]] = v
+                    total[col] += v
         for f in range(fields):
             for q in range(size):
-                col = f * size + q
-                p = points[c, q]
-                s = 0.0
-                for i in range(m):
-                    v = mean[col] + B[i, col]
-                    X[i, f, p] = v
-                    s += v
-                means[f, p] = s / m
+                means[f, points[c, q]] = total[f * size + q] / m
 
 
 @jit
 def _analysed_mean(first, points, W, out):  # pragma: no cover - compiled
     """The analysed ensemble mean of the row ``first (m, n^3)`` at the cubes' points:
-    ``mean + (1^T W / m) A``, a vector, not a matrix, product."""
+    ``mean + (1^T W / m) A``, a vector, not a matrix, product (member by member, as in
+    :func:`_analyse_cubes`)."""
     m = first.shape[0]
     cubes, size = points.shape
     wbar = np.empty(m)
+    x = np.empty(size)
+    acc = np.empty(size)
     for c in range(cubes):
         for j in range(m):
             s = 0.0
             for i in range(m):
                 s += W[c, i, j]
             wbar[j] = s / m
+        x[:] = 0.0
+        for i in range(m):
+            for q in range(size):
+                x[q] += first[i, points[c, q]]
         for q in range(size):
-            p = points[c, q]
-            s = 0.0
-            for i in range(m):
-                s += first[i, p]
-            x = s / m
-            s = 0.0
-            for j in range(m):
-                s += wbar[j] * (first[j, p] - x)
-            out[p] = x + s
+            x[q] = x[q] / m
+        acc[:] = 0.0
+        for j in range(m):
+            for q in range(size):
+                acc[q] += wbar[j] * (first[j, points[c, q]] - x[q])
+        for q in range(size):
+            out[points[c, q]] = x[q] + acc[q]
 
 
 def analyse(X: np.ndarray, local: Localisation, W: np.ndarray) -> np.ndarray:
