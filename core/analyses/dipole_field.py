@@ -314,20 +314,34 @@ def _observe(grid: grids.Grid, states_before: np.ndarray, states_after: np.ndarr
     dA = (states_after[:, 1, 0] - states_before[:, 0, 0]) / (2 * dt)
     if ops is None:
         return fdtd.fields_from(grid, A, Phi, dA, mu0)
-    grad_s, curl_z, pick = ops
-    E = -(grad_s @ Phi.T).T.reshape(A.shape[0], 3, -1)
+    (grad_s, grad_points), (curl_z, curl_points), pick = ops
+    E = -(grad_s @ Phi[:, grad_points].T).T.reshape(A.shape[0], 3, -1)
     E[:, 2] -= dA[:, pick]
-    H = (curl_z @ A.T).T.reshape(A.shape[0], 3, -1) / mu0
+    H = (curl_z @ A[:, curl_points].T).T.reshape(A.shape[0], 3, -1) / mu0
     return {"E": E, "H": H}
+
+
+def _on_points_used(op) -> tuple:
+    """A sparse operator cut to the grid points it reads, and those points: applied to the
+    members' values at them, it sums the same products in the same order, without copying
+    every member's whole field into a transposed array first (scipy does, for a strided
+    right-hand side)."""
+    op = op.tocsr()
+    op.sort_indices()
+    points = np.unique(op.indices)
+    cut = op[:, points]
+    cut.sort_indices()
+    return cut, points
 
 
 def sensor_operators(grid: grids.Grid, sensors: np.ndarray) -> tuple:
     """The rows of the gradient at the sensors, the columns of the curl that act on ``A_z``
-    (the only component of ``A``) at the sensors' rows, and the sensors themselves."""
+    (the only component of ``A``) at the sensors' rows, each cut to the points it reads
+    (:func:`_on_points_used`), and the sensors themselves."""
     rows = np.concatenate([sensors + k * grid.size for k in range(3)])
     grad_s = grid.grad[rows]
     curl_z = grid.curl[rows][:, 2 * grid.size:3 * grid.size]
-    return grad_s.tocsr(), curl_z.tocsr(), sensors
+    return _on_points_used(grad_s), _on_points_used(curl_z), sensors
 
 
 @dataclass
