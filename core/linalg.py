@@ -67,13 +67,11 @@ def expm(A: np.ndarray) -> np.ndarray:
         s[big] = np.ceil(np.log2(norm[big] / _THETA_13)).astype(int)
     rows = np.flatnonzero(finite)
     if rows.size:
+        rows = rows[np.argsort(-s[rows], kind="stable")]      # most squarings first
         s = s[rows]
         R = _pade13(flat[rows] / (2.0 ** s)[:, None, None])
-        for k in range(int(s.max())):
-            more = np.flatnonzero(s > k)
-            if more.size == s.size:
-                R = R @ R
-            else:
-                R[more] = R[more] @ R[more]
+        squared = np.count_nonzero(s[None, :] > np.arange(s[0])[:, None], axis=1)
+        for count in squared.tolist():                         # the first count need more
+            R[:count] = R[:count] @ R[:count]
         out[rows] = R
     return out.reshape(shape)
