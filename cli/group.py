@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import sys
 import warnings
+from collections.abc import Callable, Iterable
 
 import click
 
@@ -61,3 +62,33 @@ class Group(click.Group):
             first = (str(exc).strip().splitlines() or [""])[0]
             click.echo(f"error: {bounded(f'{type(exc).__name__}: {first}')}", err=True)
             sys.exit(3)
+
+
+class LazyChoice(click.Choice):
+    """A ``click.Choice`` whose choices are listed at first use (a command line naming the
+    command, its help), not when the CLI module is imported: listing the table metrics
+    imports every analysis, which the other commands do not need."""
+
+    def __init__(self, choices: Callable[[], Iterable[str]], case_sensitive: bool = True):
+        self._source = choices
+        self._listed: tuple[str, ...] | None = None
+        self.case_sensitive = case_sensitive
+
+    @property
+    def choices(self) -> tuple[str, ...]:  # type: ignore[override]
+        if self._listed is None:
+            self._listed = tuple(self._source())
+        return self._listed
+
+
+class LazyEpilog(click.Command):
+    """A command whose help epilog is made when its help is shown (``epilog_from``)."""
+
+    def __init__(self, *args, epilog_from: Callable[[], str], **kwargs):
+        super().__init__(*args, **kwargs)
+        self._epilog_from = epilog_from
+
+    def format_epilog(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        if self.epilog is None:
+            self.epilog = self._epilog_from()
+        super().format_epilog(ctx, formatter)

@@ -18,7 +18,7 @@ import estim
 from estim import checking, config, io, runner, tables, tuning
 from estim.analyses import ANALYSES
 from estim.cli import arguments, project
-from estim.cli.group import Group, fail
+from estim.cli.group import Group, LazyChoice, LazyEpilog, fail
 from estim.cli.output import (
     on_shared_pool,
     progress_lines,
@@ -203,8 +203,8 @@ def reproduce(out, jobs, max_work, everything, quiet) -> None:
         run_and_report(exp, folder, jobs, quiet)
 
 
-@main.command(epilog=arguments.metrics_help())
-@click.argument("metric", type=click.Choice(sorted(runner.table_specs())))
+@main.command(cls=LazyEpilog, epilog_from=arguments.metrics_help)
+@click.argument("metric", type=LazyChoice(lambda: sorted(runner.table_specs())))
 @click.option("--results", type=click.Path(file_okay=False, path_type=Path),
               help="Folder of stored results [default: the project's results/].")
 @click.option("--format", "fmt", type=click.Choice(["text", "csv", "markdown", "latex"]),

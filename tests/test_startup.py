@@ -26,16 +26,36 @@ heavy = {heavy!r}
 loaded = [m for m in heavy if m in sys.modules
           and not isinstance(sys.modules[m], importlib.util._LazyModule)]
 print("LOADED=" + json.dumps(loaded))
+print("ANALYSES=" + json.dumps(sorted(
+    m for m in sys.modules if m.startswith("estim.analyses.")
+    and not isinstance(sys.modules[m], importlib.util._LazyModule))))
 """
+
+
+def probe(*args: str) -> dict[str, set[str]]:
+    """``{"LOADED": heavy modules, "ANALYSES": analysis modules}`` that ``estim ARGS``
+    loads, run in a fresh interpreter."""
+    out = subprocess.run([sys.executable, "-c", _PROBE.format(heavy=HEAVY), *args],
+                         capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert out.returncode == 0, out.stderr
+    found = {}
+    for key in ("LOADED", "ANALYSES"):
+        line = next(x for x in out.stdout.splitlines() if x.startswith(key + "="))
+        found[key] = set(json.loads(line[len(key) + 1:]))
+    return found
 
 
 def loaded_by(*args: str) -> set[str]:
     """The heavy modules that ``estim ARGS`` loads, run in a fresh interpreter."""
-    out = subprocess.run([sys.executable, "-c", _PROBE.format(heavy=HEAVY), *args],
-                         capture_output=True, text=True, cwd=ROOT, timeout=300)
-    assert out.returncode == 0, out.stderr
-    line = next(x for x in out.stdout.splitlines() if x.startswith("LOADED="))
-    return set(json.loads(line[len("LOADED="):]))
+    return probe(*args)["LOADED"]
+
+
+def test_validate_loads_only_the_analysis_its_config_names():
+    """The table command's metric list (which imports every analysis) is made when that
+    command runs or shows its help, not when the CLI is imported."""
+    loaded = probe("validate", "configs/dipole_field.yaml")["ANALYSES"]
+    assert loaded == {"estim.analyses.base", "estim.analyses.dipole",
+                      "estim.analyses.dipole_field"}, loaded
 
 
 def test_validate_of_every_default_config_draws_nothing_and_reads_no_tables():
