@@ -6,6 +6,7 @@ module joins and renders whatever it is given.
 
 from __future__ import annotations
 
+import math
 from importlib import resources
 
 import numpy as np
@@ -131,18 +132,19 @@ def latex_escape(text_: str) -> str:
 def number(value) -> str:
     """A cell: integers (a frequency, a count) in full, other numbers to 4 significant
     digits, missing values as ``--``."""
-    if value is None or value is pd.NA or (isinstance(value, (float, np.floating))
-                                            and np.isnan(value)):
+    if isinstance(value, (float, np.floating)):
+        v = float(value)
+        if math.isnan(v):
+            return "--"
+        if math.isfinite(v) and v == round(v) and abs(v) < 1e9:
+            return str(int(round(v)))
+        return f"{v:.4g}"
+    if value is None or value is pd.NA:
         return "--"
     if isinstance(value, (bool, np.bool_)):
         return str(bool(value))
     if isinstance(value, (int, np.integer)):
         return str(int(value))
-    if isinstance(value, (float, np.floating)):
-        v = float(value)
-        if np.isfinite(v) and v == round(v) and abs(v) < 1e9:
-            return str(int(round(v)))
-        return f"{v:.4g}"
     return str(value)
 
 
