@@ -67,11 +67,16 @@ def expm(A: np.ndarray) -> np.ndarray:
         s[big] = np.ceil(np.log2(norm[big] / _THETA_13)).astype(int)
     rows = np.flatnonzero(finite)
     if rows.size:
-        rows = rows[np.argsort(-s[rows], kind="stable")]      # most squarings first
         s = s[rows]
+        if s.min() != s.max():
+            order = np.argsort(-s, kind="stable")             # most squarings first
+            rows, s = rows[order], s[order]
         R = _pade13(flat[rows] / (2.0 ** s)[:, None, None])
         squared = np.count_nonzero(s[None, :] > np.arange(s[0])[:, None], axis=1)
         for count in squared.tolist():                         # the first count need more
-            R[:count] = R[:count] @ R[:count]
+            if count == len(R):
+                R = R @ R
+            else:
+                R[:count] = R[:count] @ R[:count]
         out[rows] = R
     return out.reshape(shape)
