@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -61,7 +62,7 @@ def side(checkout: Path, scratch: Path, name: str) -> tuple[list[str], dict, Pat
 
 def wall(command: list[str], env: dict, out: Path, cwd: Path) -> float:
     """Wall seconds of one run of the row into the empty folder ``out``."""
-    subprocess.run(["rm", "-rf", str(out)], check=True)
+    shutil.rmtree(out, ignore_errors=True)
     start = time.perf_counter()
     done = subprocess.run([*command, "--out", str(out)], env=env, cwd=cwd,
                           capture_output=True, text=True)
