@@ -212,13 +212,21 @@ def _integrate(kind, P, x0, u, dt, rtol, atol, newton_tol, max_newton, max_itera
 integrate_runs = jit(_integrate)
 
 
+def _plain(a) -> np.ndarray:
+    """``a`` as a C-contiguous, writable float64 array (a copy only where it is not one)."""
+    a = np.ascontiguousarray(a, dtype=np.float64)
+    return a if a.flags.writeable else a.copy()
+
+
 def integrate(kind: int, P: np.ndarray, x0: np.ndarray, u: np.ndarray, dt: float, rtol: float,
               atol: float, newton_tol: float, max_newton: int, max_iterations: int,
               nan_on_failure: bool) -> tuple[np.ndarray, int, int, int]:
     """``(states (runs, steps, n), status, run, interval)``: ``status`` is ``OK``,
-    ``STEP_UNDERFLOW`` or ``TOO_MANY_STEPS`` (with the run and interval where it happened)."""
-    return integrate_runs(int(kind), np.ascontiguousarray(P, dtype=np.float64),
-                          np.ascontiguousarray(x0, dtype=np.float64),
-                          np.ascontiguousarray(u, dtype=np.float64), float(dt), float(rtol),
+    ``STEP_UNDERFLOW`` or ``TOO_MANY_STEPS`` (with the run and interval where it happened).
+
+    Every array reaches numba C-contiguous and writable: numba types a read-only array
+    apart, and one such input (the perturbation analysis' read-only source) compiled the
+    whole integrator a second time on a fresh install (about 19 s), with the same code."""
+    return integrate_runs(int(kind), _plain(P), _plain(x0), _plain(u), float(dt), float(rtol),
                           float(atol), float(newton_tol), int(max_newton), int(max_iterations),
                           bool(nan_on_failure), RADAU_A, RADAU_E, RADAU_MU)

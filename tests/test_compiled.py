@@ -94,3 +94,23 @@ def test_expanded_system_kernel_equals_its_drift():
         f_ref, J_ref = system.f_and_jacobian(x, u)
         np.testing.assert_allclose(f, f_ref, rtol=1e-12, atol=1e-12 * np.abs(f_ref).max())
         np.testing.assert_allclose(J, J_ref, rtol=1e-12, atol=1e-12 * np.abs(J_ref).max())
+
+
+def test_a_read_only_input_reuses_the_integrator_compiled_for_a_writable_one():
+    """numba compiles a function anew for every array type it meets, and a read-only array
+    is a type of its own; ``compiled.integrate`` hands it writable arrays, so a read-only
+    input (the perturbation analysis' source) costs no second compile of the integrator,
+    and gives the same states."""
+    model = MosfetEKV(drain_current="ekv")
+    u, dt = batch(model, runs=2, steps=5)
+    x0 = model.operating_point()
+    kind, P = model.kernel()
+    writable = compiled.integrate(kind, P, x0[None].repeat(2, 0), u, dt, 1e-6, 1e-8, 1e-12,
+                                  20, 10_000, False)
+    before = list(compiled.integrate_runs.signatures)
+    frozen = u.copy()
+    frozen.setflags(write=False)
+    read_only = compiled.integrate(kind, P, x0[None].repeat(2, 0), frozen, dt, 1e-6, 1e-8,
+                                   1e-12, 20, 10_000, False)
+    assert list(compiled.integrate_runs.signatures) == before
+    np.testing.assert_array_equal(read_only[0], writable[0])
