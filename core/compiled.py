@@ -87,7 +87,7 @@ def _radau_step(kind, P, x, u, h, newton_tol, max_newton, A, E, mu, work, Js, M,
                 continue
             for a in range(n):
                 X[a] = x[a] + Z[i, a]
-            evaluate(kind, X, u, P, F[i], Js[i])
+            evaluate(kind, X, u, P, work[3 + i, :n], Js[i])     # F[i], typed as f0 is
         check = 0.0             # stays 0 while every entry is finite (inf * 0 and nan * 0 are nan)
         for i in range(3):
             for a in range(n):
@@ -171,7 +171,8 @@ def _integrate(kind, P, x0, u, dt, rtol, atol, newton_tol, max_newton, max_itera
             for a in range(n):
                 finite_x &= np.isfinite(x[a])
             t = 0.0 if finite_x else dt
-            fresh = True
+            fresh = t <= dt     # always True here, but not a literal, which numba would type
+                                # apart and compile radau_step for a second time
             while t < dt * (1 - 1e-12):
                 iterations += 1
                 if iterations > max_iterations:
