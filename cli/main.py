@@ -377,7 +377,7 @@ def validate(configs, max_work) -> None:
               show_default=True, help="The HTML file to write.")
 @click.option("--full", is_flag=True,
               help="Embed every figure as stored and draw every row (by default PNGs are "
-                   "shrunk to 640 pixels, as 64-colour PNG or WebP, and tables to 40 rows: "
+                   "shrunk to 560 pixels, as 64-colour PNG or WebP, and tables to 40 rows: "
                    "the page of the shipped results stays under 3 MB).")
 def report_page(results, out, full) -> None:
     """Write one self-contained HTML page of the stored results: a summary of every
@@ -442,13 +442,24 @@ def summary(results, readme, check_only) -> None:
 @click.argument("name", required=False)
 @click.option("--out", type=_NamedPath(dir_okay=False, path_type=Path),
               help="Write the listing to this Markdown file (docs/settings.md) instead.")
-def settings(name, out) -> None:
+@click.option("--plugin", "plugins", multiple=True, type=_NamedPath(dir_okay=False,
+              path_type=Path), help="A Python file of models or estimators, as a config's "
+              "plugins: names it, imported first so that its classes are listed too "
+              "(repeatable).")
+def settings(name, out, plugins) -> None:
     """List every setting a config can give, from its one declaration: each analysis' keys,
     each estimator's settings and each model's parameters, with type, default, unit and
-    meaning (NAME: one analysis, estimator or model)."""
+    meaning (NAME: one analysis, estimator or model, built in or from a --plugin file)."""
     from estim import settings as declared
+    from estim.errors import ConfigError
 
-    text_ = declared.listing(name)
+    modules = []
+    for plugin in plugins:
+        try:
+            modules += config.load_plugins([plugin.name], str(plugin))
+        except ConfigError as exc:
+            fail(f"--plugin {plugin}: {exc.message}")
+    text_ = declared.listing(name, modules)
     if name is not None and text_.strip() == "":
         fail(f"no analysis, estimator or model named {name!r}")
     if out is None:

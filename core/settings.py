@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+from collections.abc import Iterable
 from dataclasses import dataclass, field, fields
 from typing import Any
 
@@ -232,10 +233,12 @@ def _model_rows(cls: type) -> list[tuple[str, str, str, str]]:
              f.metadata.get("doc", "")) for f in fields(cls.Params)]
 
 
-def listing(only: str | None = None) -> str:
+def listing(only: str | None = None, plugins: Iterable[str] = ()) -> str:
     """Every setting a config can give, as Markdown: each analysis' keys (the common ones
-    first), each of estim's estimators' settings and each of its models' parameters (not a
-    plugin's), from their declarations. ``only``: one analysis, estimator or model."""
+    first), each of estim's estimators' settings and each of its models' parameters, from
+    their declarations; a plugin's only if its module is one of ``plugins`` (the names
+    :func:`estim.config.load_plugins` returns). ``only``: one analysis, estimator or model."""
+    chosen = frozenset(plugins)
     from estim import registry
     from estim.analyses import ANALYSES
     from estim.config import Common
@@ -252,10 +255,12 @@ def listing(only: str | None = None) -> str:
             parts.append(f"### analysis `{name}`\n\n{doc}\n\n"
                          + _table(describe(Common) + describe(module.Config), head))
     def own(cls: type) -> bool:
-        """estim's declarations: not a plugin's, not a model built from a config's netlist
-        (its parameters are the netlist's .param lines, not settings)."""
-        return not (cls.__module__.startswith(registry.PLUGIN_PREFIX)
-                    or getattr(cls, "from_netlist", False))
+        """estim's declarations and the chosen plugins': not another plugin's, not a model
+        built from a config's netlist (its parameters are the netlist's .param lines, not
+        settings)."""
+        if cls.__module__.startswith(registry.PLUGIN_PREFIX):
+            return cls.__module__ in chosen
+        return not getattr(cls, "from_netlist", False)
 
     for name in registry.ESTIMATORS:
         if only in (None, name) and own(registry.ESTIMATORS[name]):

@@ -45,12 +45,21 @@ def guide_files(tmp_path: Path) -> Path:
     return config
 
 
-def test_the_guide_runs_as_written(tmp_path):
+def test_the_guide_runs_as_written(tmp_path, monkeypatch):
+    """Steps 3 and 4 as the README gives them, in the folder of the guide's files."""
     config = guide_files(tmp_path)
-    out = tmp_path / "out"
-    result = CliRunner().invoke(main, ["run", str(config), "--out", str(out), "--quiet"])
+    monkeypatch.chdir(tmp_path)
+    for name, plugin, key in (("diode_rc", "diode_rc.py", "I_S"),
+                              ("iekf", "iterated_ekf.py", "iterations")):
+        listed = CliRunner().invoke(main, ["settings", name, "--plugin", plugin])
+        assert listed.exit_code == 0, listed.output
+        assert f"`{name}`" in listed.output and f"| {key} |" in listed.output
+    result = CliRunner().invoke(main, ["run", config.name])
     assert result.exit_code == 0, result.output
-    folder = out / "rectifier"
+    folder = tmp_path / "scratch" / "rectifier"
+    printed = CliRunner().invoke(main, ["table", "rmse", "--results", "scratch"])
+    assert printed.exit_code == 0, printed.output
+    assert "IEKF" in printed.output
     rmse = pd.read_csv(folder / "rmse.csv")
     assert {"EKF", "IEKF", "measurement"} <= set(rmse["estimator"])
     assert np.isfinite(rmse["rmse"]).all()
