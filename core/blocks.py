@@ -70,7 +70,7 @@ class Model(Settings):
     name: str = setting(REQUIRED, text(registry.MODELS), doc="a registered model")
     variant: str | None = setting(None, text(), doc="one of the model's variants; none: its "
                                                     "first (the completed circuit)")
-    params: dict = setting({}, mapping, doc="parameter overrides (estim settings --models "
+    params: dict = setting({}, mapping, doc="parameter overrides (estim settings MODEL "
                                             "lists them; for a netlist its .param values)")
     netlist: str | None = setting(None, text(), doc="a SPICE netlist file instead of a "
                                                     "registered model (beside the config, in "
@@ -131,7 +131,7 @@ class EstimatorEntry(Settings):
                                  doc="overrides of the model's parameters for this filter's "
                                      "own model")
     settings: dict = setting({}, mapping, doc="the estimator's settings (estim settings "
-                                              "--estimators lists them)")
+                                              "TYPE lists them)")
 
 
 VOLTS = number(minimum=-MAX_VOLTS, maximum=MAX_VOLTS)
