@@ -106,7 +106,7 @@ class Sensors(Settings):
 
 @settings_class
 class FilterSettings(Settings):
-    """The field filter: a local ETKF on the field with model error (D61)."""
+    """The field filter: a local ETKF on the field with model error (D60)."""
 
     members: int = setting(50, integer(3, 2000), doc="ensemble members")
     amplitude_spread: float = setting(0.3, number(positive=True, maximum=1e3),
@@ -419,7 +419,7 @@ def _levels(X: np.ndarray) -> np.ndarray:
 def _rows_of(before: np.ndarray, after: np.ndarray) -> np.ndarray:
     """The analysed state of one step: ``A(t - dt)`` from ``before``'s first level and the
     two levels of ``after`` (t, t + dt), ``(m, 5, points)``. ``dA/dt`` at ``t`` is formed
-    from this one analysis (D61: before, the first step mixed an un-analysed ``A(t - dt)``
+    from this one analysis (D60: before, the first step mixed an un-analysed ``A(t - dt)``
     with analysed levels)."""
     return np.concatenate([before[:, 0, 0][:, None], after[:, 0], after[:, 1]], axis=1)
 

@@ -1,4 +1,4 @@
-"""Model error of the leapfrog grid in the field filter's ensemble (D61).
+"""Model error of the leapfrog grid in the field filter's ensemble (D60).
 
 What the grid gets wrong is, locally, the amplitude and the phase of a wave of the known
 frequency: numerical dispersion delays it (0.195 rad at r = 1.5 on the axes at 8 points per
@@ -14,7 +14,7 @@ random fields (white noise smoothed by a Gaussian of ``length`` cells along each
 scaled to standard deviation ``size`` at every point): a relative amplitude error and a
 phase error in radians per step, the same for ``A_z`` and ``Phi`` at a point.
 
-``size`` is stated per step; its default (docs/deviations.md D61) comes from the truncation
+``size`` is stated per step; its default (docs/deviations.md D60) comes from the truncation
 error of the analytic potentials in the leapfrog: about 0.3 % of the local amplitude per
 step beyond r = 0.45 wavelengths.
 """

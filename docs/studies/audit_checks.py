@@ -52,8 +52,9 @@ def diverged_per_row(exp) -> list[int]:
         data = batch(exp, point)
         (_, est, model), = exp.plan.filters
         result = est.run(model, data["z"], data["u"], data["dt"], x0=data["x0"])
-        nis = health.nis(result.innovation, result.S)
-        out.append(int(health.diverged(result, nis, model.output_range()).sum()))
+        cfg = exp.spec["health"]                        # the tables' criterion (D37)
+        out.append(int(health.diverged(result, data["actual"], model.output_range(),
+                                       cfg["consecutive"], cfg["growth"]).sum()))
     return out
 
 
