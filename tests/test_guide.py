@@ -171,3 +171,26 @@ def test_your_own_circuit_runs_as_written(tmp_path, monkeypatch):
     checked = runner.invoke(main, ["spice", "rectifier_spice.yaml"])
     assert checked.exit_code == 0, checked.output
     assert "within their bars" in checked.output
+
+
+def test_settings_lists_a_plugin_only_when_named_and_names_a_bad_one(tmp_path, monkeypatch):
+    """``estim settings NAME --plugin FILE``: the plugin's classes are listed with the flag
+    and not without it (docs/settings.md stays estim's own); a file that cannot be read or
+    imported is one line naming the flag's file, exit 2."""
+    guide_files(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    named = CliRunner().invoke(main, ["settings", "iekf", "--plugin", "iterated_ekf.py"])
+    assert named.exit_code == 0 and "| iterations |" in named.output
+    assert "### estimator `iekf`" in CliRunner().invoke(
+        main, ["settings", "--plugin", "iterated_ekf.py"]).output
+    alone = CliRunner().invoke(main, ["settings", "iekf"])
+    assert alone.exit_code == 2 and "no analysis, estimator or model named 'iekf'" in alone.output
+    assert "`iekf`" not in CliRunner().invoke(main, ["settings"]).output
+    missing = CliRunner().invoke(main, ["settings", "iekf", "--plugin", "nothere.py"])
+    assert missing.exit_code == 2
+    assert "error: --plugin nothere.py: cannot read 'nothere.py'" in missing.output
+    (tmp_path / "broken.py").write_text("raise ValueError('boom')\n")
+    broken = CliRunner().invoke(main, ["settings", "iekf", "--plugin", "broken.py"])
+    assert broken.exit_code == 2
+    assert ("error: --plugin broken.py: importing broken.py failed: ValueError: boom"
+            in broken.output)
