@@ -10,8 +10,8 @@ before):
 * ``V``, ``I`` ``name n+ n- [DC] value | SIN(vo va f [td [theta [phase]]]) |
   PULSE(v1 v2 [td tr tf pw per]) | PWL(t1 v1 t2 v2 ...)``;
 * ``E``, ``G`` ``name n+ n- nc+ nc- value`` (voltage-controlled voltage and current
-  sources); ``F``, ``H`` ``name n+ n- vsource value`` are parsed and refused by the circuit
-  builder (:mod:`estim.spice.circuit`) with a message;
+  sources); ``F``, ``H`` ``name n+ n- vsource value`` (current-controlled current and
+  voltage sources, by the current of a voltage source: docs/deviations.md D76);
 * ``D name anode cathode model``, ``Q name c b e model``, ``M name d g s b model``;
 * ``X name nodes... subckt`` with ``.subckt name pins... [params: k=v ...]`` / ``.ends``,
   one level deep;
