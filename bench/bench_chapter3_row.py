@@ -47,8 +47,8 @@ def row_config(checkout: Path, into: Path) -> Path:
     return into
 
 
-def side(checkout: Path, scratch: Path, name: str) -> tuple[list[str], dict, Path]:
-    """The command prefix, environment and config that run the row on ``checkout``."""
+def side(checkout: Path, scratch: Path, name: str) -> tuple[list[str], dict]:
+    """The command and environment that run the row on ``checkout``."""
     env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
     if "from estim" in (checkout / "cli" / "main.py").read_text():
         env["PYTHONPATH"] = str(package_view(checkout, scratch / f"view-{name}"))
@@ -57,7 +57,7 @@ def side(checkout: Path, scratch: Path, name: str) -> tuple[list[str], dict, Pat
         env["PYTHONPATH"] = str(checkout)
         launch = OLD_LAUNCH
     config = row_config(checkout, scratch / f"row-{name}.yaml")
-    return [sys.executable, "-c", launch, "run", str(config), "--jobs", "1", "--quiet"], env, config
+    return [sys.executable, "-c", launch, "run", str(config), "--jobs", "1", "--quiet"], env
 
 
 def wall(command: list[str], env: dict, out: Path, cwd: Path) -> float:
@@ -80,11 +80,11 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     with checkouts(args.baseline, "estim-row-") as (scratch, trees):
         sides = {name: side(tree, scratch, name) for name, tree in trees.items()}
-        for name, (command, env, _) in sides.items():
+        for name, (command, env) in sides.items():
             wall(command, env, scratch / f"out-{name}", scratch)          # warm-up
         times: dict[str, list[float]] = {name: [] for name in sides}
         for _ in range(args.runs):
-            for name, (command, env, _) in sides.items():
+            for name, (command, env) in sides.items():
                 times[name].append(wall(command, env, scratch / f"out-{name}", scratch))
     base, this = times["baseline"], times["this"]
     print(f"one Chapter 3 row, {args.runs} runs per side, alternated (wall seconds)")

@@ -238,10 +238,11 @@ def listing(only: str | None = None, plugins: Iterable[str] = ()) -> str:
     first), each of estim's estimators' settings and each of its models' parameters, from
     their declarations; a plugin's only if its module is one of ``plugins`` (the names
     :func:`estim.config.load_plugins` returns). ``only``: one analysis, estimator or model."""
-    chosen = frozenset(plugins)
     from estim import registry
     from estim.analyses import ANALYSES
     from estim.config import Common
+
+    chosen = frozenset(plugins)
 
     def first(cls: type) -> str:
         paragraph = (cls.__doc__ or "").strip().split("\n\n")[0]
