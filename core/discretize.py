@@ -13,7 +13,8 @@ the state at the end of the interval and the state-transition Jacobian ``F_k``:
 ``radau``        the continuous-discrete EKF: the state is carried over the interval by the
                  stiff integrator of :mod:`estim.simulate` (accurate for strongly nonlinear
                  models, where one linearised step overshoots), ``F = exp(T J(x))`` at the
-                 interval's start (eq A.12). A run the integrator cannot carry becomes NaN.
+                 interval's start (the Jacobian ``F_{k-1}`` of Appendix A's EKF). A run
+                 the integrator cannot carry becomes NaN.
 """
 
 from __future__ import annotations

@@ -1,14 +1,14 @@
 """First-order perturbation (Volterra-like) analysis of a nonlinear circuit (thesis Chapter 2).
 
 About a DC operating point ``(x*, u*)`` write the circuit as its linear part plus
-``epsilon`` times its quadratic part (eqs 2.8-2.10, 2.52-2.55, 2.94-2.101, 2.143),
+``epsilon`` times its quadratic part (eqs 2.8-2.10, 2.52-2.55, 2.94-2.97, 2.143),
 
     dx/dt = A dx + B du + epsilon q(dx, du),     q(z) = 1/2 H[z, z],  z = [dx, du],
 
 with ``A = df/dx``, ``B = df/du`` and ``H`` the second derivatives of ``f`` at the operating
 point (``Model.hessian``). Expanding ``dx = x0 + epsilon x1`` and equating powers of
 ``epsilon`` gives the two linear systems the thesis solves by Laplace transform and
-cofactors (eqs 2.27, 2.34-2.41, 2.68-2.85, 2.102-2.136, 2.150-2.174):
+cofactors (eqs 2.27, 2.34-2.41, 2.68-2.85, 2.116-2.136, 2.156-2.174):
 
     x0' = A x0 + B du(t)                 (zeroth order, driven by the input)
     x1' = A x1 + q(x0, du(t))            (first order, driven by the quadratic terms on x0)

@@ -53,8 +53,9 @@ def test_small_signal_gain_matches_hand_formula():
 
 
 def test_printed_q_in_volts_keeps_the_output_gain_below_one():
-    """Table 3.5's Q = diag(0.01) is in the thesis' units (volts). Read as the variance of the
-    model's charge state q_L (C^2) it is 1e8 V^2 on the load capacitor: the first update's
+    """Table 3.5's Q = diag(0.01), printed without units, read as voltage variances (D36).
+    Read instead as the variance of the charge state q_L (C^2) it is 1e8 V^2 on the load
+    capacitor: the first update's
     gain on the output is 1 and the EKF returns the measurement. Mapped by the model's
     state scales (C_L for q_L) the gain stays well below 1."""
     from estim import discretize

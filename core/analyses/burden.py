@@ -137,7 +137,7 @@ QUOTES = (
 
 AS_WRITTEN = {
     # thesis row -> multiplications of the equation as the thesis writes it
-    1: "n_x**3 + 2*n_x**2 + n_x*p",          # eq 4.15's F1 x + F2 (x (x) x) + B u
+    1: "n_x**3 + 2*n_x**2 + n_x*p",          # eq 4.36's F1 x + F2 (x (x) x) + B u
     2: "4*n_x**3",                           # F P F^T + L Q L^T with a general n x n L
     3: "2*n_x**2*d + 2*n_x*d**2",            # P H^T formed twice, M = I, inverse not counted
     4: "2*n_x*d",                            # H x and K nu

@@ -682,9 +682,10 @@ def _slices(grid, phasors, dipole, times, traces) -> dict:
 
 
 class _EulerRun:
-    """The plain simulation with the thesis' forward Euler (eq 5.20) on ``(u, u')`` for
-    ``u = [A_z, Phi]``, nominal source, Mur faces not applied (Euler has no two-level
-    boundary of that kind); it grows without bound and is reported as it comes out."""
+    """The plain simulation with the thesis' forward Euler (``F ~ I + T F`` for eq 5.20's
+    system) on ``(u, u')`` for ``u = [A_z, Phi]``, nominal source, Mur faces not applied
+    (Euler has no two-level boundary of that kind); it grows without bound and is reported
+    as it comes out."""
 
     def __init__(self, sim: fdtd.Simulation, amplitude: complex) -> None:
         self.sim, self.amplitude = sim, np.array([amplitude])

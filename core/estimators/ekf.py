@@ -23,9 +23,9 @@ from estim.settings import setting, settings_class
 
 
 def thesis_to_state(M: np.ndarray, model) -> np.ndarray:
-    """A covariance given in the thesis' state units (volts) in the model's own units:
-    ``S M S`` with ``S = diag(model.state_scales)``, so a state that is a charge ``q = C v``
-    where the thesis has ``v`` gets ``C^2`` times the printed variance; for a model with a
+    """A covariance given as the thesis prints it, read in volts (D36), in the model's own
+    units: ``S M S`` with ``S = diag(model.state_scales)``, so a state that is a charge
+    ``q = C v`` gets ``C^2`` times the printed variance; for a model with a
     full map from the thesis' states (a netlist's ``thesis_states``, D77), ``T M T^T``."""
     T = getattr(model, "thesis_map", None)
     if T is not None:
@@ -45,8 +45,10 @@ class ExtendedKalmanFilter(GaussianFilter, name="ekf"):
                                       "interval (euler: the thesis' eqs 3.18-3.19)")
     substeps: int = setting(1, integer(1, 1000), doc="discretisation substeps per interval")
     noise_units: str = setting("thesis", text({"thesis", "state"}),
-                               doc="thesis: Q and P0 in the thesis' state units, mapped onto "
-                                   "the model's states (S Q S); state: as given")
+                               doc="thesis: Q and P0 as the thesis prints them, read as voltage "
+                                   "variances (a charge state's entry as its capacitor's "
+                                   "voltage, D36), mapped onto the model's states (S Q S); "
+                                   "state: as given, in the model's own units")
 
     def state_covariances(self, model) -> tuple[np.ndarray, np.ndarray]:
         """``Q`` and ``P0`` in the model's own state units (:func:`thesis_to_state`)."""

@@ -41,7 +41,7 @@ class KroneckerEKF(GaussianFilter, name="kronecker_ekf"):
     """EKF on eq 4.36 with additive ``Q`` and ``R`` (``L = M = I``)."""
 
     discretization: str = setting("exponential", text(kronecker.DISCRETIZATIONS),
-                                  doc="discretisation of the Kronecker form (euler: eq 4.45)")
+                                  doc="discretisation of the Kronecker form (euler: eqs 4.38-4.45)")
     order: int = setting(2, integer(1, 2), doc="1: linear terms only; 2: with x (x) x")
     jacobian: str = setting("full", text({"full", "printed"}),
                             doc="full: F1 + the quadratic terms' derivative; printed: F1 alone "

@@ -16,8 +16,8 @@ Per step, for every run at once:
   is updated in Joseph form with the statistically linearised ``H = P_xz^T P^-1`` (which is
   the model's ``C`` for a linear model, so the filter is then exactly the KF).
 
-Settings are the EKF's (``Q``, ``R`` and ``P0`` in the thesis' state units by default) plus
-``alpha``, ``beta`` and ``kappa``.
+Settings are the EKF's (``Q`` and ``P0`` by default as the thesis prints them, read as voltage
+variances: D36) plus ``alpha``, ``beta`` and ``kappa``.
 """
 
 from __future__ import annotations

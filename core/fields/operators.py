@@ -1,5 +1,6 @@
 """Sparse finite-difference operators on an N x N x N grid, built with Kronecker products
-(thesis eqs 5.13-5.20: the discrete Laplacian D0 of eq 5.19, and gradient and curl).
+(thesis eqs 5.14-5.19, the discrete Laplacian D0 of eq 5.19, and 5.24-5.29, the gradient and
+curl).
 
 A scalar field is a vector of ``N^3`` values in C order (``x`` slowest, ``z`` fastest: the
 value at ``(i, j, k)`` is entry ``(i N + j) N + k``); a vector field stacks its ``x``, ``y``

@@ -6,9 +6,10 @@ state ``(u, v = u')``, any linear operator ``L`` (a sparse Laplacian here).
               mode of ``L`` with eigenvalue ``-k^2`` neither grows nor decays while
               ``c T k <= 2``. For the 7-point Laplacian ``k^2 < 12 / Delta^2``, so every
               mode is stable up to ``c T / Delta = 1/sqrt(3) = 0.577``.
-``euler``     forward Euler on ``(u, v)`` (the thesis' ``F ~ I + T F``, eq 5.20): every mode
-              grows by ``sqrt(1 + (c T k)^2)`` per step, at any ``T`` (the row "plain
-              simulation (Euler, eq 5.20)" of ``dipole_field``, kept to show it).
+``euler``     forward Euler on ``(u, v)`` (the thesis' ``F ~ I + T F`` for eq 5.20's system,
+              unnumbered, §5.2): every mode grows by ``sqrt(1 + (c T k)^2)`` per step, at
+              any ``T`` (the row "plain simulation (Euler, eq 5.20)" of ``dipole_field``,
+              kept to show it).
 """
 
 from __future__ import annotations

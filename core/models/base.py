@@ -79,10 +79,11 @@ class Model:
 
     @property
     def state_scales(self) -> tuple[float, ...]:
-        """Each state in units of the thesis' state for it: ``x_model = scale * x_thesis``.
-        One for a voltage state; a model whose state is a charge ``q = C v`` where the thesis
-        uses ``v`` returns ``C`` there. Filters map covariances given in the thesis' units
-        with it (``S Q S``)."""
+        """Each state in units of the voltage a printed covariance entry is read as:
+        ``x_model = scale * x_thesis``. One for a voltage state; a model whose state is a
+        charge ``q = C v`` returns ``C`` there (the thesis prints its Q without units, read
+        as voltage variances: docs/deviations.md D36). Filters map covariances given in
+        these units with it (``S Q S``)."""
         return (1.0,) * self.n_states
 
     @property

@@ -121,8 +121,9 @@ class DiffAmpEbersMoll(Model, name="diffamp_em"):
 
     @property
     def state_scales(self) -> tuple[float, ...]:
-        """The thesis' state (eq 3.60) has the load capacitor's voltage ``v_L`` where this
-        model has its charge ``q_L = C_L v_L``."""
+        """The thesis' state (eq 3.60) has the load capacitor's charge ``q_L``, as this model
+        does; its printed ``Q`` is read as voltage variances, the ``q_L`` entry as that of
+        the capacitor's voltage ``v_L = q_L / C_L`` (docs/deviations.md D36)."""
         return (1.0, self.params.C_L, 1.0, 1.0)
 
     def _kernel_params(self) -> list[float]:

@@ -892,7 +892,7 @@ def _with_params(text: str, lines: list[str]) -> str:
 def _ics(p: dict) -> float:
     """The collector junction's saturation current: the ``.model``'s ``ics`` where given
     (``ics=0``: no collector junction, the base-emitter-diode law of eqs 2.48-2.51), else by
-    reciprocity ``alpha_f ies / alpha_r`` (eq 3.52)."""
+    reciprocity ``alpha_f ies / alpha_r`` (the thesis gives neither; docs/deviations.md D23)."""
     return p["alpha_f"] * p["ies"] / p["alpha_r"] if p.get("ics") is None else p["ics"]
 
 

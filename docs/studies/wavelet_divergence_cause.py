@@ -6,7 +6,7 @@ Run from the project folder: ``python docs/studies/wavelet_divergence_cause.py [
 reading x level x frequency) is simulated with the analysis' own seeds
 (:func:`estim.analyses.kronecker.simulate_point`), and its "LMS" and "LMS (least squares)"
 estimators are run on the inputs :func:`estim.analyses.kronecker.run_point` gives them and
-judged by :func:`estim.analyses.estimation.judge`; the per-cell divergence counts are checked
+judged by :func:`estim.pipeline.judge`; the per-cell divergence counts are checked
 against the stored ``results/kronecker_table_4_2/health.csv``. Over all runs it counts:
 
 * the runs where "LMS" diverges, and of those the runs whose identified linear part
@@ -29,8 +29,7 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 import pandas as pd
 
-from estim import config
-from estim.analyses import estimation
+from estim import config, pipeline
 from estim.analyses import kronecker as analysis
 from estim.estimators.base import Estimate, batch_input
 from estim.estimators.wavelet_lms import WaveletLMS, fundamental
@@ -74,7 +73,7 @@ def diverged_rebuild(exp, data: dict, est: WaveletLMS, model, z: np.ndarray, u: 
     out = est.measured_states(model).index(est.output_state(model))
     y_hat = states[..., out:out + 1]
     estimate = Estimate(y_hat=y_hat, innovation=z[..., out:out + 1] - y_hat, broken=broken)
-    return estimation.judge(exp, data, estimate, model)["diverged"]
+    return pipeline.judge(exp, data, estimate, model)["diverged"]
 
 
 def inputs(data: dict, model, seen: list[int]) -> tuple[np.ndarray, ...]:
@@ -95,7 +94,7 @@ def cell(args: tuple) -> dict:
     for label in (LMS, LS):
         est, model, seen = filters[label]
         given[label] = z, u, ub, y0 = inputs(data, model, seen)
-        flags[label] = estimation.judge(exp, data, est.run(model, z, u, data["dt"],
+        flags[label] = pipeline.judge(exp, data, est.run(model, z, u, data["dt"],
                                                             x0=data["x0"]), model)["diverged"]
         fits[label] = est.identify(z, ub, y0, data["dt"], fundamental(ub, data["dt"]))
     est, model, _ = filters[LMS]
