@@ -16,7 +16,7 @@ batches (seed 2019, 30 runs) and prints one line:
 
 from __future__ import annotations
 
-import copy
+import dataclasses
 
 import numpy as np
 import yaml
@@ -95,8 +95,7 @@ def amplifier_row_2() -> None:
     train = estimation.simulate_point(exp, point.frequency_hz, point.sigma, 30, train_rng)
 
     def evaluate(q, r):
-        trial = copy.copy(est)
-        trial.Q = list(q)
+        trial = dataclasses.replace(est, Q=list(q))
         out = trial.run(model, train["z"], train["u"], train["dt"], x0=train["x0"])
         return tuning.log_likelihood(out.innovation, out.S)
 
@@ -106,8 +105,7 @@ def amplifier_row_2() -> None:
                                                  2019, spawn_key=(2**33, point.index))))
     test = batch(exp, point)
     for label, q in (("thesis Q", [0.01] * 4), ("Q fitted on row 2", list(fit.q))):
-        trial = copy.copy(est)
-        trial.Q = q
+        trial = dataclasses.replace(est, Q=q)
         out = trial.run(model, test["z"], test["u"], test["dt"], x0=test["x0"])
         rmse = np.mean(metrics.rmse_per_run(test["actual"], out.y_hat))
         shown = ", ".join(f"{v:.3g}" for v in q)
