@@ -313,7 +313,8 @@ def compare_tables(stored: pd.DataFrame, new: pd.DataFrame,
     * ``binomial: k``: a count of runs out of ``n`` (the sum of the ``trials`` columns)
       within ``k sqrt(2 n p (1 - p))``, ``p`` the pooled fraction: for divergence counts.
 
-    NaN equals NaN and an infinity itself; with ``se``, a mean with no standard error on
+    NaN equals NaN and an infinity itself, and nothing else (no tolerance admits a finite
+    value for a stored infinity, or the reverse); with ``se``, a mean with no standard error on
     either side (fewer than two runs) is not compared. ``skip: reason`` leaves a column out
     (the CLI shows why). Non-numeric columns must match exactly. A change of shape is one
     difference.
@@ -338,7 +339,8 @@ def compare_tables(stored: pd.DataFrame, new: pd.DataFrame,
                     continue
                 if _too_few_runs(tol, stored, new, col, i):
                     continue
-                if not np.isnan(x - y) and _cell_tolerated(x, y, i, tol, stored, new, col):
+                finite = np.isfinite(x) and np.isfinite(y)     # |5 - inf| <= rtol inf holds
+                if finite and _cell_tolerated(x, y, i, tol, stored, new, col):
                     continue
                 diffs.append({"row": i, "column": col, "expected": y, "obtained": x,
                               "difference": x - y})

@@ -28,6 +28,16 @@ def test_compare_tables_uses_column_tolerances():
     assert [d["column"] for d in io.compare_tables(a, c, {})] == ["estimator"]
 
 
+def test_an_infinity_matches_only_itself_under_any_tolerance():
+    """A stored inf admits no finite value (|x - inf| <= rtol |inf| would), nor the reverse;
+    inf matches inf of its sign, NaN matches NaN."""
+    inf, nan = float("inf"), float("nan")
+    stored = pd.DataFrame({"rmse": [inf, 1.0, inf, -inf, nan], "rmse_se": [0.1] * 5})
+    new = pd.DataFrame({"rmse": [5.0, inf, inf, inf, nan], "rmse_se": [0.1] * 5})
+    tol = {"rmse": {"rtol": 1e-6, "atol": 1e-9, "se": 4.0}}
+    assert [d["row"] for d in io.compare_tables(stored, new, tol)] == [0, 1, 3]
+
+
 def test_statistical_tolerances():
     nan = float("nan")
     stored = pd.DataFrame({"rmse": [0.30, 0.30, nan], "rmse_se": [0.01, 0.01, nan],
