@@ -88,13 +88,14 @@ def resolve_model_block(data: dict, source: str) -> None:
                 raise ConfigError(source, f"model.{key}", "only with model.netlist (a "
                                   "registered model declares its own inputs and outputs)")
         return
-    if block.get("name") is not None:
+    netlist = block["netlist"]
+    if block.get("name") is not None and not (
+            isinstance(netlist, str) and block["name"] == f"netlist:{Path(netlist).stem}"):
         raise ConfigError(source, "model.name", "give either a registered model's name or a "
-                          "netlist, not both")
+                          "netlist, not both")      # (a resolved config carries the one it made)
     if block.get("hold") not in (None, "mean", "start", "end"):
         raise ConfigError(source, "model.hold", f"expected mean, start or end, got "
                           f"{block['hold']!r}")
-    netlist = block["netlist"]
     if not isinstance(netlist, str):
         raise ConfigError(source, "model.netlist", f"expected a file name, got {netlist!r}")
     path = find_netlist(netlist, source)
