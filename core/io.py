@@ -101,8 +101,14 @@ class ResultFolder:
 
     def __enter__(self) -> ResultFolder:
         ensure_writable(self.out)
+        if (self.final.exists() or self.final.is_symlink()) and not self.final.is_dir():
+            raise UsageError(f"{self.final} exists and is not a folder; move it away or give "
+                             "another --out")
         lock = self.out / f".{self.name}.lock"
-        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666 & ~_UMASK)
+        try:
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666 & ~_UMASK)
+        except OSError as exc:
+            raise UsageError(f"cannot open the lock file {lock} ({exc.strerror or exc})") from None
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:

@@ -56,3 +56,20 @@ def test_statistical_tolerances():
     assert io.compare_tables(zero, one, tol) == []
     assert [d["column"] for d in io.compare_tables(zero, one, {})] == ["runs", "diverged"]
     assert io.compare_tables(stored, new, {**tol, "rmse": {"skip": "why"}}) == []
+
+
+def test_a_file_where_the_result_folder_goes_is_refused_before_any_work(tmp_path):
+    """A run into ``--out`` whose ``<name>`` is a file used to swap the file away into a
+    hidden staging name after the work; it is refused on opening, and the file is kept."""
+    from estim.errors import UsageError
+
+    (tmp_path / "exp").write_text("mine\n")
+    with pytest.raises(UsageError, match="exists and is not a folder"):
+        with io.ResultFolder(tmp_path, "exp"):
+            pass
+    assert (tmp_path / "exp").read_text() == "mine\n"
+    (tmp_path / "other").mkdir()
+    (tmp_path / ".other.lock").mkdir()
+    with pytest.raises(UsageError, match="cannot open the lock file"):
+        with io.ResultFolder(tmp_path, "other"):
+            pass
