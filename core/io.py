@@ -439,10 +439,11 @@ def read_stored(path: Path, limit: int, what: str) -> bytes:
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
     except OSError as exc:
         raise UsageError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    info = os.fstat(fd)
+    if not stat.S_ISREG(info.st_mode):       # before fdopen, which refuses a folder itself
+        os.close(fd)
+        raise UsageError(f"{path}: not a regular file (a stored {what} must be one)")
     with os.fdopen(fd, "rb") as fh:
-        info = os.fstat(fd)
-        if not stat.S_ISREG(info.st_mode):
-            raise UsageError(f"{path}: not a regular file (a stored {what} must be one)")
         if info.st_size > limit:
             raise UsageError(f"{path}: larger than {limit >> 20} MiB, the limit of a stored "
                              f"{what}")

@@ -20,6 +20,7 @@ import re
 from dataclasses import dataclass, field
 
 from estim import lazy, tables
+from estim.errors import UsageError
 
 pd = lazy.load("pandas")
 
@@ -296,7 +297,11 @@ def page(title: str, sections: list[Section], full: bool = False) -> str:
                 skipped.append(name)
                 continue
             if kind == "image/png" and not full:
-                kind, data = shrink_png(data)
+                try:
+                    kind, data = shrink_png(data)
+                except (OSError, ValueError, SyntaxError):     # PIL's errors for junk
+                    raise UsageError(f"{s.name}/figures/{name} (under the results folder): "
+                                     "not a readable PNG image") from None
             encoded = base64.b64encode(data).decode("ascii")
             part.append(f'<figure><img alt="{html.escape(name)}" '
                         f'src="data:{kind};base64,{encoded}"><figcaption>{html.escape(name)}'

@@ -68,6 +68,9 @@ def with_reference(df: pd.DataFrame, spec: TableSpec,
     for table_id, part in view(df, spec).groupby("table_id", sort=False, dropna=False):
         part = part.copy()
         if isinstance(table_id, str) and table_id:
+            if not has_reference_table(table_id):
+                raise ReferenceJoinError(f"table_id {table_id[:20]!r}: no printed table of "
+                                         "that number is shipped with estim")
             part = _join_one(part, str(table_id), spec, named, allow_unmatched)
         for column in named.values():
             if column not in part:

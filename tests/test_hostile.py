@@ -710,7 +710,7 @@ def test_a_damaged_stored_table_is_named_and_exit_2(stored, kind, command):
     assert not (out / "page.html").exists()
 
 
-@pytest.mark.parametrize("kind", ["fifo", "huge", "deep"])
+@pytest.mark.parametrize("kind", ["fifo", "huge", "deep", "directory"])
 def test_a_damaged_stored_manifest_is_named_and_exit_2(stored, kind):
     _, out = stored
     target = out / "tiny" / "manifest.json"
@@ -930,3 +930,25 @@ def test_a_manifest_naming_its_analysis_by_a_list_is_named_not_a_crash(stored):
         result = _command(*args)
         assert result.returncode == 2, (args, result.stderr)
         assert "Traceback" not in result.stderr and len(result.stderr.splitlines()) == 1
+
+
+def test_a_junk_stored_figure_or_an_unknown_table_id_is_named_and_exit_2(stored):
+    """estim report on a PNG that is not an image, and estim table --thesis on a table whose
+    table_id names no printed table, each end in one line naming the file (they were exit 3
+    with PIL's or the package's own file name)."""
+    _, out = stored
+    figure = next((out / "tiny" / "figures").glob("*.png"))
+    figure.write_text("junk")
+    result = _command("report", "--results", str(out), "--out", str(out / "page.html"))
+    assert result.returncode == 2, result.stderr
+    assert f"tiny/figures/{figure.name}" in result.stderr and "Traceback" not in result.stderr
+    table = out / "tiny" / "rmse.csv"
+    lines = table.read_text().splitlines()
+    head = lines[0].split(",").index("table_id")
+    rows = [line.split(",") for line in lines[1:]]
+    for row in rows:
+        row[head] = "9.9"
+    table.write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
+    result = _command("table", "rmse", "--thesis", "--results", str(out))
+    assert result.returncode == 2, result.stderr
+    assert str(table) in result.stderr and "'9.9'" in result.stderr
