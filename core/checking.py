@@ -87,9 +87,17 @@ def check(exp: Experiment, stored_dir: Path, tmp: Path, jobs: int, say: Callable
                 differing += 1
         if not diffs:
             say(f"{exp.name}/{metric}.csv: {len(new)} rows match")
+    recorded = manifest.get("files") if isinstance(manifest.get("files"), dict) else {}
     for name in sorted(result.figures):
         stored_as = [stored_dir / "figures" / f"{name}.{fmt}" for fmt in ("png", "svg", "pdf")]
-        if not any(f.is_file() and f.stat().st_size > 0 for f in stored_as):
+        present = [f for f in stored_as if f.is_file() and f.stat().st_size > 0]
+        if not present:
             say(f"{exp.name}/figures/{name}.png: missing from the stored results")
             differing += 1
+        for f in present:
+            want = recorded.get(f"figures/{f.name}")
+            if want is not None and io.sha256(f) != want:
+                say(f"{exp.name}/figures/{f.name}: not the file its manifest records "
+                    "(sha256 differs: damaged or replaced)")
+                differing += 1
     return differing

@@ -638,6 +638,10 @@ def test_check_names_a_corrupt_stored_table(stored, damage, expected):
 
 def test_check_reports_missing_manifest_and_figure(stored):
     path, out = stored
+    (out / "tiny" / "figures" / "fig_3_5.png").write_bytes(b"not the figure")
+    result = CliRunner().invoke(main, ["check", str(path), "--results", str(out)])
+    assert result.exit_code == 1 and "figures/fig_3_5.png: not the file its manifest" \
+        in result.output
     (out / "tiny" / "figures" / "fig_3_4.png").unlink()
     result = CliRunner().invoke(main, ["check", str(path), "--results", str(out)])
     assert result.exit_code == 1 and "figures/fig_3_4.png: missing" in result.output
