@@ -295,6 +295,9 @@ def tune(config, label, new_label, runs, fit_r, out, max_work) -> None:
     if not hasattr(analysis, "training"):
         fail(f"{config}: analysis {exp.analysis!r} has no estimators to tune")
     out = out or Path(config).parent / "fitted" / f"{exp.name}.yaml"
+    if out.is_dir():
+        raise UsageError(f"--out {out}: a folder; name the overlay file to write")
+    io.ensure_writable(out.parent)                       # before the fit, not after it
     start = time.perf_counter()
     entry, fit = tuning.tune(exp, analysis.training, label, runs, fit_r)
     entry["label"] = new_label or f"{label} (fitted {'Q, R' if fit_r else 'Q'})"

@@ -370,6 +370,12 @@ def test_tune_writes_an_overlay_and_refuses_what_it_cannot_fit(tmp_path):
     perturbation = ROOT / "configs" / "mosfet_distortion.yaml"
     bad = runner.invoke(main, ["tune", str(perturbation), "--estimator", "EKF"])
     assert bad.exit_code == 2 and "no estimators to tune" in bad.output, bad.output
+    blocked = tmp_path / "blocked"
+    blocked.write_text("a file, not a folder")
+    bad = runner.invoke(main, ["tune", str(path), "--estimator", "EKF", "--runs", "2",
+                               "--out", str(blocked / "fit.yaml")])
+    assert bad.exit_code == 2 and "cannot write to" in bad.output, bad.output
+    assert "Innovation" not in bad.output                 # refused before fitting
     out = tmp_path / "fit.yaml"
     good = runner.invoke(main, ["tune", str(path), "--estimator", "EKF", "--runs", "2",
                                 "--out", str(out)])
