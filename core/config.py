@@ -426,16 +426,21 @@ def _shown(keys: list[str]) -> str:
 
 
 def _refuse_swept(data: dict, overrides: dict[str, Any], source: str) -> None:
-    sweep = data.get("sweep") if isinstance(data, dict) else None
+    sweep = overrides.get("sweep")                  # a sweep given on the command line too
+    if not isinstance(sweep, dict):
+        sweep = data.get("sweep") if isinstance(data, dict) else None
     if not isinstance(sweep, dict):
         return
     for key in sweep:
         swept = key_path(str(key))
         for given in overrides:
+            if given == "sweep":
+                continue
             if given == swept or swept.startswith(given + ".") or given.startswith(swept + "."):
-                raise ConfigError(source, given, f"the config's sweep block sets {key} in "
-                                  "every cell; give the whole block instead, e.g. "
-                                  f"'sweep={{{key}: [...]}}'")
+                where = "sweep=... given here" if "sweep" in overrides else \
+                    "the config's sweep block"
+                raise ConfigError(source, given, f"{where} sets {key} in every cell; give "
+                                  f"the whole block instead, e.g. 'sweep={{{key}: [...]}}'")
 
 
 def apply_overrides(data: dict, overrides: dict[str, Any], source: str = "") -> dict:

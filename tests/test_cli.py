@@ -835,6 +835,11 @@ def test_a_sweep_grid_is_validated_whole_and_overrides_of_swept_keys_are_refused
         refused = runner.invoke(main, ["run", str(swept), *args, "--out", str(tmp_path / "o")])
         assert refused.exit_code == 2 and "the config's sweep block sets" in refused.output, \
             refused.output
+    plain = write(tmp_path, tiny_config(), "plain.yaml")        # the sweep given as an override
+    refused = runner.invoke(main, ["run", str(plain), "sweep={monte_carlo.runs: [2, 3]}",
+                                   "--runs", "4", "--out", str(tmp_path / "o")])
+    assert refused.exit_code == 2 and "sweep=... given here sets monte_carlo.runs" in \
+        refused.output, refused.output
 
 
 def test_quick_ignores_the_size_of_the_grid_it_does_not_run(tmp_path):
