@@ -25,6 +25,7 @@ def metrics_help() -> str:
     """The metrics of the registered analyses, for ``estim table --help``."""
     lines = ["\b", "Metrics (analyses that write them):"]
     for metric, specs in sorted(runner.table_specs().items()):
-        title = next((s.title for s in specs.values() if s.title), "")
+        titles = {s.title for s in specs.values() if s.title}
+        title = titles.pop() if len(titles) == 1 else "(each analysis' own table of that name)"
         lines.append(f"  {metric:<11} {title} [{', '.join(sorted(specs))}]")
     return "\n".join(lines)

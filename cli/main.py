@@ -78,9 +78,9 @@ _max_work = click.option("--max-work", type=click.IntRange(1), default=MAX_WORK,
 @click.option("--update-baseline", is_flag=True,
               help="Allow an overridden run to write into the stored results/.")
 @click.option("--quick", is_flag=True,
-              help="A first look in seconds: each analysis' quick profile (one sweep point, "
-                   "the first cell of a sweep: block, short records, 3 runs); never written "
-                   "into results/.")
+              help="A first look in seconds: each analysis' quick profile (the first cell of "
+                   "a sweep, mostly one point or row of it, short records, one to five "
+                   "runs); never written into results/.")
 @_jobs
 @_max_work
 @click.option("--executor", type=click.Choice(["local", "dask"]), default="local",
@@ -117,7 +117,7 @@ def run(configs, out, runs, seed, update_baseline, quick, jobs, max_work, execut
         fail("--scheduler needs --executor dask")
     exps = config.load_files(paths, overrides, max_work, quick)
     folder, note = project.locate().output_folder(out, [e.source for e in exps],
-                                                  bool(overrides) or quick, update_baseline)
+                                                  bool(overrides), update_baseline, quick)
     if note and not quiet:
         click.echo(note, err=True)
     io.ensure_writable(folder)
@@ -164,7 +164,7 @@ def merge(configs, sources, out, runs, seed, quick, jobs, max_work, quiet) -> No
     overrides = arguments.overrides(given, runs, seed)
     exps = config.load_files(paths, overrides, max_work, quick)
     folder, note = project.locate().output_folder(out, [e.source for e in exps],
-                                                  bool(overrides) or quick, False)
+                                                  bool(overrides), False, quick)
     if note and not quiet:
         click.echo(note, err=True)
     io.ensure_writable(folder)
@@ -217,9 +217,12 @@ def table(metric, results, fmt, thesis, partial) -> None:
     """Print the METRIC tables of every experiment found under RESULTS.
 
     csv gives one CSV over all experiments (an ``experiment`` column first); markdown and
-    latex (booktabs, escaped) one table per experiment under its name; text wraps at 100
-    columns.
+    latex (booktabs, escaped) one table per experiment under its name; text wraps a table's
+    columns at 100 characters (a title or a long cell stays whole). RESULTS' experiment
+    folders are its direct subfolders.
     """
+    if partial and not thesis:
+        fail("--partial applies only with --thesis")
     results = results or project.locate().results
     text_ = tables.stored(results, metric, fmt, thesis, partial, ANALYSES)
     click.echo(text_, nl=not text_.endswith("\n"))
@@ -328,6 +331,9 @@ def spice(config, executable, reltol, fmt) -> None:
     run, AC gain), each against its bar: holds, undecided (above it while ngspice's own last
     two answers differ by more) or fails; exit 1 if any fails."""
     from estim.spice import compare
+
+    if not reltol == reltol:                  # NaN passes click's range; ngspice refuses it
+        fail("--reltol: expected a number from 1e-14 to 1e-3, got nan")
     from estim.spice.ngspice import NgspiceError
 
     exp = estim.config.load_files([config])[0]
@@ -416,6 +422,8 @@ def summary(results, readme, check_only) -> None:
     with the range of the ratio) and the ranges of the quantities its analysis quotes."""
     from estim import summary as summaries
 
+    if check_only and readme is None:
+        fail("--check applies only with --readme (it checks the README's generated blocks)")
     results = results or project.locate().results
     if readme is None:
         found = summaries.everything(results, ANALYSES)

@@ -70,14 +70,20 @@ class Where:
         return folder.resolve() == self.results.resolve()
 
     def output_folder(self, out: Path | None, sources: list[str], overridden: bool,
-                      update_baseline: bool) -> tuple[Path, str]:
+                      update_baseline: bool, quick: bool = False) -> tuple[Path, str]:
         """Where a run writes, and a note to show when that is not the baseline: the
         baseline ``results/`` only for the project's own configs run as they are (or with
-        ``update_baseline``); otherwise the scratch folder. An ``out`` that is the baseline
-        for a run that may not write it is a ``UsageError``."""
+        ``update_baseline``, never for a ``quick`` run); otherwise the scratch folder. An
+        ``out`` that is the baseline for a run that may not write it is a ``UsageError``."""
         from estim.errors import UsageError
 
         own = all(self.is_own_config(Path(s)) for s in sources)
+        if quick:
+            if out is not None and self.is_baseline(out):
+                raise UsageError(f"{out} holds the stored baseline, which a --quick run never "
+                                 "writes; choose another --out")
+            return (out, "") if out is not None else (
+                self.scratch, f"a --quick run: writing to {self.scratch}/, never the baseline")
         if out is not None:
             if self.is_baseline(out) and (overridden or not own) and not update_baseline:
                 why = "overrides its config" if overridden else "is not a config of configs/"

@@ -218,10 +218,12 @@ def _parse_checked(data: dict, sweep: Any, source: str, default_name: str, max_w
     except ConfigErrors as exc:
         raise _wrong_analysis(exc, data, analysis, source) or exc from None
     spec["analysis"] = analysis
+    from_file_name = not spec["name"]
     spec["name"] = spec["name"] or default_name
     if not re.fullmatch(r"[A-Za-z0-9_.-]+", spec["name"]) or spec["name"].strip(".") == "":
-        raise ConfigError(source, "name", "expected letters, digits, '_', '-' or '.' only "
-                          f"(it names the results folder), got {spec['name']!r}")
+        given = (" (no name: key, so the file's name; give one)" if from_file_name else "")
+        raise ConfigError(source, "name", "expected ASCII letters, digits, '_', '-' or '.' "
+                          f"only (it names the results folder), got {spec['name']!r}{given}")
     if spec.get("model") is not None:
         model_cls = registry.MODELS[spec["model"]["name"]]
         variant = spec["model"]["variant"]
