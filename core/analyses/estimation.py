@@ -86,8 +86,8 @@ TABLES = {
 
 QUOTES = (
     Quote("RMSE over all runs", "rmse", "rmse", by="estimator"),
-    Quote("RMSE over the runs that did not diverge", "rmse", "rmse_kept", by="estimator",
-          where="diverged > 0"),
+    Quote("RMSE over the runs that did not diverge, in the cells where a run diverged", "rmse",
+          "rmse_kept", by="estimator", where="diverged > 0"),
     Quote("fraction of actual samples in the named regime", "rmse", "regime_fraction",
           where="estimator == 'measurement'"),
     Quote("diverged runs", "health", "diverged", by="estimator", total="runs"),

@@ -184,8 +184,8 @@ TABLES = {
 }
 QUOTES = (
     Quote("RMSE over all runs", "rmse", "rmse", by="estimator"),
-    Quote("RMSE over the runs that did not diverge", "rmse", "rmse_kept", by="estimator",
-          where="diverged > 0"),
+    Quote("RMSE over the runs that did not diverge, in the cells where a run diverged", "rmse",
+          "rmse_kept", by="estimator", where="diverged > 0"),
     Quote("diverged runs", "health", "diverged", by="estimator", total="runs"),
     Quote("inconsistent runs (time-averaged NIS or NEES outside its 95 % band)", "health",
           "inconsistent", by="estimator", total="runs", where="inconsistent == inconsistent"),
