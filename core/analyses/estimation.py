@@ -171,6 +171,9 @@ def prepare(spec: dict, source: str) -> Plan:
             if claim[side] not in labels:
                 raise ConfigError(source, f"claims[{i}].{side}",
                                   f"expected an estimator label {labels}, got {claim[side]!r}")
+        if claim["better"] == claim["worse"]:
+            raise ConfigError(source, f"claims[{i}].worse", "the same estimator as better: "
+                              "a claim compares two")
         if spec["tables"]["rmse"] is None:
             raise ConfigError(source, "claims", "claims compare RMSEs: set tables.rmse")
     names = spec["figures"]["names"]

@@ -249,6 +249,9 @@ def prepare(spec: dict, source: str) -> Plan:
             if claim[side] not in labels:
                 raise ConfigError(source, f"claims[{i}].{side}",
                                   f"expected an estimator label {labels}, got {claim[side]!r}")
+        if claim["better"] == claim["worse"]:
+            raise ConfigError(source, f"claims[{i}].worse", "the same estimator as better: "
+                              "a claim compares two")
     for i, fig in enumerate(spec["figures"]["names"]):
         if {"w_um": fig["w_um"], "l_um": fig["l_um"]} not in columns:
             raise ConfigError(source, f"figures.names[{i}]",
