@@ -7,9 +7,15 @@ from estim.cli.group import fail
 
 
 def overrides(given: dict, runs: int | None, seed: int | None) -> dict:
-    """The key-path overrides of a command line with ``--runs`` and ``--seed`` among them."""
-    return {**given, **{k: v for k, v in (("monte_carlo.runs", runs),
-                                          ("monte_carlo.seed", seed)) if v is not None}}
+    """The key-path overrides of a command line with ``--runs`` and ``--seed`` among them;
+    an option that sets a key an override also sets is a usage error."""
+    options = {k: v for k, v in (("monte_carlo.runs", runs), ("monte_carlo.seed", seed))
+               if v is not None}
+    for key in options:
+        if key in given:
+            fail(f"{key} is given both as an override and as --{key.split('.')[1]}; give it "
+                 "once")
+    return {**given, **options}
 
 
 def shard(text_: str) -> tuple[int, int]:

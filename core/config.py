@@ -544,6 +544,9 @@ def split_arguments(args) -> tuple[list[Path], dict]:
         key = text_.partition("=")[0]
         if "=" in text_ and not _exists(text_) and OVERRIDE_KEY.fullmatch(key.strip()):
             k, v = parse_override(text_)
+            if k in overrides:
+                raise UsageError(f"{text_!r}: {k} is already set on this command line "
+                                 f"(to {overrides[k]!r}); give it once")
             overrides[k] = v
         elif "=" in text_ and not _exists(text_):
             raise UsageError(f"{text_!r}: expected a config file or key.path=value (list "

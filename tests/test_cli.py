@@ -649,6 +649,20 @@ def run_swept(tmp_path, spec: dict) -> tuple[Path, pd.DataFrame]:
     return path, pd.read_csv(tmp_path / "sw" / "tiny" / "rmse.csv")
 
 
+def test_a_key_set_twice_on_one_command_line_is_refused(tmp_path):
+    """Two overrides of one key (or an override and --runs/--seed) used to keep the last
+    silently; each is a usage error naming the key."""
+    path = write(tmp_path, tiny_config())
+    runner = CliRunner()
+    twice = runner.invoke(main, ["validate", str(path), "noise.measurement_sigma=0.1",
+                                 "noise.measurement_sigma=0.2"])
+    assert twice.exit_code == 2 and "noise.measurement_sigma is already set" in twice.output
+    both = runner.invoke(main, ["run", str(path), "monte_carlo.runs=3", "--runs", "4",
+                                "--out", str(tmp_path / "o")])
+    assert both.exit_code == 2 and "both as an override and as --runs" in both.output
+    assert not (tmp_path / "o").exists()
+
+
 def test_a_sweep_block_runs_each_cell_as_its_override_would(tmp_path):
     spec = tiny_config(**{"input.frequencies_hz": [1000], "noise.input_levels": [0.1],
                           "figures.noise_level": 0.1, "figures.frequency_hz": 1000})
