@@ -97,6 +97,10 @@ MAX_WORK = 50_000_000
 """Default bound on an experiment's work (state-samples, ``work_size`` of its analysis);
 ``--max-work`` raises it."""
 
+QUICK_WORK = 2**62
+"""The work bound of the whole config behind a ``--quick`` run (whose own profile is held
+to ``--max-work``): the grid it does not run may be large, not unbounded."""
+
 MAX_ALIASES = 64
 MAX_DEPTH = 32
 MAX_VALUES = 100_000
@@ -511,7 +515,14 @@ def load_data(data: dict, source: str, default_name: str, overrides: dict | None
     """:func:`load_file` for a config already read into a mapping."""
     if overrides:
         data = apply_overrides(data, overrides, source)
-    exp = parse_data(data, source, default_name, 2**62 if quick else max_work, plan)
+    try:
+        exp = parse_data(data, source, default_name, QUICK_WORK if quick else max_work, plan)
+    except ConfigError as exc:
+        if quick and exc.path == "" and "state-samples" in exc.message:
+            raise ConfigError(source, "", exc.message.partition(", more than")[0] + ": too "
+                              "much for any run, and --quick cuts its profile from the whole "
+                              "config") from None
+        raise
     if quick:                          # the first cell of a sweep, shrunk: the grid's size is moot
         spec = copy.deepcopy(exp.spec)
         sweep = spec.pop("sweep", None)

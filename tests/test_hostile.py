@@ -676,6 +676,11 @@ def test_max_work_raises_the_work_limit(tmp_path):
     assert_one_line_exit_2(result, path, expected="raise it with --max-work")
     raised = CliRunner().invoke(main, ["validate", str(path), "--max-work", str(10**12)])
     assert raised.exit_code == 0, raised.output
+    absurd = tmp_path / "absurd.yaml"
+    absurd.write_text(yaml.safe_dump(config("kalman_differentiator", {"cases.0.dt": 1e-300})))
+    quick = CliRunner().invoke(main, ["run", str(absurd), "--quick", "--max-work", "5"])
+    assert quick.exit_code == 2 and "too much for any run" in quick.output, quick.output
+    assert "raise it with --max-work" not in quick.output     # no --max-work lifts that bound
 
 
 # ----- issue 28: damaged stored results, exit codes, bounded messages ---------------------------
