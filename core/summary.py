@@ -138,9 +138,16 @@ def experiment(folder: Path, analyses: dict) -> list[str]:
 
 
 def everything(results: Path, analyses: dict) -> dict[str, list[str]]:
-    """The summary lines of every stored experiment under ``results``, by name."""
+    """The summary lines of every stored experiment under ``results``, by name; a manifest
+    that cannot be read is a ``UsageError`` naming it (as ``estim table`` and ``estim
+    report`` have it)."""
+    from estim.errors import UsageError
+
     out = {}
     for manifest in sorted(results.glob("*/manifest.json")):
+        stored = read_manifest(manifest.parent)
+        if stored is None or not isinstance(stored.get("config"), dict):
+            raise UsageError(f"{manifest}: not a readable estim manifest")
         lines = experiment(manifest.parent, analyses)
         if lines:
             out[manifest.parent.name] = lines

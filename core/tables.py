@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from importlib import resources
+from pathlib import Path
 
 import numpy as np
 
@@ -237,5 +238,8 @@ def stored(results, metric: str, fmt: str, thesis: bool, partial: bool,
     if frames:
         parts.append(render(pd.concat(frames, ignore_index=True), "csv").rstrip("\n"))
     if not parts:
+        if (Path(results) / "manifest.json").exists():
+            raise UsageError(f"{results} is one experiment's folder; give the folder that "
+                             "holds it (--results PARENT)")
         raise UsageError(f"no {metric} values under {results}/ (run 'estim reproduce')")
     return "\n".join(parts)

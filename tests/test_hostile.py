@@ -733,7 +733,7 @@ def test_a_damaged_stored_manifest_is_named_and_exit_2(stored, kind):
         target.write_text('{"config": {}, "pad": "' + "x" * (io.MAX_MANIFEST_BYTES + 1) + '"}')
     else:
         _damage(target, kind)
-    for args in (["table", "rmse", "--results", str(out)],
+    for args in (["table", "rmse", "--results", str(out)], ["summary", "--results", str(out)],
                  ["report", "--results", str(out), "--out", str(out / "page.html")]):
         result = _command(*args)
         assert result.returncode == 2, result.stderr
@@ -965,3 +965,9 @@ def test_a_junk_stored_figure_or_an_unknown_table_id_is_named_and_exit_2(stored)
     result = _command("table", "rmse", "--thesis", "--results", str(out))
     assert result.returncode == 2, result.stderr
     assert str(table) in result.stderr and "'9.9'" in result.stderr
+
+
+def test_an_experiment_folder_given_as_results_is_named_as_such(stored):
+    _, out = stored
+    result = CliRunner().invoke(main, ["table", "rmse", "--results", str(out / "tiny")])
+    assert result.exit_code == 2 and "is one experiment's folder" in result.output
