@@ -30,6 +30,10 @@ def test_values_take_si_suffixes_units_and_expressions():
     assert evaluate("sqrt(4)^3", {}, where) == 8.0
     with pytest.raises(NetlistError, match=r"^t.cir:1: unknown parameter 'zz'"):
         evaluate("2*zz", {}, where)
+    for beyond in ("1e400", "1e-400", "-2e999k"):           # float() gives inf or 0 silently
+        with pytest.raises(NetlistError, match="beyond the range of a double"):
+            evaluate(beyond, {}, where)
+    assert evaluate("0.0e5", {}, where) == 0.0
 
 
 def test_continuation_comments_params_subcircuits_and_ic():

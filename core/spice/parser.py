@@ -108,7 +108,11 @@ def evaluate(text: str, params: dict, where: tuple[str, int]) -> float:
         text = text[1:-1]
     m = _NUMBER.match(text)
     if m:
-        return _scaled(m.group(1), m.group(2))
+        value = _scaled(m.group(1), m.group(2))
+        if not math.isfinite(value) or (value == 0 and any(c in "123456789" for c in
+                                                            m.group(1).partition("e")[0])):
+            raise NetlistError(*where, f"{text!r} is beyond the range of a double")
+        return value
     if text in params:
         return params[text]
     expr = re.sub(r"(?<![\w.])((?:\d+\.?\d*|\.\d+)(?:e[+-]?\d+)?)(meg|mil|[fpnumkgt])(?![\w(])",
