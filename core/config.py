@@ -133,6 +133,8 @@ class _ConfigLoader(yaml.SafeLoader):
     def construct_mapping(self, node, deep=False):
         seen = set()
         for key_node, _ in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge":      # `<<: *base`: merged below,
+                continue                                      # its keys yield to explicit ones
             key = self.construct_object(key_node, deep=True)
             try:
                 duplicate = key in seen

@@ -337,6 +337,7 @@ def test_a_netlist_model_block_validates(tmp_path):
     ("1: a\n", "is not a string"),
     ("? [a, b]\n: 1\n", "a key that is not a plain value"),
     ("\x00\x01", "not valid YAML"),
+    ("noise: &n {input_levels: [0.1]}\nx:\n  <<: *n\n  a: 1\n  a: 2\n", "duplicate key 'a'"),
 ])
 def test_hostile_yaml_is_one_line_and_exit_2(tmp_path, text, expected):
     path, result = validate_text(tmp_path, text)
@@ -971,3 +972,11 @@ def test_an_experiment_folder_given_as_results_is_named_as_such(stored):
     _, out = stored
     result = CliRunner().invoke(main, ["table", "rmse", "--results", str(out / "tiny")])
     assert result.exit_code == 2 and "is one experiment's folder" in result.output
+
+
+def test_a_yaml_merge_key_merges_and_yields_to_explicit_keys():
+    """``<<: *anchor`` (a YAML merge key) failed as 'could not determine a constructor'."""
+    from estim.config import load_yaml
+
+    text = "a: &s {q: 1, r: 2}\nb:\n  <<: *s\n  r: 3\n"
+    assert load_yaml(text, "m.yaml") == {"a": {"q": 1, "r": 2}, "b": {"q": 1, "r": 3}}
