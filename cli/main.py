@@ -492,8 +492,9 @@ def list_configs() -> None:
     where = project.locate()
     click.echo(where.describe(), err=True)
     for exp in config.load_files(where.configs(), plan=False):
-        click.echo(f"{exp.source:40s} {exp.name:24s} Tables {', '.join(exp.spec['reproduces'])}"
-                   f"  {exp.spec['title']}")
+        ids = ", ".join(exp.spec["reproduces"])
+        shown = f"Tables {ids}" if ids else "no printed table"
+        click.echo(f"{exp.source:40s} {exp.name:24s} {shown}  {exp.spec['title']}")
 
 
 if __name__ == "__main__":

@@ -358,6 +358,8 @@ def test_list_outside_a_project_uses_the_shipped_configs(tmp_path, monkeypatch):
     assert result.exit_code == 0, result.output
     assert "configs shipped with estim" in result.output
     assert "mosfet_saturation" in result.output
+    line = next(x for x in result.output.splitlines() if " passive_network " in x)
+    assert "no printed table" in line and "Tables  " not in line     # was an empty "Tables"
 
 
 def test_tune_writes_an_overlay_and_refuses_what_it_cannot_fit(tmp_path):
