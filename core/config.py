@@ -301,6 +301,9 @@ def load_plugins(plugins: Any, source: str) -> list[str]:
     for where, path in paths:
         try:
             names += registry.load_plugins([path])
+        except SystemExit as exc:       # sys.exit() in the user's module would end estim
+            raise ConfigError(source, where, f"importing {path.name} called sys.exit"
+                              f"({str(exc.code)[:60]}); a plugin must only define") from None
         except Exception as exc:  # noqa: BLE001 - the user's code: any failure is theirs
             first = (str(exc).strip().splitlines() or [type(exc).__name__])[0][:200]
             raise ConfigError(source, where, f"importing {path.name} failed: "

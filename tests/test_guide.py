@@ -122,6 +122,9 @@ def test_a_bad_plugin_is_one_line_naming_the_config_and_the_file(tmp_path):
     assert result.exit_code == 2
     assert result.output.count("\n") == 1
     assert f"{config}: plugins[0]: importing diode_rc.py failed: RuntimeError" in result.output
+    (tmp_path / "diode_rc.py").write_text("import sys\nsys.exit(0)\n")   # would end estim, exit 0
+    result = CliRunner().invoke(main, ["validate", str(config)])
+    assert result.exit_code == 2 and "importing diode_rc.py called sys.exit(0)" in result.output
 
 
 def test_the_python_example_runs_as_written_from_another_folder(tmp_path):
