@@ -31,6 +31,12 @@ def main() -> None:
     exit 1; here every interrupt is exit 130, and click's other outcomes are mapped as
     standalone mode maps them (its usage errors exit 2, a closed output pipe exits 1)."""
     signal.signal(signal.SIGINT, _on_interrupt)
+    for name in ("stdout", "stderr"):       # a closed stream, or one that cannot spell a name
+        stream = getattr(sys, name)
+        if stream is None:
+            setattr(sys, name, open(os.devnull, "w"))       # noqa: SIM115 - lives as long as sys
+        elif hasattr(stream, "reconfigure"):
+            stream.reconfigure(errors="replace")
     try:
         import click
 

@@ -980,3 +980,20 @@ def test_a_yaml_merge_key_merges_and_yields_to_explicit_keys():
 
     text = "a: &s {q: 1, r: 2}\nb:\n  <<: *s\n  r: 3\n"
     assert load_yaml(text, "m.yaml") == {"a": {"q": 1, "r": 2}, "b": {"q": 1, "r": 3}}
+
+
+LAUNCH = "from estim.cli.launch import main; main()"
+
+
+def test_a_closed_stderr_or_a_narrow_terminal_encoding_does_not_end_a_command(tmp_path):
+    """With stderr closed, a run died at its first progress line (exit 3, nothing written);
+    on a latin-1 terminal estim summary died at its first en dash (exit 3)."""
+    out = tmp_path / "o"
+    closed = subprocess.run(["bash", "-c", f"{sys.executable} -c '{LAUNCH}' run "
+                             f"configs/passive_network.yaml --quick --out {out} 2>&-"],
+                            cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert closed.returncode == 0 and (out / "passive_network" / "manifest.json").is_file()
+    narrow = subprocess.run([sys.executable, "-c", LAUNCH, "summary"], cwd=ROOT, timeout=120,
+                            capture_output=True, env={**os.environ, "PYTHONIOENCODING": "latin-1"})
+    assert narrow.returncode == 0, narrow.stderr
+    assert b"ratio" in narrow.stdout
