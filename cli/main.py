@@ -296,7 +296,16 @@ def tune(config, label, new_label, runs, fit_r, out, max_work) -> None:
     exp = estim.config.load_files([config], max_work=max_work)[0]
     analysis = ANALYSES[exp.analysis]
     if not hasattr(analysis, "training"):
-        fail(f"{config}: analysis {exp.analysis!r} has no estimators to tune")
+        fail(f"{config}: estim tune fits the estimators of an estimation config (Chapter 3's "
+             f"analysis); this config's analysis is {exp.analysis!r}")
+    if exp.spec.get("sweep"):
+        fail(f"{config}: estim tune fits one config, and this one sweeps "
+             f"{', '.join(exp.spec['sweep'])}; tune one cell (its values as overrides of a "
+             "copy without the sweep block)")
+    labels = [e["label"] for e in exp.spec["estimators"]]
+    if new_label is not None and (not 0 < len(new_label.strip()) <= 60 or new_label in labels):
+        fail(f"--as {new_label[:60]!r}: expected a new label of 1 to 60 characters, not one of "
+             f"{labels}")
     out = out or Path(config).parent / "fitted" / f"{exp.name}.yaml"
     if out.is_dir():
         raise UsageError(f"--out {out}: a folder; name the overlay file to write")

@@ -371,7 +371,14 @@ def test_tune_writes_an_overlay_and_refuses_what_it_cannot_fit(tmp_path):
         assert bad.exit_code == 2 and message in bad.output, bad.output
     perturbation = ROOT / "configs" / "mosfet_distortion.yaml"
     bad = runner.invoke(main, ["tune", str(perturbation), "--estimator", "EKF"])
-    assert bad.exit_code == 2 and "no estimators to tune" in bad.output, bad.output
+    assert bad.exit_code == 2 and "this config's analysis is 'perturbation'" in bad.output
+    for new in ("", "RLS", "x" * 61):
+        bad = runner.invoke(main, ["tune", str(path), "--estimator", "EKF", "--as", new])
+        assert bad.exit_code == 2 and "expected a new label of 1 to 60" in bad.output, new
+    swept = write(tmp_path, {**tiny_config(), "sweep": {"monte_carlo.runs": [2, 3]}},
+                  "swept.yaml")
+    bad = runner.invoke(main, ["tune", str(swept), "--estimator", "EKF"])
+    assert bad.exit_code == 2 and "this one sweeps monte_carlo.runs" in bad.output, bad.output
     blocked = tmp_path / "blocked"
     blocked.write_text("a file, not a folder")
     bad = runner.invoke(main, ["tune", str(path), "--estimator", "EKF", "--runs", "2",
