@@ -34,7 +34,15 @@ PACKAGES = ("estim", "numpy", "scipy", "pandas", "matplotlib", "click", "PyYAML"
 
 
 def atomic_write_bytes(path: Path, data: bytes) -> None:
-    """Write ``data`` to a temporary file beside ``path`` and rename it into place."""
+    """Write ``data`` to a temporary file beside ``path`` and rename it into place. Something
+    at ``path`` that is not a regular file (a folder, a FIFO, a device; a symbolic link is
+    followed) is a :class:`UsageError`, never replaced: renaming over ``/dev/full`` as root
+    would replace the device."""
+    path = Path(path)
+    if path.exists() and not path.is_file():
+        raise UsageError(f"{path}: exists and is not a regular file; not replaced")
+    if path.is_symlink():
+        path = path.resolve()
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:

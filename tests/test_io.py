@@ -73,3 +73,22 @@ def test_a_file_where_the_result_folder_goes_is_refused_before_any_work(tmp_path
     with pytest.raises(UsageError, match="cannot open the lock file"):
         with io.ResultFolder(tmp_path, "other"):
             pass
+
+
+def test_an_atomic_write_never_replaces_a_fifo_a_device_or_a_folder(tmp_path):
+    """estim tune --out /dev/full, run as root, replaced the device with a regular file."""
+    import os
+
+    from estim.errors import UsageError
+
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    (tmp_path / "folder").mkdir()
+    for target in (fifo, tmp_path / "folder"):
+        with pytest.raises(UsageError, match="not a regular file; not replaced"):
+            io.atomic_write_bytes(target, b"x")
+    assert fifo.is_fifo() and (tmp_path / "folder").is_dir()
+    (tmp_path / "real.yaml").write_text("old")
+    (tmp_path / "link.yaml").symlink_to(tmp_path / "real.yaml")
+    io.atomic_write_bytes(tmp_path / "link.yaml", b"new")          # written through the link
+    assert (tmp_path / "link.yaml").is_symlink() and (tmp_path / "real.yaml").read_text() == "new"
