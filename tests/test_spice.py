@@ -30,6 +30,8 @@ def test_values_take_si_suffixes_units_and_expressions():
     assert evaluate("sqrt(4)^3", {}, where) == 8.0
     with pytest.raises(NetlistError, match=r"^t.cir:1: unknown parameter 'zz'"):
         evaluate("2*zz", {}, where)
+    with pytest.raises(NetlistError, match=r"^t.cir:2: .include is not supported"):
+        parse("* t\n.include models.lib\nr1 a 0 1k\nv1 a 0 1\n.end\n", "t.cir")
     for beyond in ("1e400", "1e-400", "-2e999k"):           # float() gives inf or 0 silently
         with pytest.raises(NetlistError, match="beyond the range of a double"):
             evaluate(beyond, {}, where)
@@ -702,6 +704,26 @@ def test_estim_spice_names_a_missing_ngspice_in_one_line():
     assert "ngspice executable '/no/such/ngspice' not found" in result.output
     bad = CliRunner().invoke(main, ["spice", config, "--reltol", "0"])
     assert bad.exit_code == 2 and "--reltol" in bad.output
+
+
+@pytest.mark.parametrize("body", ["printf '\\377\\376 error\\n'",            # undecodable log
+                                  'deck="$2"; out=$(grep -o "wrdata [^ ]*" "$deck" '
+                                  '| head -1 | cut -d" " -f2); '
+                                  '[ -n "$out" ] && echo header > "$out"; true'])    # empty data
+def test_a_broken_ngspice_is_one_line_not_a_crash(tmp_path, body):
+    """An ngspice whose log is not UTF-8, or whose output file holds a header only, was a
+    UnicodeDecodeError or numpy's 'need at least one array to stack' (exit 3)."""
+    from click.testing import CliRunner
+
+    from estim.cli.main import main
+
+    fake = tmp_path / "ngspice"
+    fake.write_text(f"#!/bin/bash\n{body}\n")
+    fake.chmod(0o755)
+    config = str(ROOT / "configs" / "netlist" / "ce_amp_distortion.yaml")
+    result = CliRunner().invoke(main, ["spice", config, "--ngspice", str(fake)])
+    assert result.exit_code != 0 and "ngspice" in result.output, result.output
+    assert "UnicodeDecodeError" not in result.output and "stack" not in result.output
 
 
 NGSPICE = pytest.mark.skipif(__import__("shutil").which("ngspice") is None,

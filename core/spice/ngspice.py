@@ -213,7 +213,7 @@ def _run(deck: str, tmp: Path, executable: str | None) -> None:
     path.write_text(deck)
     try:
         run = subprocess.run([exe, "-b", str(path)], capture_output=True, text=True,
-                             timeout=TIMEOUT)
+                             errors="replace", timeout=TIMEOUT)
     except subprocess.TimeoutExpired:
         raise NgspiceError(f"ngspice took more than {TIMEOUT} s") from None
     log = run.stdout + run.stderr
@@ -225,7 +225,18 @@ def _run(deck: str, tmp: Path, executable: str | None) -> None:
 def _read(path: Path) -> np.ndarray:
     if not path.is_file():
         raise NgspiceError("ngspice failed: no output written")
-    return np.loadtxt(path, skiprows=1, ndmin=2)
+    import warnings
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")              # numpy's "empty input file"
+            table = np.loadtxt(path, skiprows=1, ndmin=2)
+    except ValueError as exc:
+        raise NgspiceError(f"ngspice wrote output estim cannot read "
+                           f"({str(exc).splitlines()[0][:80]})") from None
+    if table.shape[0] == 0 or table.shape[1] < 2:
+        raise NgspiceError("ngspice failed: its output holds no data")
+    return table
 
 
 OPTIONS = ".options reltol={reltol!r} method=gear gmin=1e-30 abstol=1e-15 vntol=1e-12"

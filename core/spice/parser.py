@@ -17,7 +17,8 @@ before):
   one level deep;
 * ``.param name=expr ...`` (``+ - * / ** ^``, parentheses, ``exp log sqrt abs min max``,
   earlier params; braces ``{expr}`` around an expression where a value stands);
-* ``.model name type(k=v ...)``, ``.ic v(node)=value ...``, ``.end``; other dot lines
+* ``.model name type(k=v ...)``, ``.ic v(node)=value ...``, ``.end``; ``.include`` and
+  ``.lib`` are refused (a model they would bring in would be missing); other dot lines
   (``.tran``, ``.options``, ...) are read over.
 
 Values take SI suffixes ``f p n u m k meg g t`` (and ``mil``); letters after a number or
@@ -269,6 +270,9 @@ def parse(text: str, source: str = "<netlist>") -> Netlist:
         except ValueError as exc:
             raise NetlistError(*where, str(exc)) from None
         head = tokens[0]
+        if head in (".include", ".inc", ".lib"):       # read over, a model it holds was lost
+            raise NetlistError(*where, f"{head} is not supported: put the lines it would bring "
+                               "into this file")
         if head == ".end":
             ended = True
             continue
