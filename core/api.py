@@ -40,6 +40,8 @@ class Result:
     figures: dict[str, Any] = field(default_factory=dict)
     models: dict = field(default_factory=dict)
     wall_time_s: float = 0.0
+    quick: bool = False
+    """Made by the analysis' quick profile (:func:`run` with ``quick=True``)."""
 
     @property
     def claims(self) -> pd.DataFrame | None:
@@ -52,6 +54,11 @@ class Result:
         copied."""
         out = Path(folder)
         io.ensure_writable(out)
+        stored = io.read_manifest(out / self.name) if self.quick else None
+        if stored is not None and "quick" not in str(stored.get("command", "")):
+            raise UsageError(f"{out / self.name} holds a full run's results; a quick result "
+                             "does not replace them (save it elsewhere)")
+        command = "estim.run(quick=True)" if self.quick else "estim.run"
         with io.ResultFolder(out, self.name) as target:
             for metric, df in self.tables.items():
                 io.write_csv(df, target.path / f"{metric}.csv")
@@ -63,7 +70,7 @@ class Result:
                 else:
                     io.write_figure(fig, target.path / "figures" / f"{name}.{figure_format}")
             io.write_manifest(target.path, self.config, spec_hash(self.config),
-                              self.wall_time_s, command="estim.run", models=self.models)
+                              self.wall_time_s, command=command, models=self.models)
             target.commit()
         return out / self.name
 
@@ -73,6 +80,8 @@ def _overrides(keys: dict, overrides: dict | None) -> dict:
     (``simulation__rtol=1e-6``); ``overrides`` as key paths."""
     out = dict(overrides or {})
     for key, value in keys.items():
+        if key in ("runs", "seed") and value is None:          # None: the config's own
+            continue
         path = {"runs": "monte_carlo.runs", "seed": "monte_carlo.seed"}.get(
             key, key.replace("__", "."))
         out[path] = value
@@ -83,8 +92,9 @@ def config_path(config: str | Path) -> Path:
     """``config`` as given when it exists; else a shipped config of that name
     (``configs/mosfet_saturation.yaml`` or ``mosfet_saturation`` from any folder)."""
     path = Path(config)
-    if path.exists() or path.parent.name not in ("", "configs"):
-        return path
+    if path.exists() or path.parent.name not in ("", "configs") or path.suffix not in ("",
+                                                                                      ".yaml"):
+        return path                          # (a typo such as .yml is not a shipped config)
     from importlib.util import find_spec
 
     try:
@@ -121,11 +131,14 @@ def run(config: str | Path | dict, overrides: dict | None = None, *, jobs: int =
     (``{"estimators.0.settings.Q": [...]}``). ``quick``: the analysis' quick profile."""
     from estim import runner
 
+    for name, value, least in (("jobs", jobs, 1), ("max_work", max_work, 1)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < least:
+            raise ValueError(f"{name}: expected an integer >= {least}, got {value!r}")
     exp = experiment(config, overrides, quick, max_work, **keys)
     start = time.perf_counter()
     out = runner.execute(exp, jobs)
     return Result(exp.name, exp.spec, out.tables, out.figures, exp.models,
-                  time.perf_counter() - start)
+                  time.perf_counter() - start, quick=quick)
 
 
 def load(folder: str | Path) -> Result:

@@ -197,3 +197,24 @@ def test_settings_lists_a_plugin_only_when_named_and_names_a_bad_one(tmp_path, m
     assert broken.exit_code == 2
     assert ("error: --plugin broken.py: importing broken.py failed: ValueError: boom"
             in broken.output)
+
+
+def test_the_python_api_refuses_what_the_cli_refuses(tmp_path):
+    """estim.run(..., quick=True).save() replaced a stored full run (the CLI's --quick never
+    writes results/); runs=None deleted the config's value; a '.yml' typo ran the shipped
+    '.yaml'; jobs="2" failed deep inside with a TypeError."""
+    import estim
+    from estim.errors import ConfigError, UsageError
+
+    full = estim.run("kalman_differentiator", runs=2)
+    full.save(tmp_path)
+    quick = estim.run("kalman_differentiator", quick=True, runs=None)
+    with pytest.raises(UsageError, match="holds a full run's results"):
+        quick.save(tmp_path)
+    assert quick.save(tmp_path / "q").is_dir()
+    quick.save(tmp_path / "q")                                  # a quick one it may replace
+    with pytest.raises(ConfigError, match="kalman_differentiator.yml: no such file"):
+        estim.run("kalman_differentiator.yml")
+    for bad in ("2", 0, None):
+        with pytest.raises(ValueError, match="jobs: expected an integer >= 1"):
+            estim.run("kalman_differentiator", jobs=bad)
