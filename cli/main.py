@@ -161,10 +161,13 @@ def merge(configs, sources, out, runs, seed, quick, jobs, max_work, quiet) -> No
     the tables, computing any cell no shard made. CONFIGS, overrides, --runs and --seed as
     given to run: the cells are found by the config they were computed for."""
     paths, given = config.split_arguments(configs)
+    if not paths:
+        fail("no config file given (merge takes the config the shards ran)")
     overrides = arguments.overrides(given, runs, seed)
     exps = config.load_files(paths, overrides, max_work, quick)
     folder, note = project.locate().output_folder(out, [e.source for e in exps],
-                                                  bool(overrides), False, quick)
+                                                  bool(overrides), False, quick,
+                                                  can_update=False)
     if note and not quiet:
         click.echo(note, err=True)
     io.ensure_writable(folder)
@@ -173,7 +176,7 @@ def merge(configs, sources, out, runs, seed, quick, jobs, max_work, quiet) -> No
         if not found:
             click.echo(f"{exp.name}: no cells of this config in the --from folder(s) (an analysis "
                        "that does not split, or shards run with another config, overrides, "
-                       "--runs, --seed or estim version); computing it whole", err=True)
+                       "--runs, --seed, --quick or estim version); computing it whole", err=True)
         elif not quiet:
             click.echo(f"{exp.name}: {found} cell(s) from {len(sources)} folder(s)", err=True)
         run_and_report(exp, folder, jobs, quiet, overrides)

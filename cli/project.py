@@ -70,11 +70,13 @@ class Where:
         return folder.resolve() == self.results.resolve()
 
     def output_folder(self, out: Path | None, sources: list[str], overridden: bool,
-                      update_baseline: bool, quick: bool = False) -> tuple[Path, str]:
+                      update_baseline: bool, quick: bool = False,
+                      can_update: bool = True) -> tuple[Path, str]:
         """Where a run writes, and a note to show when that is not the baseline: the
         baseline ``results/`` only for the project's own configs run as they are (or with
         ``update_baseline``, never for a ``quick`` run); otherwise the scratch folder. An
-        ``out`` that is the baseline for a run that may not write it is a ``UsageError``."""
+        ``out`` that is the baseline for a run that may not write it is a ``UsageError``
+        (``can_update``: whether the command has ``--update-baseline`` to offer)."""
         from estim.errors import UsageError
 
         own = all(self.is_own_config(Path(s)) for s in sources)
@@ -87,13 +89,16 @@ class Where:
         if out is not None:
             if self.is_baseline(out) and (overridden or not own) and not update_baseline:
                 why = "overrides its config" if overridden else "is not a config of configs/"
-                raise UsageError(f"{out} holds the stored baseline and this run {why}; pass "
-                                 "--update-baseline to replace it, or choose another --out")
+                advice = ("pass --update-baseline to replace it, or choose another --out"
+                          if can_update else "choose another --out")
+                raise UsageError(f"{out} holds the stored baseline and this run {why}; "
+                                 + advice)
             return out, ""
         if (overridden or not own) and not update_baseline:
             why = "overrides the config" if overridden else "uses a config outside configs/"
             return self.scratch, (f"this run {why}: writing to {self.scratch}/, not the "
-                                  f"baseline {self.results}/ (--update-baseline to replace it)")
+                                  f"baseline {self.results}/"
+                                  + (" (--update-baseline to replace it)" if can_update else ""))
         return self.results, ""
 
     def describe(self, results: Path | None = None) -> str:

@@ -646,6 +646,9 @@ def test_shards_merged_give_the_tables_of_one_run(tmp_path):
     for bad in ("0/2", "3/2", "x"):
         refused = runner.invoke(main, ["run", *args, "--shard", bad])
         assert refused.exit_code == 2 and "expected K/N" in refused.output
+    bare = runner.invoke(main, ["merge", "monte_carlo.runs=2", "--from", str(tmp_path / "s1"),
+                                "--out", str(tmp_path / "m2")])
+    assert bare.exit_code == 2 and "no config file given" in bare.output    # was exit 0, silent
 
 
 def run_swept(tmp_path, spec: dict) -> tuple[Path, pd.DataFrame]:
