@@ -306,6 +306,13 @@ def tune(config, label, new_label, runs, fit_r, out, max_work) -> None:
              f"{', '.join(exp.spec['sweep'])}; tune one cell (its values as overrides of a "
              "copy without the sweep block)")
     labels = [e["label"] for e in exp.spec["estimators"]]
+    entry = next((e for e in exp.spec["estimators"] if e["label"] == label), None)
+    for key in ("Q", "R"):
+        value = ((entry or {}).get("settings") or {}).get(key)
+        if isinstance(value, list) and value and isinstance(value[0], list) and any(
+                v != 0 for i, row in enumerate(value) for j, v in enumerate(row) if i != j):
+            fail(f"{config}: estim tune fits diagonal covariances; the {key} of {label!r} is "
+                 "a full matrix (its off-diagonal entries would be dropped)")
     if new_label is not None and (not 0 < len(new_label.strip()) <= 60 or new_label in labels):
         fail(f"--as {new_label[:60]!r}: expected a new label of 1 to 60 characters, not one of "
              f"{labels}")

@@ -379,6 +379,14 @@ def test_tune_writes_an_overlay_and_refuses_what_it_cannot_fit(tmp_path):
                   "swept.yaml")
     bad = runner.invoke(main, ["tune", str(swept), "--estimator", "EKF"])
     assert bad.exit_code == 2 and "this one sweeps monte_carlo.runs" in bad.output, bad.output
+    full = tiny_config()
+    ekf = next(e for e in full["estimators"] if e["label"] == "EKF")
+    n = len(ekf["settings"]["Q"])
+    ekf["settings"]["Q"] = [[0.01 if i == j else 1e-4 * (abs(i - j) == 1) for j in range(n)]
+                            for i in range(n)]
+    bad = runner.invoke(main, ["tune", str(write(tmp_path, full, "full.yaml")),
+                               "--estimator", "EKF"])
+    assert bad.exit_code == 2 and "the Q of 'EKF' is a full matrix" in bad.output, bad.output
     blocked = tmp_path / "blocked"
     blocked.write_text("a file, not a folder")
     bad = runner.invoke(main, ["tune", str(path), "--estimator", "EKF", "--runs", "2",
