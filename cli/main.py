@@ -351,6 +351,9 @@ def spice(config, executable, reltol, fmt) -> None:
     two answers differ by more) or fails; exit 1 if any fails."""
     from estim.spice import compare
 
+    if executable is not None and not executable.strip():
+        fail("--ngspice: an empty name; leave the option out for ngspice on PATH")
+
     if not reltol == reltol:                  # NaN passes click's range; ngspice refuses it
         fail("--reltol: expected a number from 1e-14 to 1e-3, got nan")
     from estim.spice.ngspice import NgspiceError

@@ -52,6 +52,11 @@ class Result:
         """Write ``folder/<name>/`` as ``estim run`` does (tables as CSV, figures, manifest),
         as a unit; returns that folder. Figures that are file paths (a loaded result) are
         copied."""
+        if not str(folder).strip():
+            raise UsageError("save: an empty folder name (give '.' for the working folder)")
+        if figure_format.lower() not in io.FIGURE_FORMATS:
+            raise ValueError(f"figure_format {figure_format!r}: expected one of "
+                             f"{io.FIGURE_FORMATS}")
         out = Path(folder)
         io.ensure_writable(out)
         stored = io.read_manifest(out / self.name) if self.quick else None

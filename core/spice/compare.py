@@ -152,9 +152,10 @@ def compare(exp, executable: str | None = None, rtol: float = 1e-10,
     was measured at (:func:`_tightening`), its ``bar`` and whether it ``holds``."""
     model_block = exp.spec.get("model") or {}
     if not model_block.get("netlist"):
+        what = (f"model is {model_block.get('name')!r}, not built from a netlist"
+                if model_block.get("name") else "analysis has no circuit model")
         raise ConfigError(exp.source, "model.netlist", "estim spice compares a netlist model "
-                          f"with ngspice; this config's model is {model_block.get('name')!r}, "
-                          "not built from a netlist")
+                          f"with ngspice; this config's {what}")
     ngspice.find(executable)
     rows = []
     for label, model, source, dt, frequency in cases(exp):
