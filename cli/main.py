@@ -301,18 +301,8 @@ def tune(config, label, new_label, runs, fit_r, out, max_work) -> None:
     if not hasattr(analysis, "training"):
         fail(f"{config}: estim tune fits the estimators of an estimation config (Chapter 3's "
              f"analysis); this config's analysis is {exp.analysis!r}")
-    if exp.spec.get("sweep"):
-        fail(f"{config}: estim tune fits one config, and this one sweeps "
-             f"{', '.join(exp.spec['sweep'])}; tune one cell (its values as overrides of a "
-             "copy without the sweep block)")
+    tuning.check_tunable(exp, label)                      # before any training draw
     labels = [e["label"] for e in exp.spec["estimators"]]
-    entry = next((e for e in exp.spec["estimators"] if e["label"] == label), None)
-    for key in ("Q", "R"):
-        value = ((entry or {}).get("settings") or {}).get(key)
-        if isinstance(value, list) and value and isinstance(value[0], list) and any(
-                v != 0 for i, row in enumerate(value) for j, v in enumerate(row) if i != j):
-            fail(f"{config}: estim tune fits diagonal covariances; the {key} of {label!r} is "
-                 "a full matrix (its off-diagonal entries would be dropped)")
     if new_label is not None and (not 0 < len(new_label.strip()) <= 60 or new_label in labels):
         fail(f"--as {new_label[:60]!r}: expected a new label of 1 to 60 characters, not one of "
              f"{labels}")
@@ -350,13 +340,12 @@ def spice(config, executable, reltol, fmt) -> None:
     run, AC gain), each against its bar: holds, undecided (above it while ngspice's own last
     two answers differ by more) or fails; exit 1 if any fails."""
     from estim.spice import compare
+    from estim.spice.ngspice import NgspiceError
 
     if executable is not None and not executable.strip():
         fail("--ngspice: an empty name; leave the option out for ngspice on PATH")
-
     if not reltol == reltol:                  # NaN passes click's range; ngspice refuses it
         fail("--reltol: expected a number from 1e-14 to 1e-3, got nan")
-    from estim.spice.ngspice import NgspiceError
 
     exp = estim.config.load_files([config])[0]
     try:

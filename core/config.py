@@ -240,8 +240,11 @@ def _parse_checked(data: dict, sweep: Any, source: str, default_name: str, max_w
     _check_table_ids(spec, module, source)
     work = module.work_size(spec)
     if work > max_work:
-        raise ConfigError(source, "", f"the experiment computes about {work:.3g} state-samples, "
-                          f"more than the limit {max_work:.3g} (raise it with --max-work)")
+        limit = (": too much for any run (--quick too checks the whole config, whose profile "
+                 "it cuts)" if max_work >= QUICK_WORK else
+                 f", more than the limit {max_work:.3g} (raise it with --max-work)")
+        raise ConfigError(source, "", f"the experiment computes about {work:.3g} "
+                          f"state-samples{limit}")
     if not plan:
         return Experiment(name=spec["name"], source=source, spec=spec, plan=None, models={})
     with recording_models() as models:
@@ -520,14 +523,7 @@ def load_data(data: dict, source: str, default_name: str, overrides: dict | None
     """:func:`load_file` for a config already read into a mapping."""
     if overrides:
         data = apply_overrides(data, overrides, source)
-    try:
-        exp = parse_data(data, source, default_name, QUICK_WORK if quick else max_work, plan)
-    except ConfigError as exc:
-        if quick and exc.path == "" and "state-samples" in exc.message:
-            raise ConfigError(source, "", exc.message.partition(", more than")[0] + ": too "
-                              "much for any run, and --quick cuts its profile from the whole "
-                              "config") from None
-        raise
+    exp = parse_data(data, source, default_name, QUICK_WORK if quick else max_work, plan)
     if quick:                          # the first cell of a sweep, shrunk: the grid's size is moot
         spec = copy.deepcopy(exp.spec)
         sweep = spec.pop("sweep", None)

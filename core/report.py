@@ -332,7 +332,7 @@ def sections(results, deviations_text: str, config_dir, analyses: dict) -> list[
     is a ``UsageError`` naming it."""
     from pathlib import Path
 
-    from estim.errors import ReferenceJoinError, UsageError
+    from estim.errors import ReferenceJoinError
     from estim.io import read_manifest, read_stored, read_table, stored_table_path
 
     entries = deviation_entries(deviations_text) if deviations_text else {}

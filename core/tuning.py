@@ -165,6 +165,25 @@ def fit(evaluate: Callable[[np.ndarray, np.ndarray], float], q0: np.ndarray, r0:
                identifiable=identifiable, message=message, evaluations=count[0])
 
 
+def check_tunable(exp, label: str) -> None:
+    """What :func:`tune` cannot fit, as a ``UsageError`` before any work: a swept config (it
+    would fit the config's own values, no cell of the sweep) and a full-matrix ``Q`` or
+    ``R`` of ``label`` (the fit is of diagonals; the off-diagonal entries would be lost)."""
+    from estim.errors import UsageError
+
+    if exp.spec.get("sweep"):
+        raise UsageError(f"{exp.source}: estim tune fits one config, and this one sweeps "
+                         f"{', '.join(exp.spec['sweep'])}; tune one cell (its values as "
+                         "overrides of a copy without the sweep block)")
+    entry = next((e for e in exp.spec.get("estimators") or () if e["label"] == label), {})
+    for key in ("Q", "R"):
+        M = np.asarray((entry.get("settings") or {}).get(key, 0.0), dtype=float)
+        if M.ndim == 2 and np.any(M - np.diag(np.diag(M))):
+            raise UsageError(f"{exp.source}: estim tune fits diagonal covariances; the {key} "
+                             f"of {label!r} is a full matrix (its off-diagonal entries would "
+                             "be dropped)")
+
+
 def tune(exp, training: Callable, label: str, runs: int,
          fit_r: bool = False) -> tuple[dict, Fit]:
     """Maximum-likelihood ``Q`` (and ``R``) of the filter ``label`` of ``exp``, pooled over the
@@ -175,6 +194,7 @@ def tune(exp, training: Callable, label: str, runs: int,
     from estim.errors import UsageError
     from estim.estimators.base import as_matrix
 
+    check_tunable(exp, label)
     index, est, model, batches = training(exp, label, runs)
     if not (hasattr(est, "Q") and hasattr(est, "R")):
         raise UsageError(f"{exp.name}: {label!r} has no noise covariances to fit")

@@ -22,6 +22,7 @@ import re
 import shutil
 import subprocess
 import tempfile
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -225,8 +226,6 @@ def _run(deck: str, tmp: Path, executable: str | None) -> None:
 def _read(path: Path) -> np.ndarray:
     if not path.is_file():
         raise NgspiceError("ngspice failed: no output written")
-    import warnings
-
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")              # numpy's "empty input file"
