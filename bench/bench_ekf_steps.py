@@ -28,8 +28,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_filters import FLOPS_PER_STEP, PEAK_FLOPS, Q, problem  # noqa: E402
 
-from estim import linalg  # noqa: E402
-from estim.estimators.base import joseph_update  # noqa: E402
+from estim.estimators.base import joseph_update
+from estim.numerics import linalg
 
 
 def per_call(fn, repeats: int) -> float:

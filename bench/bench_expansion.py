@@ -1,5 +1,5 @@
 """Chapter 2: the zeroth- and first-order systems integrated (the old algorithm) against
-their exact propagation (:func:`estim.expansion.propagate_expanded`), in one process.
+their exact propagation (:func:`estim.numerics.expansion.propagate_expanded`), in one process.
 
 Run on demand (not part of the tests):  python bench/bench_expansion.py
 
@@ -19,10 +19,15 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from estim.analyses import perturbation
-from estim.config import parse_data
-from estim.expansion import EXACT_STIFFNESS_LIMIT, ExpandedSystem, expand, propagate_expanded
-from estim.simulate import simulate
+from estim.config.loading import parse_data
+from estim.experiments import perturbation
+from estim.numerics.expansion import (
+    EXACT_STIFFNESS_LIMIT,
+    ExpandedSystem,
+    expand,
+    propagate_expanded,
+)
+from estim.numerics.simulate import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -17,7 +17,7 @@ import time
 
 import numpy as np
 
-from estim.analyses.dipole_field import _observe, sensor_operators
+from estim.experiments.dipole_field import _observe, sensor_operators
 from estim.fields import etkf, letkf
 from estim.fields.dipole import Dipole
 from estim.fields.fdtd import Grid, Simulation

@@ -3,7 +3,7 @@
 Run on demand (not part of the tests):  pip install '.[bench]' && python bench/bench_filters.py
 
 Both EKFs use the same model (the completed EKV MOSFET, eq 3.12 law) and the same
-discretisation (:func:`estim.discretize.step`), so the ratio measures the batching, not a
+discretisation (:func:`estim.numerics.discretize.step`), so the ratio measures the batching, not a
 different algorithm. filterpy is timed on a subset of the runs and its throughput
 (run-steps per second) is compared with ours; both run in this process.
 """
@@ -15,10 +15,10 @@ import time
 
 import numpy as np
 
-from estim import discretize
 from estim.estimators.ekf import ExtendedKalmanFilter
 from estim.estimators.rls import RecursiveLeastSquares
 from estim.models.mosfet_ekv import MosfetEKV
+from estim.numerics import discretize
 
 Q = [0.0025, 0.002, 0.002, 0.002]
 FLOPS_PER_STEP = 5e3

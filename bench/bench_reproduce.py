@@ -107,14 +107,15 @@ def tables_verdict(new: Path, stored: Path, config: str) -> str:
         return "DIFFER"
     if all((new / p.name).read_bytes() == p.read_bytes() for p in csvs):
         return "identical"
-    from estim import api, io
-    from estim.analyses import ANALYSES
+    from estim import api, store
+    from estim.config.registry import ANALYSES
+    from estim.run import compare
 
     exp = api.experiment(ROOT / config)
     tol, specs = exp.spec["check"]["tolerances"], ANALYSES[exp.analysis].TABLES
     for p in csvs:
-        if io.compare_tables(io.read_table(p, specs.get(p.stem)), io.read_table(new / p.name),
-                             tol):
+        stored = store.read_table(p, specs.get(p.stem))
+        if compare.compare_tables(stored, store.read_table(new / p.name), tol):
             return "DIFFER"
     return "within tolerances"
 

@@ -1,5 +1,5 @@
 """One Chapter 3 row's "actual" signal: the numpy Radau integrator (the old path), the
-compiled one (estim.compiled, the default) and scipy's solve_ivp, in one process.
+compiled one (estim.numerics.radau_compiled, the default) and scipy's solve_ivp, in one process.
 
 Run on demand (not part of the tests):  python bench/bench_simulate.py [--runs 30]
 
@@ -24,9 +24,9 @@ import numpy as np
 import yaml
 from bench_filters import timed
 
-from estim.analyses import estimation
-from estim.config import parse_data
-from estim.simulate import simulate, simulate_scipy
+from estim.config.loading import parse_data
+from estim.experiments import estimation
+from estim.numerics.simulate import simulate, simulate_scipy
 
 ROOT = Path(__file__).resolve().parents[1]
 

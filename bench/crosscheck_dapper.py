@@ -92,8 +92,8 @@ def _field_setup(n: int = 16):
     """A reduced dipole_field experiment and its setup, for the LETKF checks."""
     import yaml
 
-    from estim.analyses import dipole_field
-    from estim.config import parse_data
+    from estim.config.loading import parse_data
+    from estim.experiments import dipole_field
 
     root = Path(__file__).resolve().parents[1]
     spec = _reduced(yaml.safe_load((root / "configs" / "dipole_field.yaml").read_text()))
@@ -105,7 +105,7 @@ def _field_setup(n: int = 16):
 
 def check_local_analysis() -> list[tuple[str, float, float]]:
     """One LETKF analysis of a spun-up field ensemble with model error, N = 16."""
-    from estim.analyses import dipole_field as df
+    from estim.experiments import dipole_field as df
     from estim.fields import letkf, model_error
 
     exp, su = _field_setup()
@@ -133,12 +133,12 @@ def check_local_analysis() -> list[tuple[str, float, float]]:
 
 
 def _dapper_field_analysis(su, before, after, amps, y_rows, Y, inflation):
-    """:func:`estim.analyses.dipole_field.field_analysis` with DAPPER's analyses."""
+    """:func:`estim.experiments.dipole_field.field_analysis` with DAPPER's analyses."""
     from dapper.da_methods.ensemble import EnKF_analysis
     from dapper.tools.localization import dist2coeff
     from dapper.tools.randvars import GaussRV
 
-    from estim.analyses import dipole_field as df
+    from estim.experiments import dipole_field as df
     from estim.fields import letkf
 
     if inflation != 1.0:
@@ -198,8 +198,8 @@ def check_cycle(full: bool) -> list[tuple[str, float, float]]:
     import pandas as pd
     import yaml
 
-    from estim.analyses import dipole_field
-    from estim.config import parse_data
+    from estim.config.loading import parse_data
+    from estim.experiments import dipole_field
     from estim.fields import etkf
 
     root = Path(__file__).resolve().parents[1]

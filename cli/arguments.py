@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from estim import runner
 from estim.cli.group import fail
+from estim.run import runner
 
 
 def overrides(given: dict, runs: int | None, seed: int | None) -> dict:

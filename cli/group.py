@@ -54,7 +54,7 @@ class Group(click.Group):
             click.echo(f"error: {bounded(f'{exc.strerror or exc}{where}')}", err=True)
             sys.exit(3)
         except Exception as exc:  # noqa: BLE001 - last line of defence, reported
-            from estim.cli.launch import interrupted
+            from estim.cli.interrupt import interrupted
 
             if interrupted():                       # e.g. a worker pool the Ctrl-C broke
                 click.echo("error: interrupted", err=True)

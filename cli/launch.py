@@ -12,17 +12,7 @@ import os
 import signal
 import sys
 
-INTERRUPTED = [False]
-
-
-def _on_interrupt(signum, frame) -> None:
-    INTERRUPTED[0] = True
-    raise KeyboardInterrupt
-
-
-def interrupted() -> bool:
-    """Whether this process has received SIGINT."""
-    return INTERRUPTED[0]
+from estim.cli.interrupt import interrupted, on_interrupt
 
 
 def main() -> None:
@@ -30,7 +20,7 @@ def main() -> None:
     Ctrl-C that lands in its argument parsing, before any command runs, into "Aborted!" and
     exit 1; here every interrupt is exit 130, and click's other outcomes are mapped as
     standalone mode maps them (its usage errors exit 2, a closed output pipe exits 1)."""
-    signal.signal(signal.SIGINT, _on_interrupt)
+    signal.signal(signal.SIGINT, on_interrupt)
     for name in ("stdout", "stderr"):       # a closed stream, or one that cannot spell a name
         stream = getattr(sys, name)
         if stream is None:

@@ -15,19 +15,19 @@ from pathlib import Path
 import click
 
 import estim
-from estim import checking, config, io, runner, tables, tuning
-from estim.analyses import ANALYSES
+from estim import store
 from estim.cli import arguments, project
 from estim.cli.group import Group, LazyChoice, LazyEpilog, fail
-from estim.cli.output import (
-    on_shared_pool,
-    progress_lines,
-    run_and_report,
-    run_together,
-)
-from estim.config import MAX_WORK
+from estim.cli.output import on_shared_pool, progress_lines, run_and_report, run_together
+from estim.config import loading as config
+from estim.config.loading import MAX_WORK
+from estim.config.registry import ANALYSES
 from estim.errors import UsageError
-from estim.executors import executor as executor_for
+from estim.experiments.shared import tuning
+from estim.report import tables
+from estim.run import check as checking
+from estim.run import runner
+from estim.run.executors import executor as executor_for
 
 
 @click.group(cls=Group, context_settings={"help_option_names": ["-h", "--help"]})
@@ -120,7 +120,7 @@ def run(configs, out, runs, seed, update_baseline, quick, jobs, max_work, execut
                                                   bool(overrides), update_baseline, quick)
     if note and not quiet:
         click.echo(note, err=True)
-    io.ensure_writable(folder)
+    store.ensure_writable(folder)
     if shard is not None:
         k, n = arguments.shard(shard)
         for exp in exps:
@@ -170,7 +170,7 @@ def merge(configs, sources, out, runs, seed, quick, jobs, max_work, quiet) -> No
                                                   can_update=False)
     if note and not quiet:
         click.echo(note, err=True)
-    io.ensure_writable(folder)
+    store.ensure_writable(folder)
     for exp in exps:
         found = runner.gather_cells(exp, folder, list(sources))
         if not found:
@@ -198,7 +198,7 @@ def reproduce(out, jobs, max_work, everything, quiet) -> None:
     if not quiet:
         click.echo(where.describe(folder), err=True)
     exps = config.load_files(where.configs(everything), max_work=max_work)
-    io.ensure_writable(folder)
+    store.ensure_writable(folder)
     if jobs > 1 and len(exps) > 1:
         run_together(exps, folder, jobs, quiet, where.results)
         return
@@ -296,7 +296,7 @@ def check(configs, results, jobs, max_work, everything) -> None:
 def tune(config, label, new_label, runs, fit_r, out, max_work) -> None:
     """Fit the Q (and R) of one estimator of CONFIG by maximum likelihood and write the
     fitted estimator entry to a YAML overlay."""
-    exp = estim.config.load_files([config], max_work=max_work)[0]
+    exp = estim.config.loading.load_files([config], max_work=max_work)[0]
     analysis = ANALYSES[exp.analysis]
     if not hasattr(analysis, "training"):
         fail(f"{config}: estim tune fits the estimators of an estimation config (Chapter 3's "
@@ -309,7 +309,7 @@ def tune(config, label, new_label, runs, fit_r, out, max_work) -> None:
     out = out or Path(config).parent / "fitted" / f"{exp.name}.yaml"
     if out.is_dir():
         raise UsageError(f"--out {out}: a folder; name the overlay file to write")
-    io.ensure_writable(out.parent)                       # before the fit, not after it
+    store.ensure_writable(out.parent)                       # before the fit, not after it
     start = time.perf_counter()
     entry, fit = tuning.tune(exp, analysis.training, label, runs, fit_r)
     entry["label"] = new_label or f"{label} (fitted {'Q, R' if fit_r else 'Q'})"
@@ -317,7 +317,7 @@ def tune(config, label, new_label, runs, fit_r, out, max_work) -> None:
                            time.perf_counter() - start, fit_r)
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
-        io.atomic_write_bytes(out, text_.encode())
+        store.atomic_write_bytes(out, text_.encode())
     except OSError as exc:
         raise UsageError(f"cannot write {out} ({exc.strerror or exc})") from None
     click.echo(text_, nl=False)
@@ -339,7 +339,7 @@ def spice(config, executable, reltol, fmt) -> None:
     report the largest relative differences (DC point, every state and the output over the
     run, AC gain), each against its bar: holds, undecided (above it while ngspice's own last
     two answers differ by more) or fails; exit 1 if any fails."""
-    from estim.spice import compare
+    from estim.run import ngspice_check as compare
     from estim.spice.ngspice import NgspiceError
 
     if executable is not None and not executable.strip():
@@ -347,7 +347,7 @@ def spice(config, executable, reltol, fmt) -> None:
     if not reltol == reltol:                  # NaN passes click's range; ngspice refuses it
         fail("--reltol: expected a number from 1e-14 to 1e-3, got nan")
 
-    exp = estim.config.load_files([config])[0]
+    exp = estim.config.loading.load_files([config])[0]
     try:
         table_ = compare.compare(exp, executable, reltol=reltol)
     except NgspiceError as exc:
@@ -404,18 +404,18 @@ def report_page(results, out, full) -> None:
     experiment's claims, printed cells and health at the top, then its tables beside the
     printed values (failing claims in red), its figures, the deviations its config cites,
     seeds and versions."""
-    from estim import report as html_report
+    from estim.report import html as html_report
 
     where = project.locate()
     results = results or where.results
     notes = where.root / "docs" / "deviations.md" if where.root else None
-    io.ensure_writable(out.parent)               # before the page is built, not after
+    store.ensure_writable(out.parent)               # before the page is built, not after
     text_ = notes.read_text() if notes and notes.is_file() else ""
     sections = html_report.sections(results, text_, where.config_dir, ANALYSES)
     if not sections:
         fail(f"no stored results under {results}/ (run 'estim reproduce')")
     page = html_report.page("estim: stored results", sections, full=full)
-    io.atomic_write_bytes(out, page.encode("utf-8"))
+    store.atomic_write_bytes(out, page.encode("utf-8"))
     click.echo(f"report: {len(sections)} experiments -> {out}")
 
 
@@ -431,7 +431,7 @@ def report_page(results, out, full) -> None:
 def summary(results, readme, check_only) -> None:
     """Print each stored experiment's claims (holds / fails / undecided out of its cells,
     with the range of the ratio) and the ranges of the quantities its analysis quotes."""
-    from estim import summary as summaries
+    from estim.report import summary as summaries
 
     if check_only and readme is None:
         fail("--check applies only with --readme (it checks the README's generated blocks)")
@@ -455,7 +455,7 @@ def summary(results, readme, check_only) -> None:
         click.echo(f"{readme}: every summary block matches {results}/")
         return
     if stale:
-        io.atomic_write_bytes(readme, new.encode())
+        store.atomic_write_bytes(readme, new.encode())
     click.echo(f"{readme}: {len(stale)} block(s) re-generated" + (
         f" ({', '.join(stale)})" if stale else ""))
 
@@ -472,7 +472,7 @@ def settings(name, out, plugins) -> None:
     """List every setting a config can give, from its one declaration: each analysis' keys,
     each estimator's settings and each model's parameters, with type, default, unit and
     meaning (NAME: one analysis, estimator or model, built in or from a --plugin file)."""
-    from estim import settings as declared
+    from estim.config import listing as declared
     from estim.errors import ConfigError
 
     modules = []
@@ -491,7 +491,7 @@ def settings(name, out, plugins) -> None:
               "--out docs/settings.md` from the declarations in the code (`tests/test_settings"
               ".py` fails when this file is stale).\n\n")
     try:
-        io.atomic_write_bytes(out, (header + text_).encode())
+        store.atomic_write_bytes(out, (header + text_).encode())
     except OSError as exc:
         fail(f"cannot write {out} ({exc.strerror or exc})")
     click.echo(f"settings -> {out}", err=True)

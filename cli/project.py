@@ -7,10 +7,11 @@ configs shipped inside the package are used and results go to ``./results``.
 
 from __future__ import annotations
 
-import importlib.util
 import re
 from dataclasses import dataclass
 from pathlib import Path
+
+from estim.util.shipped import shipped_folder
 
 
 def _is_project(folder: Path) -> bool:
@@ -113,15 +114,8 @@ class Where:
 
 
 def shipped_configs() -> Path:
-    """The configs inside the installed package (``estim.cli.configs``); in an editable install,
-    which maps no such package, the ``configs/`` of the source tree beside ``cli/``."""
-    try:
-        spec = importlib.util.find_spec("estim.cli.configs")
-    except ModuleNotFoundError:
-        spec = None
-    if spec is not None and spec.submodule_search_locations:
-        return Path(list(spec.submodule_search_locations)[0])
-    return Path(__file__).resolve().parents[1] / "configs"
+    """The configs shipped with estim (:func:`estim.util.shipped.shipped_folder`)."""
+    return shipped_folder("configs")
 
 
 def locate(start: Path | None = None) -> Where:

@@ -16,68 +16,19 @@ models and estimators directly on arrays.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from estim import io, lazy
-from estim.config import MAX_WORK, load_data, load_file, spec_hash
+from estim import store
+from estim.config.loading import MAX_WORK, load_data, load_file
+from estim.config.schema import Experiment
 from estim.errors import UsageError
-from estim.schema import Experiment
+from estim.experiments.base import Result
+from estim.reference import view
+from estim.util import lazy
+from estim.util.shipped import shipped_folder
 
 pd = lazy.load("pandas")
-
-
-@dataclass
-class Result:
-    """An experiment's results: its tables (DataFrames by metric), its figures (matplotlib
-    figures after :func:`run`; file paths after :func:`load`), the resolved config and every
-    model it built."""
-
-    name: str
-    config: dict
-    tables: dict[str, pd.DataFrame]
-    figures: dict[str, Any] = field(default_factory=dict)
-    models: dict = field(default_factory=dict)
-    wall_time_s: float = 0.0
-    quick: bool = False
-    """Made by the analysis' quick profile (:func:`run` with ``quick=True``)."""
-
-    @property
-    def claims(self) -> pd.DataFrame | None:
-        """The claims table (docs/claims.md), or ``None``."""
-        return self.tables.get("claims")
-
-    def save(self, folder: str | Path, figure_format: str = "png") -> Path:
-        """Write ``folder/<name>/`` as ``estim run`` does (tables as CSV, figures, manifest),
-        as a unit; returns that folder. Figures that are file paths (a loaded result) are
-        copied."""
-        if not str(folder).strip():
-            raise UsageError("save: an empty folder name (give '.' for the working folder)")
-        if figure_format.lower() not in io.FIGURE_FORMATS:
-            raise ValueError(f"figure_format {figure_format!r}: expected one of "
-                             f"{io.FIGURE_FORMATS}")
-        out = Path(folder)
-        io.ensure_writable(out)
-        stored = io.read_manifest(out / self.name) if self.quick else None
-        if stored is not None and "quick" not in str(stored.get("command", "")):
-            raise UsageError(f"{out / self.name} holds a full run's results; a quick result "
-                             "does not replace them (save it elsewhere)")
-        command = "estim.run(quick=True)" if self.quick else "estim.run"
-        with io.ResultFolder(out, self.name) as target:
-            for metric, df in self.tables.items():
-                io.write_csv(df, target.path / f"{metric}.csv")
-            for name, fig in self.figures.items():
-                if isinstance(fig, (str, Path)):
-                    dest = target.path / "figures" / Path(fig).name
-                    dest.parent.mkdir(parents=True, exist_ok=True)
-                    io.atomic_write_bytes(dest, Path(fig).read_bytes())
-                else:
-                    io.write_figure(fig, target.path / "figures" / f"{name}.{figure_format}")
-            io.write_manifest(target.path, self.config, spec_hash(self.config),
-                              self.wall_time_s, command=command, models=self.models)
-            target.commit()
-        return out / self.name
 
 
 def _overrides(keys: dict, overrides: dict | None) -> dict:
@@ -100,18 +51,9 @@ def config_path(config: str | Path) -> Path:
     if path.exists() or path.parent.name not in ("", "configs") or path.suffix not in ("",
                                                                                       ".yaml"):
         return path                          # (a typo such as .yml is not a shipped config)
-    from importlib.util import find_spec
-
-    try:
-        spec = find_spec("estim.cli.configs")
-    except ModuleNotFoundError:
-        spec = None
-    folders = [Path(f) for f in (spec.submodule_search_locations or [])] if spec else []
-    folders.append(Path(__file__).resolve().parents[1] / "configs")     # a source checkout
-    for folder in folders:
-        shipped = folder / f"{path.stem}.yaml"
-        if shipped.is_file():
-            return shipped
+    shipped = shipped_folder("configs") / f"{path.stem}.yaml"
+    if shipped.is_file():
+        return shipped
     return path
 
 
@@ -134,7 +76,7 @@ def run(config: str | Path | dict, overrides: dict | None = None, *, jobs: int =
     ``runs=3``, ``seed=7`` set the Monte Carlo runs and seed; any other key path as a
     keyword with ``__`` for ``.`` (``simulation__rtol=1e-6``) or in ``overrides``
     (``{"estimators.0.settings.Q": [...]}``). ``quick``: the analysis' quick profile."""
-    from estim import runner
+    from estim.run import runner
 
     for name, value, least in (("jobs", jobs, 1), ("max_work", max_work, 1)):
         if isinstance(value, bool) or not isinstance(value, int) or value < least:
@@ -142,18 +84,18 @@ def run(config: str | Path | dict, overrides: dict | None = None, *, jobs: int =
     exp = experiment(config, overrides, quick, max_work, **keys)
     start = time.perf_counter()
     out = runner.execute(exp, jobs)
-    return Result(exp.name, exp.spec, out.tables, out.figures, exp.models,
-                  time.perf_counter() - start, quick=quick)
+    return Result(out.tables, out.figures, name=exp.name, config=exp.spec, models=exp.models,
+                  wall_time_s=time.perf_counter() - start, quick=quick)
 
 
 def load(folder: str | Path) -> Result:
     """The results stored in ``folder`` (one experiment's folder: ``results/<name>``): its
     tables as DataFrames, its figures as file paths, its config and models from the
     manifest. A folder that holds none is a ``UsageError``."""
-    from estim.analyses import ANALYSES
+    from estim.config.registry import ANALYSES
 
     folder = Path(folder)
-    manifest = io.read_manifest(folder)
+    manifest = store.read_manifest(folder)
     if manifest is None or not isinstance(manifest.get("config"), dict):
         raise UsageError(f"{folder}: no readable manifest.json (not an estim results folder)")
     config = manifest["config"]
@@ -165,10 +107,9 @@ def load(folder: str | Path) -> Result:
     for metric, spec in analysis.TABLES.items():
         path = folder / spec.file
         if path.is_file():
-            from estim.tables import view
-
-            tables[metric] = view(io.read_table(path, spec), spec)
+            tables[metric] = view(store.read_table(path, spec), spec)
     figures = {p.stem: p for p in sorted((folder / "figures").glob("*"))
                if p.suffix in (".png", ".svg", ".pdf")}
-    return Result(folder.name, config, tables, figures, manifest.get("models") or {},
-                  float(manifest.get("wall_time_s") or 0.0))
+    return Result(tables, figures, name=folder.name, config=config,
+                  models=manifest.get("models") or {},
+                  wall_time_s=float(manifest.get("wall_time_s") or 0.0))

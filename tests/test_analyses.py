@@ -7,10 +7,11 @@ import pytest
 import yaml
 from click.testing import CliRunner
 
-from estim import claims, io
-from estim.analyses import ANALYSES
 from estim.cli.main import main
-from estim.config import parse_data
+from estim.config.loading import parse_data
+from estim.config.registry import ANALYSES
+from estim.experiments.shared import claims
+from estim.run import compare
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = (sorted((ROOT / "configs").glob("*.yaml"))
@@ -106,13 +107,13 @@ def test_inputs_perturbed_at_1e_12_stay_within_the_check_tolerances(tmp_path, pa
         # amplitude_v is the input itself, echoed as a key column: the rest must agree
         a, b = (pd.read_csv(out[k] / table).drop(columns="amplitude_v", errors="ignore")
                 for k in ("base", "moved"))
-        assert io.compare_tables(a, b, tolerances) == [], table
+        assert compare.compare_tables(a, b, tolerances) == [], table
 
 
 @pytest.mark.parametrize("path", CONFIGS, ids=lambda p: p.stem)
 def test_stored_results_join_every_thesis_row(path):
-    from estim import tables
-    from estim.io import read_table
+    from estim import reference
+    from estim.store import read_table
     exp = parse_data(yaml.safe_load(path.read_text()), str(path), path.stem)
     if not any(spec.join for spec in ANALYSES[exp.analysis].TABLES.values()):
         pytest.skip(f"{exp.analysis}: the paper prints no numbers to join")
@@ -123,7 +124,8 @@ def test_stored_results_join_every_thesis_row(path):
     for spec in ANALYSES[exp.analysis].TABLES.values():
         if spec.join and (folder / spec.file).is_file():
             # with_reference raises when a thesis row matches none of ours
-            df = tables.with_reference(tables.view(read_table(folder / spec.file), spec), spec)
+            stored = reference.view(read_table(folder / spec.file), spec)
+            df = reference.with_reference(stored, spec)
             if not spec.reference:      # a table of printed formulas (4.3, 4.4): rows only
                 filled += len(df)
                 continue

@@ -1,10 +1,11 @@
-"""The claims engine (estim.claims): one rule for every table (docs/claims.md)."""
+"""The claims engine (estim.experiments.shared.claims): one rule for every table
+(docs/claims.md)."""
 
 import numpy as np
 import pytest
 
-from estim import claims
-from estim.claims import Losses
+from estim.experiments.shared import claims
+from estim.experiments.shared.claims import Losses
 
 
 def paired(shift_in_se: float, runs: int = 30, seed: int = 0):

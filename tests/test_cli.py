@@ -8,9 +8,9 @@ import pytest
 import yaml
 from click.testing import CliRunner
 
-from estim.analyses import ANALYSES
 from estim.cli.main import main
-from estim.config import parse_override
+from estim.config.loading import parse_override
+from estim.config.registry import ANALYSES
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -119,8 +119,8 @@ def test_config_errors_exit_2_naming_file_and_key(tmp_path, changes, key, expect
 
 
 def test_paired_sweep_follows_the_thesis_rows():
-    from estim.analyses.estimation import sweep
-    from estim.config import parse
+    from estim.config.loading import parse
+    from estim.experiments.estimation import sweep
 
     text = (ROOT / "configs" / "diffamp_ekf.yaml").read_text()
     points = sweep(parse(text, "diffamp_ekf.yaml", "diffamp_ekf"))
@@ -500,7 +500,7 @@ def test_every_shipped_config_has_a_valid_quick_profile(path):
     """``estim run CONFIG --quick`` validates the shrunk config again: it must pass (a config
     without ``reproduces`` used to fail here, and every netlist config did: its resolved
     model block carries the ``netlist:<stem>`` name beside the netlist)."""
-    from estim.config import load_file
+    from estim.config.loading import load_file
 
     exp = load_file(path, quick=True)
     assert exp.name == load_file(path, plan=False).name
@@ -599,7 +599,7 @@ def test_a_dask_run_writes_the_same_bytes_as_jobs_1(tmp_path):
 
 
 def test_an_interrupted_run_resumes_with_its_finished_cells(tmp_path, monkeypatch):
-    from estim.analyses import estimation
+    from estim.experiments import estimation
 
     path = write(tmp_path, tiny_config(**{"input.frequencies_hz": [100, 1000, 10000]}))
     runner = CliRunner()
@@ -722,7 +722,7 @@ def test_vector_figures_are_deterministic(tmp_path, fmt, magic):
 
 
 def test_table_help_lists_every_metric_with_its_analyses():
-    from estim import runner
+    from estim.run import runner
 
     text = CliRunner().invoke(main, ["table", "--help"]).output
     for metric, specs in runner.table_specs().items():
@@ -836,8 +836,8 @@ def test_exponent_floats_read_as_numbers_in_files_and_nested_overrides(tmp_path)
 
 def test_sweep_work_counts_what_each_value_costs(tmp_path):
     """A swept ``monte_carlo.runs`` scales the grid's work: the --max-work bound sees it."""
-    from estim.analyses import ANALYSES
-    from estim.config import parse_data
+    from estim.config.loading import parse_data
+    from estim.config.registry import ANALYSES
 
     spec = tiny_config()
     work = ANALYSES["estimation"].work_size(parse_data(spec, "t", "tiny").spec)
@@ -881,8 +881,8 @@ def test_quick_ignores_the_size_of_the_grid_it_does_not_run(tmp_path):
     spec["sweep"] = {"monte_carlo.runs": [3, 4, 5]}
     path = write(tmp_path, spec)
     runner = CliRunner()
-    from estim.analyses import ANALYSES
-    from estim.config import parse_data
+    from estim.config.loading import parse_data
+    from estim.config.registry import ANALYSES
 
     work = ANALYSES["estimation"].work_size(parse_data(tiny_config(), "t", "tiny").spec)
     limit = str(2 * work)                       # one cell fits, the grid of three does not
@@ -908,14 +908,14 @@ def test_a_sweep_holds_one_cells_figures_at_a_time(tmp_path, monkeypatch):
     import gc
     import weakref
 
-    from estim import io as estim_io
+    from estim import store
 
     spec = tiny_config()
     spec["sweep"] = {"noise.measurement_sigma": [0.05, 0.1, 0.15, 0.2]}
     path = write(tmp_path, spec)
     seen: weakref.WeakSet = weakref.WeakSet()
     alive_counts = []
-    real = estim_io.write_figure
+    real = store.write_figure
 
     def counting(fig, where):
         seen.add(fig)
@@ -923,7 +923,7 @@ def test_a_sweep_holds_one_cells_figures_at_a_time(tmp_path, monkeypatch):
         alive_counts.append(len(seen))          # figures drawn so far and still held
         real(fig, where)
 
-    monkeypatch.setattr(estim_io, "write_figure", counting)
+    monkeypatch.setattr(store, "write_figure", counting)
     result = CliRunner().invoke(main, ["run", str(path), "--runs", "2", "--quiet", "--out",
                                        str(tmp_path / "r")])
     assert result.exit_code == 0, result.output
@@ -946,7 +946,7 @@ def test_jobs_defaults_to_the_usable_cores():
 
 
 def test_report_renders_deviations_and_leaves_out_empty_tables_and_missing_metadata(tmp_path):
-    from estim import report
+    from estim.report import html as report
 
     html_ = report.markdown("**D28.** The *printed* bias (eq 2.14):\n- one `x`\n  continued\n"
                             "- two [see](#D3), [away](https://example.org)\n\nLast.")

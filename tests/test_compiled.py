@@ -1,14 +1,16 @@
-"""The compiled Radau integrator (estim.compiled) against the numpy one it replaces."""
+"""The compiled Radau integrator (estim.numerics.radau_compiled) against the numpy one it
+replaces."""
 
 import numpy as np
 import pytest
 
-from estim import compiled, kernels
 from estim.models.cco import CrossCoupledOscillator
 from estim.models.diffamp_em import DiffAmpEbersMoll
 from estim.models.diffamp_exp import DiffAmpExponential
 from estim.models.mosfet_ekv import MosfetEKV
-from estim.simulate import simulate
+from estim.numerics import kernels
+from estim.numerics import radau_compiled as compiled
+from estim.numerics.simulate import simulate
 
 pytestmark = pytest.mark.skipif(not compiled.AVAILABLE, reason="numba is not installed")
 
@@ -80,7 +82,7 @@ def test_step_underflow_is_reported_not_hidden():
 def test_expanded_system_kernel_equals_its_drift():
     """The stacked zeroth/first-order system of the Chapter 2 expansion (integrated where the
     exact propagation is too stiff) has a compiled kernel too."""
-    from estim.expansion import ExpandedSystem, expand
+    from estim.numerics.expansion import ExpandedSystem, expand
 
     model = DiffAmpExponential(variant="thesis_printed")
     u_op = np.array([1.0, 1.0])

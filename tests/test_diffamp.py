@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from estim.models.diffamp_em import DiffAmpEbersMoll
-from estim.simulate import simulate
+from estim.numerics.simulate import simulate
 
 
 def test_jacobian_matches_finite_differences():
@@ -58,8 +58,8 @@ def test_printed_q_in_volts_keeps_the_output_gain_below_one():
     capacitor: the first update's
     gain on the output is 1 and the EKF returns the measurement. Mapped by the model's
     state scales (C_L for q_L) the gain stays well below 1."""
-    from estim import discretize
     from estim.estimators.ekf import ExtendedKalmanFilter
+    from estim.numerics import discretize
 
     model = DiffAmpEbersMoll()
     u = np.array([1.0, 1.0])

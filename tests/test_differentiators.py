@@ -5,8 +5,8 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from estim import differentiators as fd
-from estim import tables
+from estim import reference
+from estim.numerics import fir_differentiators as fd
 
 
 def test_n2_coefficients():
@@ -21,7 +21,7 @@ def test_relative_error_vanishes_at_pi(n):
 
 
 def test_every_numeric_n2_cell_of_table_ii():
-    ref = tables.reference_table("fir_II")
+    ref = reference.reference_table("fir_II")
     for _, row in ref.iterrows():
         got = fd.order_maximally_linear(row["omega_p"], row["threshold_db"])
         if np.isfinite(row["n2"]):

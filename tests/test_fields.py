@@ -104,7 +104,7 @@ def _literal_batch(series=4, steps=60, seed=0):
 
 
 def test_literal_unmeasured_points_are_the_open_loop():
-    from estim.analyses.dipole import kf_per_point
+    from estim.experiments.dipole import kf_per_point
 
     truth, z, dt, spec = _literal_batch()
     measured = np.array([True, False, True, False])
@@ -117,7 +117,7 @@ def test_literal_unmeasured_points_are_the_open_loop():
 
 
 def test_literal_kf_smooths_the_measured_potentials():
-    from estim.analyses.dipole import kf_per_point
+    from estim.experiments.dipole import kf_per_point
 
     truth, z, dt, spec = _literal_batch(series=8, steps=200)
     out = kf_per_point(truth, z, dt, spec)
@@ -195,8 +195,8 @@ def test_etkf_equals_the_kalman_filter_on_a_linear_model_with_an_exact_ensemble(
 
 
 def test_with_the_wrong_source_the_field_filter_cuts_the_open_loop_error():
-    from estim.analyses import dipole_field
-    from estim.config import parse_data
+    from estim.config.loading import parse_data
+    from estim.experiments import dipole_field
 
     spec = yaml.safe_load(open("configs/dipole_field.yaml"))
     spec.pop("check", None)
@@ -222,7 +222,7 @@ def test_field_etkf_equals_a_dense_kalman_filter_on_an_8_cube():
     members differ only in their source amplitude, so the covariance has rank 2 and the
     ensemble represents it exactly; a dense KF on the same linear model, started from the
     ensemble's mean and covariance, must give the same analysis mean."""
-    from estim.analyses.dipole_field import _observe, sensor_operators
+    from estim.experiments.dipole_field import _observe, sensor_operators
     from estim.fields import etkf
     from estim.fields.dipole import Dipole
     from estim.fields.fdtd import Grid, Simulation

@@ -2,13 +2,14 @@ import numpy as np
 import pytest
 from scipy import linalg
 
-from estim import discretize, registry
+from estim.config import registry
 from estim.estimators.base import Estimate
 from estim.estimators.ekf import ExtendedKalmanFilter
 from estim.estimators.kf import KalmanFilter
 from estim.estimators.rls import RecursiveLeastSquares
 from estim.estimators.ukf import UnscentedKalmanFilter
 from estim.models.mosfet_ekv import MosfetEKV
+from estim.numerics import discretize
 
 
 def test_kf_reaches_closed_form_steady_state_scalar():

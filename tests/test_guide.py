@@ -77,8 +77,8 @@ def test_the_guides_iterated_ekf_is_the_ekf_for_a_linear_output(tmp_path):
     """With one iteration, or any number on a model whose output is linear in the state, the
     iterated update is the EKF's update: the two filters agree to rounding."""
     config = guide_files(tmp_path)
-    from estim import registry
-    from estim.config import load_file
+    from estim.config import registry
+    from estim.config.loading import load_file
 
     load_file(config)                                   # imports the plugins
     model = registry.MODELS["diode_rc"]()
@@ -110,7 +110,7 @@ def test_a_plugin_is_seen_only_by_the_config_that_loads_it(tmp_path):
     assert alone.exit_code == both.exit_code == 2, both.output
     assert f"{other}: model.name: " in both.output
     assert alone.output.splitlines()[-1] == both.output.splitlines()[-1]
-    from estim import registry
+    from estim.config import registry
 
     assert "iekf" in registry.ESTIMATORS                 # visible outside any config
 

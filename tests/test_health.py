@@ -1,13 +1,14 @@
-"""Filter health (estim.health) and the RLS settings the audit of issue 11 named."""
+"""Filter health (estim.experiments.shared.health) and the RLS settings the audit of issue 11
+named."""
 
 import numpy as np
 import pytest
 from scipy import stats
 
-from estim import health
 from estim.estimators.base import Estimate
 from estim.estimators.kf import KalmanFilter
 from estim.estimators.rls import RecursiveLeastSquares
+from estim.experiments.shared import health
 
 A = np.array([[0.95, 0.1], [-0.1, 0.95]])
 C = np.array([[1.0, 0.0]])

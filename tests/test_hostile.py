@@ -19,11 +19,12 @@ import pytest
 import yaml
 from click.testing import CliRunner
 
-from estim import io
-from estim.analyses import ANALYSES
+from estim import store
 from estim.cli.main import main
-from estim.config import apply_overrides, parse_data
+from estim.config.loading import apply_overrides, parse_data
+from estim.config.registry import ANALYSES
 from estim.errors import ConfigError, ConfigErrors
+from estim.store import folders
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = {p.stem: yaml.safe_load(p.read_text())
@@ -487,7 +488,7 @@ def folder_is_whole(folder: Path) -> str:
     files = {str(p.relative_to(folder)) for p in folder.rglob("*") if p.is_file()}
     assert files - {"manifest.json"} == set(manifest["files"]), files
     for name, digest in manifest["files"].items():
-        assert io.sha256(folder / name) == digest, name
+        assert store.sha256(folder / name) == digest, name
     return {1: "old", 2: "new"}[manifest["seed"]]
 
 
@@ -506,8 +507,8 @@ def test_a_failed_write_leaves_the_old_folder(tmp_path, monkeypatch):
             raise OSError(28, "No space left on device", str(target))
         return real(fig, target)
 
-    real = io.write_figure
-    monkeypatch.setattr(io, "write_figure", full_disk)
+    real = store.write_figure
+    monkeypatch.setattr(store, "write_figure", full_disk)
     result = runner.invoke(main, ["run", str(path), "--out", str(out), "--quiet",
                                   "--seed", "2"])
     assert result.exit_code == 3
@@ -517,7 +518,7 @@ def test_a_failed_write_leaves_the_old_folder(tmp_path, monkeypatch):
     # no half folder; the finished cells wait (hidden) for the re-run, which takes them
     left = sorted(p.name for p in out.iterdir())
     assert left[1:] == [".tiny.lock", "tiny"] and left[0].startswith(".tiny.cells-")
-    monkeypatch.setattr(io, "write_figure", real)
+    monkeypatch.setattr(store, "write_figure", real)
     again = runner.invoke(main, ["run", str(path), "--out", str(out), "--seed", "2"])
     assert again.exit_code == 0 and "resumed with" in again.output
     assert sorted(p.name for p in out.iterdir()) == [".tiny.lock", "tiny"]
@@ -526,7 +527,7 @@ def test_a_failed_write_leaves_the_old_folder(tmp_path, monkeypatch):
 def test_not_enough_space_is_found_before_any_work(tmp_path, monkeypatch):
     path = tmp_path / "tiny.yaml"
     path.write_text(yaml.safe_dump(tiny_spec()))
-    monkeypatch.setattr(io.shutil, "disk_usage", lambda p: type("U", (), {"free": 1024})())
+    monkeypatch.setattr(folders.shutil, "disk_usage", lambda p: type("U", (), {"free": 1024})())
     result = CliRunner().invoke(main, ["run", str(path), "--out", str(tmp_path / "out")])
     assert result.exit_code == 2 and "not enough free space" in result.output
     assert "work units" not in result.output
@@ -700,7 +701,7 @@ def _damage(target: Path, kind: str) -> None:
     elif kind == "huge":
         with target.open("w") as fh:
             fh.write("a,b\n")
-            fh.write("1,2\n" * (io.MAX_TABLE_BYTES // 4 + 1))
+            fh.write("1,2\n" * (store.MAX_TABLE_BYTES // 4 + 1))
 
 
 def _command(*args: str, timeout: float = 60) -> subprocess.CompletedProcess:
@@ -731,7 +732,7 @@ def test_a_damaged_stored_manifest_is_named_and_exit_2(stored, kind):
     if kind == "deep":
         target.write_text("[" * 100_000 + "]" * 100_000)
     elif kind == "huge":
-        target.write_text('{"config": {}, "pad": "' + "x" * (io.MAX_MANIFEST_BYTES + 1) + '"}')
+        target.write_text('{"config": {}, "pad": "' + "x" * (store.MAX_MANIFEST_BYTES + 1) + '"}')
     else:
         _damage(target, kind)
     for args in (["table", "rmse", "--results", str(out)], ["summary", "--results", str(out)],
@@ -866,10 +867,10 @@ def test_ctrl_c_inside_clicks_argument_parsing_is_exit_130_not_aborted(monkeypat
     """A SIGINT that lands in click's own parsing, after the commands are imported and before
     any command runs (click's standalone mode prints "Aborted!" and exits 1 there), is one
     line and exit 130 like every other interrupt."""
-    from estim.cli import entry, launch
+    from estim.cli import entry, interrupt, launch
 
     def interrupted_while_parsing(*args, **kwargs):
-        launch._on_interrupt(signal.SIGINT, None)       # what the real SIGINT runs
+        interrupt.on_interrupt(signal.SIGINT, None)       # what the real SIGINT runs
 
     monkeypatch.setattr(entry.main, "make_context", interrupted_while_parsing)
     monkeypatch.setattr(sys, "argv", ["estim", "list"])
@@ -879,7 +880,7 @@ def test_ctrl_c_inside_clicks_argument_parsing_is_exit_130_not_aborted(monkeypat
             launch.main()
     finally:
         signal.signal(signal.SIGINT, previous)
-        launch.INTERRUPTED[0] = False
+        interrupt.INTERRUPTED[0] = False
     assert stop.value.code == 130       # (click first ends the terminal's ^C line)
     assert capsys.readouterr().err.strip().splitlines() == ["error: interrupted"]
 
@@ -976,7 +977,7 @@ def test_an_experiment_folder_given_as_results_is_named_as_such(stored):
 
 def test_a_yaml_merge_key_merges_and_yields_to_explicit_keys():
     """``<<: *anchor`` (a YAML merge key) failed as 'could not determine a constructor'."""
-    from estim.config import load_yaml
+    from estim.config.loading import load_yaml
 
     text = "a: &s {q: 1, r: 2}\nb:\n  <<: *s\n  r: 3\n"
     assert load_yaml(text, "m.yaml") == {"a": {"q": 1, "r": 2}, "b": {"q": 1, "r": 3}}

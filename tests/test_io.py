@@ -1,7 +1,9 @@
 import pandas as pd
 import pytest
 
-from estim import io
+from estim import store
+from estim.run import compare
+from estim.store import folders
 
 
 def test_atomic_write_leaves_old_file_when_interrupted(tmp_path, monkeypatch):
@@ -11,9 +13,9 @@ def test_atomic_write_leaves_old_file_when_interrupted(tmp_path, monkeypatch):
     def boom(src, dst):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(io.os, "replace", boom)
+    monkeypatch.setattr(folders.os, "replace", boom)
     with pytest.raises(KeyboardInterrupt):
-        io.atomic_write_bytes(target, b"new half table")
+        store.atomic_write_bytes(target, b"new half table")
     assert target.read_text() == "old\n"
     assert [p.name for p in tmp_path.iterdir()] == ["rmse.csv"]
 
@@ -21,11 +23,11 @@ def test_atomic_write_leaves_old_file_when_interrupted(tmp_path, monkeypatch):
 def test_compare_tables_uses_column_tolerances():
     a = pd.DataFrame({"estimator": ["EKF"], "rmse": [1.0], "runs": [5]})
     b = pd.DataFrame({"estimator": ["EKF"], "rmse": [1.0 + 1e-7], "runs": [5]})
-    assert io.compare_tables(a, b, {"rmse": {"rtol": 1e-6}}) == []
-    diffs = io.compare_tables(a, b, {})
+    assert compare.compare_tables(a, b, {"rmse": {"rtol": 1e-6}}) == []
+    diffs = compare.compare_tables(a, b, {})
     assert [d["column"] for d in diffs] == ["rmse"]
     c = pd.DataFrame({"estimator": ["RLS"], "rmse": [1.0], "runs": [5]})
-    assert [d["column"] for d in io.compare_tables(a, c, {})] == ["estimator"]
+    assert [d["column"] for d in compare.compare_tables(a, c, {})] == ["estimator"]
 
 
 def test_an_infinity_matches_only_itself_under_any_tolerance():
@@ -35,7 +37,7 @@ def test_an_infinity_matches_only_itself_under_any_tolerance():
     stored = pd.DataFrame({"rmse": [inf, 1.0, inf, -inf, nan], "rmse_se": [0.1] * 5})
     new = pd.DataFrame({"rmse": [5.0, inf, inf, inf, nan], "rmse_se": [0.1] * 5})
     tol = {"rmse": {"rtol": 1e-6, "atol": 1e-9, "se": 4.0}}
-    assert [d["row"] for d in io.compare_tables(stored, new, tol)] == [0, 1, 3]
+    assert [d["row"] for d in compare.compare_tables(stored, new, tol)] == [0, 1, 3]
 
 
 def test_statistical_tolerances():
@@ -46,16 +48,16 @@ def test_statistical_tolerances():
                         "runs": [30, 30, 1], "diverged": [0, 0, 29]})
     tol = {"rmse": {"se": 4.0}, "diverged": {"binomial": 4.0, "trials": ["runs", "diverged"]},
            "runs": {"binomial": 4.0, "trials": ["runs", "diverged"]}}
-    diffs = io.compare_tables(stored, new, tol)
+    diffs = compare.compare_tables(stored, new, tol)
     # 0.03 is 2.1 combined SEs: passes; 0.10 is 7.1: fails; the one-run mean is not compared
     assert [(d["row"], d["column"]) for d in diffs] == [(1, "rmse")]
     # two zero counts must agree exactly; 2 -> 0 of 30 is within 4 binomial deviations
     zero = pd.DataFrame({"rmse": [0.3], "rmse_se": [0.01], "runs": [30], "diverged": [0]})
     one = zero.assign(diverged=[1], runs=[29])
-    assert io.compare_tables(zero, zero, tol) == []
-    assert io.compare_tables(zero, one, tol) == []
-    assert [d["column"] for d in io.compare_tables(zero, one, {})] == ["runs", "diverged"]
-    assert io.compare_tables(stored, new, {**tol, "rmse": {"skip": "why"}}) == []
+    assert compare.compare_tables(zero, zero, tol) == []
+    assert compare.compare_tables(zero, one, tol) == []
+    assert [d["column"] for d in compare.compare_tables(zero, one, {})] == ["runs", "diverged"]
+    assert compare.compare_tables(stored, new, {**tol, "rmse": {"skip": "why"}}) == []
 
 
 def test_a_file_where_the_result_folder_goes_is_refused_before_any_work(tmp_path):
@@ -65,13 +67,13 @@ def test_a_file_where_the_result_folder_goes_is_refused_before_any_work(tmp_path
 
     (tmp_path / "exp").write_text("mine\n")
     with pytest.raises(UsageError, match="exists and is not a folder"):
-        with io.ResultFolder(tmp_path, "exp"):
+        with store.ResultFolder(tmp_path, "exp"):
             pass
     assert (tmp_path / "exp").read_text() == "mine\n"
     (tmp_path / "other").mkdir()
     (tmp_path / ".other.lock").mkdir()
     with pytest.raises(UsageError, match="cannot open the lock file"):
-        with io.ResultFolder(tmp_path, "other"):
+        with store.ResultFolder(tmp_path, "other"):
             pass
 
 
@@ -86,9 +88,9 @@ def test_an_atomic_write_never_replaces_a_fifo_a_device_or_a_folder(tmp_path):
     (tmp_path / "folder").mkdir()
     for target in (fifo, tmp_path / "folder"):
         with pytest.raises(UsageError, match="not a regular file; not replaced"):
-            io.atomic_write_bytes(target, b"x")
+            store.atomic_write_bytes(target, b"x")
     assert fifo.is_fifo() and (tmp_path / "folder").is_dir()
     (tmp_path / "real.yaml").write_text("old")
     (tmp_path / "link.yaml").symlink_to(tmp_path / "real.yaml")
-    io.atomic_write_bytes(tmp_path / "link.yaml", b"new")          # written through the link
+    store.atomic_write_bytes(tmp_path / "link.yaml", b"new")          # written through the link
     assert (tmp_path / "link.yaml").is_symlink() and (tmp_path / "real.yaml").read_text() == "new"

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy import linalg
 
-from estim import kalman_differentiator as kd
+from estim.estimators import kalman_differentiator as kd
 
 F = np.array([[0.0, 1.0], [0.0, 0.0]])
 H = np.array([[1.0], [0.0]])

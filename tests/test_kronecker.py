@@ -6,15 +6,16 @@ import numpy as np
 import pytest
 import yaml
 
-from estim import kronecker, opcount, signals
-from estim.analyses import kronecker as analysis
-from estim.config import parse_data
+from estim.config.loading import parse_data
 from estim.estimators.kf import KalmanFilter
 from estim.estimators.kronecker_ekf import KroneckerEKF
 from estim.estimators.wavelet_lms import WaveletLMS, regressors
+from estim.experiments import kronecker as analysis
 from estim.models.mosfet_darlington import MosfetDarlington
 from estim.models.mosfet_ekv import MosfetEKV
 from estim.models.mosfet_printed import MosfetPrinted
+from estim.numerics import kronecker_form as kronecker
+from estim.numerics import opcount, signals
 
 CIRCUIT = {"W_L": 1.0, "R_D": 1e9, "V_IN": 0.5}
 
@@ -38,7 +39,7 @@ def test_kronecker_model_error_is_third_order_and_linear_second_order():
 
 @pytest.mark.parametrize("name", ["cco", "mosfet_darlington"])
 def test_kronecker_form_of_other_registered_models_is_third_order(name):
-    from estim import registry
+    from estim.config import registry
 
     m = registry.MODELS[name]()
     x, u = m.operating_point(), np.zeros(m.n_inputs)
@@ -163,7 +164,7 @@ def _numpy_lms(Ws, Wt, step, epochs):
 
 @pytest.mark.parametrize("q", [1, 4])
 def test_compiled_lms_passes_are_the_numpy_form_to_rounding_and_count_alike(q):
-    from estim.compiled_lms import lms_passes
+    from estim.estimators.wavelet_lms_compiled import lms_passes
 
     rng = np.random.default_rng(q)
     d = q + q * (q + 1) // 2 + 2
@@ -239,7 +240,7 @@ def test_without_area_scaled_caps_equal_w_over_l_gives_equal_columns():
 
 
 def test_burden_counts_equal_the_closed_forms_of_what_the_code_does():
-    from estim.analyses import burden
+    from estim.experiments import burden
 
     spec = yaml.safe_load(open("configs/kronecker_burden.yaml"))
     spec = burden.tiny(copy.deepcopy(spec))

@@ -1,5 +1,5 @@
 """The Chapter 5 field filter (estim.fields.letkf, estim.fields.model_error and the cycle of
-estim.analyses.dipole_field): against the global ETKF and a dense KF, on a local bump the
+estim.experiments.dipole_field): against the global ETKF and a dense KF, on a local bump the
 source cannot explain, its rank and its first step."""
 
 from __future__ import annotations
@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import yaml
 
-from estim.analyses import dipole_field as df
-from estim.config import parse_data
+from estim.config.loading import parse_data
+from estim.experiments import dipole_field as df
 from estim.fields import etkf, letkf, model_error
 
 

@@ -2,8 +2,8 @@ import numpy as np
 import pytest
 from scipy import linalg as sl
 
-from estim.linalg import expm
 from estim.models.mosfet_ekv import MosfetEKV
+from estim.numerics.linalg import expm
 
 
 @pytest.mark.parametrize("scale", [1e-3, 1.0, 30.0])

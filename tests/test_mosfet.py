@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from estim.models.mosfet_ekv import DRAIN_CURRENT_LAWS, MosfetEKV
-from estim.simulate import simulate, simulate_scipy
+from estim.numerics.simulate import simulate, simulate_scipy
 
 
 @pytest.mark.parametrize("law", DRAIN_CURRENT_LAWS)
@@ -101,7 +101,7 @@ def test_simulator_matches_solve_ivp_radau():
 def _input_derivative_experiment(**noise):
     import yaml
 
-    from estim.config import parse_data
+    from estim.config.loading import parse_data
 
     spec = yaml.safe_load(open("configs/mosfet_input_derivative.yaml"))
     spec["input"].update(frequencies_hz=[1000], periods=3)
@@ -116,7 +116,7 @@ def test_filter_inputs_the_difference_the_analytic_derivative_and_the_kalman_one
     difference of the noisy source, which the filters get when they see it without sensor
     noise. With sensor noise far above the source's own, the Kalman differentiator is
     nearer to the circuit's input than the difference is."""
-    from estim.analyses import estimation
+    from estim.experiments import estimation
 
     exp = _input_derivative_experiment(filters_see="nominal", input_sensor_sigma=0.0)
     data = estimation.simulate_point(exp, 1000.0, 0.001, 4, np.random.default_rng(1))

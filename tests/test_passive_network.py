@@ -6,9 +6,9 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from estim import passive_network as pn
-from estim.analyses import passive_network as analysis
-from estim.config import parse_data
+from estim.config.loading import parse_data
+from estim.estimators import passive_network as pn
+from estim.experiments import passive_network as analysis
 
 
 def test_eq19_with_u_equal_q_is_the_kalman_bucy_filter():

@@ -7,12 +7,13 @@ import numpy as np
 import pytest
 import yaml
 
-from estim import config, metrics
-from estim.analyses import perturbation as analysis
+from estim.config import loading as config
 from estim.errors import SimulationError
-from estim.expansion import expand, respond
+from estim.experiments import perturbation as analysis
 from estim.models.base import Model
 from estim.models.diffamp_em import DiffAmpEbersMoll
+from estim.numerics import metrics
+from estim.numerics.expansion import expand, respond
 
 ROOT = Path(__file__).resolve().parents[1]
 

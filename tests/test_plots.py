@@ -3,7 +3,7 @@ readable windows, units in titles."""
 
 import numpy as np
 
-from estim import plots
+from estim.experiments.shared import plots
 
 
 def _trace(n=400, f=1000.0, dt=1e-4):

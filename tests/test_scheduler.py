@@ -1,4 +1,4 @@
-"""issue 27: several configs at once on one shared pool (estim.scheduler), longest first, an
+"""issue 27: several configs at once on one shared pool (estim.run.scheduler), longest first, an
 analysis that times itself alone, and the same tables as one config after another."""
 
 import json
@@ -12,12 +12,12 @@ from click.testing import CliRunner
 from test_cli import fake_project, tiny_config
 from test_hostile import interruptible
 
-from estim import scheduler
-from estim.analyses import ANALYSES
-from estim.analyses.base import execution, map_tasks
 from estim.cli.main import main
 from estim.cli.output import longest_first
-from estim.config import load_file
+from estim.config.loading import load_file
+from estim.config.registry import ANALYSES
+from estim.run import scheduler
+from estim.util.workunits import execution, map_tasks
 
 
 class Log:
@@ -187,7 +187,7 @@ def test_import_all_now_imports_the_lazy_modules_and_later_loads_at_once(monkeyp
     import sys
     import types
 
-    from estim import lazy
+    from estim.util import lazy
 
     monkeypatch.setattr(lazy, "_eager", False)
     monkeypatch.setattr(lazy, "_registered", [])

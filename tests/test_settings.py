@@ -1,22 +1,22 @@
-"""Settings declared once (estim.settings): the schema, defaults, checks, listing and manifest
-all come from the one declaration."""
+"""Settings declared once (estim.config.settings): the schema, defaults, checks, listing and
+manifest all come from the one declaration."""
 
 from pathlib import Path
 
 import pytest
 
-from estim import registry, settings
-from estim.analyses import ANALYSES
-from estim.blocks import MonteCarlo
+from estim.config import listing, registry, settings
+from estim.config.registry import ANALYSES
+from estim.config.schema import REQUIRED, validate
 from estim.errors import ConfigError
-from estim.schema import REQUIRED, validate
+from estim.experiments.shared.blocks import MonteCarlo
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_docs_settings_is_the_listing_of_the_declarations():
     text = (ROOT / "docs" / "settings.md").read_text()
-    assert text.endswith(settings.listing()), "stale: run 'estim settings --out docs/settings.md'"
+    assert text.endswith(listing.listing()), "stale: run 'estim settings --out docs/settings.md'"
 
 
 def test_every_analysis_schema_is_its_config_declaration():

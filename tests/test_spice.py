@@ -3,6 +3,7 @@ hand-written twin, and bad netlists ending in one line."""
 
 from __future__ import annotations
 
+import importlib
 import random
 from pathlib import Path
 
@@ -10,7 +11,7 @@ import numpy as np
 import pytest
 
 from estim.models.diffamp_em import DiffAmpEbersMoll
-from estim.simulate import simulate
+from estim.numerics.simulate import simulate
 from estim.spice import model_class
 from estim.spice.circuit import Circuit, source_value
 from estim.spice.parser import NetlistError, evaluate, parse
@@ -197,7 +198,7 @@ def test_the_netlist_mosfet_laws_are_the_hand_written_ones(law):
     x0 = MosfetEKV().operating_point()           # the actual device's (eq 3.13 has none)
     _assert_twins(net, hand, order, x0, 0.01, lambda: rng.normal(0, 1.0, 1), rng, 1e-12,
                   _noisy_sine(rng, 1e-4, 50) if law < 3 else None, 1e-4)
-    from estim import kernels
+    from estim.numerics import kernels
 
     if kernels.AVAILABLE:                        # the compiled kernel's branch of this law
         kind, P = net.kernel()
@@ -311,7 +312,8 @@ L1 o j 1m
 """
 
 
-@pytest.mark.skipif(not __import__("estim.kernels").kernels.AVAILABLE, reason="numba absent")
+@pytest.mark.skipif(not importlib.import_module("estim.numerics.kernels").AVAILABLE,
+                    reason="numba absent")
 @pytest.mark.parametrize("text, output", [(EVERY_DEVICE, "v(c)"), (EVERY_SOURCE, "v(k)")],
                          ids=["devices", "sources"])
 def test_the_compiled_netlist_kernel_is_the_numpy_drift(text, output):
@@ -321,7 +323,7 @@ def test_the_compiled_netlist_kernel_is_the_numpy_drift(text, output):
     a floating source with a value): drift and Jacobian to 1e-12 relative at random points,
     and the Jacobian against central differences; input Jacobian and Hessian against the
     base class's differences."""
-    from estim import kernels
+    from estim.numerics import kernels
 
     net = model_class(_write(text), "VIN", output, name="netlist:test_every")()
     kind, P = net.kernel()
@@ -556,17 +558,18 @@ def test_netlist_configs_remake_the_hand_written_tables(hand, netlist):
     keeps each reproducible on its own)."""
     import yaml
 
-    from estim import io
-    from estim.config import load_file
+    from estim import store
+    from estim.config.loading import load_file
+    from estim.run import compare
 
     tol = load_file(ROOT / "configs" / f"{hand}.yaml").spec["check"]["tolerances"]
     spec = yaml.safe_load((ROOT / "configs" / "netlist" / f"{hand}.yaml").read_text())
     assert spec["name"] == netlist and "netlist" in spec["model"]
     for table in ("distortion", "claims"):
-        ours = io.read_table(ROOT / "results" / netlist / f"{table}.csv")
-        theirs = io.read_table(ROOT / "results" / hand / f"{table}.csv")
+        ours = store.read_table(ROOT / "results" / netlist / f"{table}.csv")
+        theirs = store.read_table(ROOT / "results" / hand / f"{table}.csv")
         assert list(ours.columns) == list(theirs.columns) and len(ours) == len(theirs)
-        differing = io.compare_tables(theirs, ours, tol)
+        differing = compare.compare_tables(theirs, ours, tol)
         # a row's parameters are named as its model names them: L_1 by cco, l1 by cco.cir
         named = [d for d in differing if d["column"] in ("row_params", "cell")
                  and d["expected"].lower().replace("_", "") == d["obtained"].replace("_", "")]
@@ -618,14 +621,15 @@ def test_the_netlist_estimation_configs_remake_chapter_3(hand, netlist, ukf_gap)
     mosfet_conduction's tolerances are statistical (runs near divergence flip with the last
     bit of rounding: means within 4 standard errors, divergence counts within 4 binomial
     deviations), and its twin holds them as they are, for every filter."""
-    from estim import io
-    from estim.config import load_file
+    from estim import store
+    from estim.config.loading import load_file
+    from estim.run import compare
 
     tol = load_file(ROOT / "configs" / f"{hand}.yaml").spec["check"]["tolerances"]
     paired = ("difference", "difference_low", "difference_high")
     for table, column in (("rmse", "estimator"), ("health", "estimator"), ("claims", "better")):
-        ours = io.read_table(ROOT / "results" / netlist / f"{table}.csv")
-        theirs = io.read_table(ROOT / "results" / hand / f"{table}.csv")
+        ours = store.read_table(ROOT / "results" / netlist / f"{table}.csv")
+        theirs = store.read_table(ROOT / "results" / hand / f"{table}.csv")
         assert list(ours.columns) == list(theirs.columns) and len(ours) == len(theirs)
         assert (ours[column] == theirs[column]).all()
         ukf = theirs[column] == "UKF"
@@ -643,7 +647,7 @@ def test_the_netlist_estimation_configs_remake_chapter_3(hand, netlist, ukf_gap)
             nees = (ours["nees_mean"] - theirs["nees_mean"]).abs() / theirs["nees_mean"]
             assert not (nees[~ukf] >= 1e-4).any()          # NaN: RLS and measurement rows
             assert (ours["nees_mean"].isna() == theirs["nees_mean"].isna()).all()
-        differing = io.compare_tables(theirs, ours, tol)
+        differing = compare.compare_tables(theirs, ours, tol)
         exempt = [d for d in differing if d["column"] in ("regime", "regime_fraction")
                   or (ukf_gap and ukf[d["row"]])
                   or (ukf_gap and table == "claims" and d["column"] in paired)
@@ -672,7 +676,7 @@ def test_a_difference_above_its_bar_fails_unless_ngspice_disagrees_with_itself(
     from click.testing import CliRunner
 
     from estim.cli.main import main
-    from estim.spice import compare
+    from estim.run import ngspice_check as compare
 
     def fake(exp, executable=None, reltol=1e-7):
         table = pd.DataFrame({"case": ["c", "c"], "check": ["transient", "transient"],
@@ -735,8 +739,8 @@ NGSPICE = pytest.mark.skipif(__import__("shutil").which("ngspice") is None,
 def test_estim_spice_holds_on_the_new_circuit():
     """Every case of configs/netlist/ce_amp_distortion.yaml within its bars (CI runs estim
     spice on every shipped netlist config)."""
-    from estim.config import load_file
-    from estim.spice.compare import compare
+    from estim.config.loading import load_file
+    from estim.run.ngspice_check import compare
 
     table = compare(load_file(ROOT / "configs" / "netlist" / "ce_amp_distortion.yaml"))
     assert set(table["check"]) == {"dc", "transient", "ac"}
@@ -748,8 +752,8 @@ def test_a_small_swing_node_shows_ngspice_tolerance_not_a_disagreement():
     """compare.py's docstring: the MOSFET bulk (a few uV of swing) differs from
     ngspice by a large fraction of its own swing, and that fraction shrinks as ngspice's
     reltol is tightened; against the circuit's node scale it is within the bar."""
-    from estim.config import load_file
-    from estim.spice import compare
+    from estim.config.loading import load_file
+    from estim.run import ngspice_check as compare
 
     exp = load_file(ROOT / "configs" / "netlist" / "mosfet_distortion.yaml")
     label, model, source, dt, frequency = compare.cases(exp)[5]        # row 6, 10 kHz
@@ -766,9 +770,9 @@ def test_the_analytic_hessian_is_what_puts_the_distortion_within_tolerance():
     """deviations D73: Table 2.3's first row from the netlist differential amplifier with
     the analytic Hessian is within 1e-4 relative of the hand-written model's percent
     distortion; with the default second differences of f it is not."""
-    from estim import metrics
-    from estim.expansion import respond
     from estim.models.base import Model
+    from estim.numerics import metrics
+    from estim.numerics.expansion import respond
 
     net, hand = _twin()
     steps = 128
@@ -811,7 +815,7 @@ def test_a_netlist_with_subcircuits_agrees_with_ngspice():
     """circuits/mosfet_darlington.cir, whose elements come out of a subcircuit (x1.cgx, ...:
     renamed for ngspice, which reads an element's kind from its first letter), against
     ngspice on a noisy 1 kHz sine: every bar of estim spice holds."""
-    from estim.spice import compare
+    from estim.run import ngspice_check as compare
 
     model = model_class(ROOT / "circuits" / "mosfet_darlington.cir", "VIN", "v(d2)",
                         name="netlist:test_darlington_ngspice")()
@@ -849,7 +853,7 @@ def test_current_controlled_and_floating_sources_agree_with_ngspice():
     with a value, the output at a node that follows a state) against ngspice, which
     implements F and H with branch currents (modified nodal analysis): every bar of estim
     spice holds on a noisy 1 kHz sine."""
-    from estim.spice import compare
+    from estim.run import ngspice_check as compare
 
     model = model_class(_write(EVERY_SOURCE), "VIN", "v(k)",
                         name="netlist:test_sources_ngspice")()
@@ -871,7 +875,7 @@ def test_the_nmos_laws_agree_with_ngspice(law):
     at the saturation config's bias: every bar of estim spice holds on a noisy 1 kHz sine.
     Eq 3.13's polynomial has no DC point in this circuit (the filters start from the actual
     device's)."""
-    from estim.spice import compare
+    from estim.run import ngspice_check as compare
 
     model = model_class(MOSFET, "VIN", "v(d)", name="netlist:test_laws_ngspice")(
         law=float(law), vin_bias=0.35)

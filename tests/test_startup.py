@@ -13,7 +13,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 HEAVY = ("matplotlib", "pandas", "numba", "scipy.stats", "scipy.signal", "scipy.optimize",
-         "scipy.integrate", "scipy.sparse", "pywt", "skimage", "estim.kernels")
+         "scipy.integrate", "scipy.sparse", "pywt", "skimage", "estim.numerics.kernels")
 
 _PROBE = """
 import importlib.util, json, sys
@@ -27,7 +27,7 @@ loaded = [m for m in heavy if m in sys.modules
           and not isinstance(sys.modules[m], importlib.util._LazyModule)]
 print("LOADED=" + json.dumps(loaded))
 print("ANALYSES=" + json.dumps(sorted(
-    m for m in sys.modules if m.startswith("estim.analyses.")
+    m for m in sys.modules if m.startswith("estim.experiments.")
     and not isinstance(sys.modules[m], importlib.util._LazyModule))))
 """
 
@@ -54,8 +54,8 @@ def test_validate_loads_only_the_analysis_its_config_names():
     """The table command's metric list (which imports every analysis) is made when that
     command runs or shows its help, not when the CLI is imported."""
     loaded = probe("validate", "configs/dipole_field.yaml")["ANALYSES"]
-    assert loaded == {"estim.analyses.base", "estim.analyses.dipole",
-                      "estim.analyses.dipole_field"}, loaded
+    assert loaded == {"estim.experiments.base", "estim.experiments.dipole",
+                      "estim.experiments.dipole_field"}, loaded
 
 
 def test_validate_of_every_default_config_draws_nothing_and_reads_no_tables():
@@ -72,17 +72,17 @@ def test_validate_of_a_config_without_a_settling_run_loads_no_compiled_code(conf
     compiled kernels; the MOSFET configs' DC point lets the circuit settle first, with the
     compiled integrator, where Newton fails from zero (models/base.py)."""
     loaded = loaded_by("validate", config)
-    assert not loaded & {"numba", "estim.kernels", "matplotlib", "pandas"}, loaded
+    assert not loaded & {"numba", "estim.numerics.kernels", "matplotlib", "pandas"}, loaded
 
 
 def test_list_reads_configs_without_building_their_plans():
     loaded = loaded_by("list")
-    assert not loaded & {"numba", "estim.kernels", "matplotlib", "pandas", "scipy.optimize",
-                         "scipy.sparse", "skimage"}, loaded
+    assert not loaded & {"numba", "estim.numerics.kernels", "matplotlib", "pandas",
+                         "scipy.optimize", "scipy.sparse", "skimage"}, loaded
 
 
 def test_table_reads_csv_without_drawing_or_compiling():
     loaded = loaded_by("table", "distortion")
     assert "pandas" in loaded                      # the probe sees a real load
-    assert not loaded & {"numba", "estim.kernels", "matplotlib", "scipy.stats",
+    assert not loaded & {"numba", "estim.numerics.kernels", "matplotlib", "scipy.stats",
                          "scipy.optimize", "skimage", "pywt"}, loaded

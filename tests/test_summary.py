@@ -1,4 +1,4 @@
-"""Results prose generated from the stored tables (estim.summary, ``estim summary``): the
+"""Results prose generated from the stored tables (estim.report.summary, ``estim summary``): the
 README's results sections quote only generated blocks, and a changed stored number makes
 them stale."""
 
@@ -8,9 +8,9 @@ from pathlib import Path
 import pandas as pd
 from click.testing import CliRunner
 
-from estim import summary
-from estim.analyses import ANALYSES
 from estim.cli.main import main
+from estim.config.registry import ANALYSES
+from estim.report import summary
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"

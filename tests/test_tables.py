@@ -2,10 +2,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from estim import tables
-from estim.analyses import estimation
-from estim.analyses.base import TableSpec
+from estim import reference
 from estim.errors import ReferenceJoinError
+from estim.experiments import estimation
+from estim.reference.tablespec import TableSpec
+from estim.report import tables
 
 RMSE = estimation.TABLES["rmse"]
 
@@ -20,7 +21,7 @@ def rmse_rows(ekf, rls, s_no=1):
 
 
 def all_rows_of_table_3_2(value=0.5):
-    ref = tables.reference_table("3.2")
+    ref = reference.reference_table("3.2")
     return pd.DataFrame({"table_id": "3.2", "s_no": ref["s_no"], "noise_reading": "sigma",
                          "noise_param": ref["noise_param_value"], "noise_sigma": 0.0,
                          "frequency_hz": ref["frequency_hz"], "samples_per_period": 10.0,
@@ -29,7 +30,7 @@ def all_rows_of_table_3_2(value=0.5):
 
 
 def test_with_reference_puts_printed_value_and_ratio_beside_ours():
-    out = tables.with_reference(all_rows_of_table_3_2(), RMSE)
+    out = reference.with_reference(all_rows_of_table_3_2(), RMSE)
     assert list(out["thesis_rmse"][:2]) == [0.4024, 0.6043]
     np.testing.assert_allclose(out["ratio_rmse"][:2], [0.5 / 0.4024, 0.5 / 0.6043])
 
@@ -37,8 +38,8 @@ def test_with_reference_puts_printed_value_and_ratio_beside_ours():
 def test_unmatched_reference_row_is_an_error_naming_table_and_row():
     part = rmse_rows(0.2012, 0.6043)
     with pytest.raises(ReferenceJoinError, match=r"Table 3.2: row 3 \(s_no=2, estimator=EKF\)"):
-        tables.with_reference(part, RMSE)
-    out = tables.with_reference(part, RMSE, allow_unmatched=True)
+        reference.with_reference(part, RMSE)
+    out = reference.with_reference(part, RMSE, allow_unmatched=True)
     assert list(out["thesis_rmse"]) == [0.4024, 0.6043]
 
 
@@ -51,18 +52,17 @@ def test_a_key_that_repeats_in_the_reference_is_an_error():
                          "rmse": [0.001]})
     with pytest.raises(ReferenceJoinError, match=r"Table 4.2: key \['s_no', 'estimator'\] "
                                                  r"repeats in row 1"):
-        tables.with_reference(ours, spec)
+        reference.with_reference(ours, spec)
 
 
 def test_thesis_tables_ship_with_the_package():
-    t = tables.reference_table("3.1")
+    t = reference.reference_table("3.1")
     assert len(t) == 12 and set(t["estimator"]) == {"EKF", "RLS"}
 
 
 def test_render_latex_markdown_and_text_are_fit_for_a_paper():
     import pandas as pd
 
-    from estim import tables
 
     df = pd.DataFrame({"frequency_hz": [100.0, 10000.0], "noise_param": [0.25, 1e-7],
                        "estimator": ["EKF (fitted Q)", "x_1 & 50%"],
@@ -85,7 +85,6 @@ def test_render_latex_markdown_and_text_are_fit_for_a_paper():
 def test_text_layout_is_pandas_to_string_without_its_cut_of_long_cells():
     import pandas as pd
 
-    from estim import tables
 
     rng = np.random.default_rng(3)
     for columns in (1, 3, 9, 14, 30):

@@ -1,9 +1,9 @@
-"""Maximum-likelihood noise fitting (estim.tuning)."""
+"""Maximum-likelihood noise fitting (estim.experiments.shared.tuning)."""
 
 import numpy as np
 
-from estim import tuning
 from estim.estimators.ekf import ExtendedKalmanFilter
+from estim.experiments.shared import tuning
 
 
 def simulate(model, q, r, runs, steps, dt, seed):

@@ -1,4 +1,4 @@
-"""Estimators: each a frozen dataclass of its settings (:mod:`estim.settings`) whose
+"""Estimators: each a frozen dataclass of its settings (:mod:`estim.config.settings`) whose
 ``run(model, z, u, dt, x0)`` returns an :class:`estim.estimators.base.Estimate`.
 
 ``get(name)`` gives a registered estimator's class, ``names()`` every name (each module of
@@ -10,7 +10,7 @@ from __future__ import annotations
 
 def get(name: str) -> type:
     """The estimator class registered as ``name`` (``KeyError`` naming the known ones)."""
-    from estim import registry
+    from estim.config import registry
 
     try:
         return registry.ESTIMATORS[name]
@@ -21,6 +21,6 @@ def get(name: str) -> type:
 
 def names() -> list[str]:
     """Every registered estimator's name."""
-    from estim import registry
+    from estim.config import registry
 
     return list(registry.ESTIMATORS)

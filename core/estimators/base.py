@@ -1,7 +1,7 @@
 """The estimator interface and the result every estimator returns.
 
 An estimator is a frozen dataclass whose fields are its settings, each declared once with
-its check, default, unit and doc (:mod:`estim.settings`); it registers itself by name::
+its check, default, unit and doc (:mod:`estim.config.settings`); it registers itself by name::
 
     @settings_class
     class IteratedEKF(ExtendedKalmanFilter, name="iekf"):
@@ -22,9 +22,10 @@ from typing import ClassVar
 
 import numpy as np
 
-from estim import linalg, registry
-from estim.schema import REQUIRED, matrix, number, vector
-from estim.settings import Settings, setting, settings_class
+from estim.config import registry
+from estim.config.schema import REQUIRED, matrix, number, vector
+from estim.config.settings import Settings, setting, settings_class
+from estim.numerics import linalg
 
 
 class Estimator(Settings):
@@ -103,7 +104,7 @@ class Estimate:
     broken : ``(runs,)`` runs the filter could not carry on: the estimate became non-finite
         or left the filter's numerical bound. From that step on the run's outputs are NaN.
         Divergence in the statistical sense is judged from the outputs by
-        :func:`estim.health.diverged`, not here.
+        :func:`estim.experiments.shared.health.diverged`, not here.
     x_hat : ``(runs, steps, n)`` posterior state estimate, or ``None`` for output-only filters.
     P : ``(runs, steps, n, n)`` posterior state covariance, or ``None``.
     S : ``(runs, steps, m, m)`` innovation covariance the filter assumed, or ``None`` for a

@@ -1,7 +1,7 @@
 """Extended Kalman filter (thesis Appendix A.2, eqs A.8-A.16), batched over Monte Carlo runs.
 
 The prediction integrates the model over one sample interval with the shared
-discretisation (:mod:`estim.discretize`); ``F_k`` is the Jacobian of that step. The thesis
+discretisation (:mod:`estim.numerics.discretize`); ``F_k`` is the Jacobian of that step. The thesis
 uses forward Euler (eqs 3.18-3.19), available as ``discretization="euler"``.
 """
 
@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from estim import discretize
+from estim.config.schema import integer, text
+from estim.config.settings import setting, settings_class
 from estim.estimators.base import (
     Estimate,
     GaussianFilter,
@@ -18,8 +19,7 @@ from estim.estimators.base import (
     joseph_update,
     run_batch,
 )
-from estim.schema import integer, text
-from estim.settings import setting, settings_class
+from estim.numerics import discretize
 
 
 def thesis_to_state(M: np.ndarray, model) -> np.ndarray:

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from estim.config.schema import REQUIRED, matrix
+from estim.config.settings import setting, settings_class
 from estim.estimators.base import (
     Estimate,
     NoiseCovariances,
@@ -12,8 +14,6 @@ from estim.estimators.base import (
     check_covariance,
     joseph_update,
 )
-from estim.schema import REQUIRED, matrix
-from estim.settings import setting, settings_class
 
 
 @settings_class

@@ -1,9 +1,9 @@
 """EKF on the Kronecker-product model of a circuit (thesis Sec 4.3, eqs 4.34-4.53, A.12-A.16).
 
 The filter builds the Kronecker form of whatever model it is given
-(:func:`estim.kronecker.from_model`, about the model's own DC operating point), discretises it
-once per sample time (:func:`estim.kronecker.discretize`) and runs, batched over Monte Carlo
-runs,
+(:func:`estim.numerics.kronecker_form.from_model`, about the model's own DC operating point),
+discretises it once per sample time (:func:`estim.numerics.kronecker_form.discretize`) and runs,
+batched over Monte Carlo runs,
 
     A.12  d_k|k-1 = F1 d + F2 (d (x) d) + G w + F5 (d (x) w) + Guu (w (x) w) + c
           F_k    = F1 + F2 (I (x) d + d (x) I) + F5 (I (x) w)      (the full Jacobian;
@@ -13,7 +13,7 @@ runs,
     A.15  x_k|k = x_k|k-1 + K (z - H x_k|k-1)
     A.16  P_k|k = (I - K H) P (I - K H)^T + K R K^T      (Joseph form, symmetrised)
 
-Its arithmetic goes through :mod:`estim.opcount`, so Table 4.3's counts are read off this
+Its arithmetic goes through :mod:`estim.numerics.opcount`, so Table 4.3's counts are read off this
 code path. ``order: 1`` drops the quadratic terms (the filter is then the linear KF on the
 discretised linearisation). ``jacobian: printed`` uses ``F1`` alone as eq 4.38 does.
 """
@@ -24,16 +24,11 @@ from dataclasses import field
 
 import numpy as np
 
-from estim import kronecker, opcount
-from estim.estimators.base import (
-    Estimate,
-    GaussianFilter,
-    as_matrix,
-    batch_input,
-    run_batch,
-)
-from estim.schema import integer, text
-from estim.settings import setting, settings_class
+from estim.config.schema import integer, text
+from estim.config.settings import setting, settings_class
+from estim.estimators.base import Estimate, GaussianFilter, as_matrix, batch_input, run_batch
+from estim.numerics import kronecker_form as kronecker
+from estim.numerics import opcount
 
 
 @settings_class

@@ -40,9 +40,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from estim.config.schema import boolean, integer, number, text
+from estim.config.settings import setting, settings_class
 from estim.estimators.base import Estimate, Estimator, batch_input
-from estim.schema import boolean, integer, number, text
-from estim.settings import setting, settings_class
 
 
 @settings_class

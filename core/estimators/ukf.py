@@ -8,7 +8,7 @@ weight of the centre ``lambda/(n+lambda) + 1 - alpha^2 + beta``.
 Per step, for every run at once:
 
 * prediction: each sigma point is carried over the sample interval by the same
-  discretisation as the EKF (:mod:`estim.discretize`), its Jacobian unused; the predicted
+  discretisation as the EKF (:mod:`estim.numerics.discretize`), its Jacobian unused; the predicted
   mean and covariance are the weighted sample moments plus ``Q`` (additive noise, as in the
   EKF of Appendix A.2);
 * update: sigma points are redrawn from the prediction and passed through ``h``; ``S`` and
@@ -24,11 +24,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from estim import discretize, linalg
+from estim.config.schema import number
+from estim.config.settings import setting, settings_class
 from estim.estimators.base import joseph_update
 from estim.estimators.ekf import ExtendedKalmanFilter
-from estim.schema import number
-from estim.settings import setting, settings_class
+from estim.numerics import discretize, linalg
 
 
 def sqrt_psd(P: np.ndarray) -> np.ndarray:

@@ -17,7 +17,7 @@ For the measured states ``y`` (``measures``; eq 4.16 measures all four, ``H = I`
    this rule is ours (docs/deviations.md);
 3. ``Theta`` is identified from the kept coefficients by normalised LMS (eq 4.33 by
    gradient search; ``step`` in (0, 2), ``epochs`` passes, columns scaled to unit RMS;
-   compiled, :mod:`estim.compiled_lms`),
+   compiled, :mod:`estim.estimators.wavelet_lms_compiled`),
    with batch least squares on the same coefficients as the reference it is compared with
    (``diagnostics["lms_ls_gap"]``: ``|Theta_LMS - Theta_LS| / |Theta_LS|``);
 4. the states are rebuilt by running the identified model from ``y_0`` on the nominal
@@ -30,13 +30,14 @@ import functools
 
 import numpy as np
 
-from estim import lazy, opcount
+from estim.config.schema import integer, list_of, number, text
+from estim.config.settings import setting, settings_class
 from estim.estimators.base import Estimate, Estimator, batch_input
-from estim.schema import integer, list_of, number, text
-from estim.settings import setting, settings_class
+from estim.numerics import opcount
+from estim.util import lazy
 
 pywt = lazy.load("pywt")
-compiled_lms = lazy.load("estim.compiled_lms")
+compiled_lms = lazy.load("estim.estimators.wavelet_lms_compiled")
 
 STEP_BOUND = 2.0
 """Normalised LMS is mean-square stable only for a step in (0, 2)."""

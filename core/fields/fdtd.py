@@ -29,7 +29,7 @@ from scipy.special import erf
 from estim.fields import operators as ops
 from estim.fields.dipole import Dipole
 from estim.fields.grid import Grid
-from estim.kernels import jit
+from estim.numerics.kernels import jit
 
 
 @jit

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estim.kernels import jit
+from estim.numerics.kernels import jit
 
 
 def gaspari_cohn(distance: np.ndarray, half_width: float) -> np.ndarray:

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from estim.kernels import jit
+from estim.numerics.kernels import jit
 
 
 def gaussian_smoother(n: int, length: float) -> np.ndarray:

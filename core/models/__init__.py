@@ -9,7 +9,7 @@ from __future__ import annotations
 
 def get(name: str) -> type:
     """The model class registered as ``name`` (``KeyError`` naming the known ones)."""
-    from estim import registry
+    from estim.config import registry
 
     try:
         return registry.MODELS[name]
@@ -19,6 +19,6 @@ def get(name: str) -> type:
 
 def names() -> list[str]:
     """Every registered model's name."""
-    from estim import registry
+    from estim.config import registry
 
     return list(registry.MODELS)

@@ -15,9 +15,10 @@ from typing import Any
 
 import numpy as np
 
-from estim import lazy, registry
+from estim.config import registry
 from estim.errors import ParameterError, SimulationError
-from estim.simulate import simulate
+from estim.numerics.simulate import simulate
+from estim.util import lazy
 
 optimize = lazy.load("scipy.optimize")
 
@@ -43,7 +44,7 @@ class Model:
     """Base class: a subclass names its states, inputs and outputs, holds its parameters in
     a frozen dataclass ``Params`` (each a :func:`param`: default, unit, doc), and implements
     ``f_and_jacobian`` and ``h`` (and ``h_jacobian``). It registers itself by the class
-    keyword ``name``: ``class DiodeRC(Model, name="diode_rc")`` (:mod:`estim.registry`).
+    keyword ``name``: ``class DiodeRC(Model, name="diode_rc")`` (:mod:`estim.config.registry`).
     The constructor takes a variant and keyword overrides of ``Params``.
     """
 
@@ -149,8 +150,9 @@ class Model:
 
     input_affine: bool = False
     """``f`` is affine in ``u`` (the input enters through a constant matrix): its second
-    derivatives involving ``u`` are exactly zero, and :func:`estim.kronecker.from_model` sets
-    them so instead of keeping the rounding of a numerical Hessian."""
+    derivatives involving ``u`` are exactly zero, and
+    :func:`estim.numerics.kronecker_form.from_model` sets them so instead of keeping the rounding of
+    a numerical Hessian."""
 
     input_is_source_slope: bool = False
     """The model input is the source's time derivative (``dv_in/dt``, eq 3.26), so a filter
@@ -166,18 +168,38 @@ class Model:
 
     def output_range(self) -> tuple[float, float] | None:
         """The physical range of the measured output: an estimate outside it is no estimate of
-        this circuit (:func:`estim.health.diverged`). ``None``: no range."""
+        this circuit (:func:`estim.experiments.shared.health.diverged`). ``None``: no range."""
         return None
 
     def kernel(self):
-        """``(compiled_fn, P)`` for :mod:`estim.compiled`, or ``None`` (the numpy path)."""
+        """``(compiled_fn, P)`` for :mod:`estim.numerics.radau_compiled`, or ``None`` (the numpy
+        path)."""
         return None
 
+    output_row: tuple[tuple[int, float], ...] = ()
+    """The measured output as a linear row of the state, ``((state index, coefficient),
+    ...)`` (``y = H x``, eq 3.5's ``H``): :meth:`h` and :meth:`h_jacobian` are made from it.
+    A model whose output is not linear in the state overrides both instead."""
+
     def h(self, x: np.ndarray) -> np.ndarray:
-        raise NotImplementedError
+        """The measured output ``y = H x`` of :attr:`output_row`, shape ``(..., 1)``."""
+        if not self.output_row:
+            raise NotImplementedError(f"{type(self).__name__} declares no output_row")
+        x = np.asarray(x)
+        (i, c), *rest = ((i % x.shape[-1], c) for i, c in self.output_row)
+        y = x[..., i:i + 1] if c == 1.0 else c * x[..., i:i + 1]
+        for i, c in rest:
+            y = y + c * x[..., i:i + 1]
+        return y
 
     def h_jacobian(self, x: np.ndarray) -> np.ndarray:
-        raise NotImplementedError
+        """``H``, shape ``(..., 1, n)``."""
+        if not self.output_row:
+            raise NotImplementedError(f"{type(self).__name__} declares no output_row")
+        H = np.zeros(np.shape(x)[:-1] + (1, np.shape(x)[-1]))
+        for i, c in self.output_row:
+            H[..., 0, i] = c
+        return H
 
     def source_to_input(self, source: np.ndarray, dt: float) -> np.ndarray:
         """Map sampled sources ``(..., steps + 1, p)`` (at ``t_0 .. t_steps``) to the model

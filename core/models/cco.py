@@ -32,8 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estim.devices import ebers_moll
 from estim.models.base import Model, check_params, param
+from estim.models.devices import ebers_moll
 
 NODES = ("C1", "C2", "B1", "B2", "E1", "E2")
 
@@ -130,13 +130,7 @@ class CrossCoupledOscillator(Model, name="cco"):
         J[..., 7, 1] = -1 / p.L_4
         return f, J
 
-    def h(self, x: np.ndarray) -> np.ndarray:
-        return np.asarray(x)[..., 0:1]
-
-    def h_jacobian(self, x: np.ndarray) -> np.ndarray:
-        H = np.zeros(np.shape(x)[:-1] + (1, 8))
-        H[..., 0, 0] = 1.0
-        return H
+    output_row = ((0, 1.0),)
 
     def source_to_input(self, source: np.ndarray, dt: float) -> np.ndarray:
         """Supply held on each interval at its value at the interval's end (a step at

@@ -31,11 +31,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estim import lazy
-from estim.devices import ebers_moll
 from estim.models.base import Model, check_params, param
+from estim.models.devices import ebers_moll
+from estim.util import lazy
 
-kernels = lazy.load("estim.kernels")
+kernels = lazy.load("estim.numerics.kernels")
 
 
 @dataclass(frozen=True)
@@ -131,7 +131,7 @@ class DiffAmpEbersMoll(Model, name="diffamp_em"):
         return [0.0, p.I_ES, p.I_CS, p.alpha_F, p.alpha_R, p.V_T, 0.0, 0.0]
 
     def kernel(self):
-        """The compiled drift for :mod:`estim.compiled`."""
+        """The compiled drift for :mod:`estim.numerics.radau_compiled`."""
         p = self.params
         head = self._kernel_params()
         P = np.array([*head[:6], p.V_EE, p.V_CC, p.R_E, p.R_L, p.C_L, p.R_C1, p.R_C2,
@@ -156,14 +156,7 @@ class DiffAmpEbersMoll(Model, name="diffamp_em"):
         span = self.params.V_CC - self.params.V_EE
         return -span, span
 
-    def h(self, x: np.ndarray) -> np.ndarray:
-        x = np.asarray(x)
-        return x[..., 2:3] - x[..., 3:4]
-
-    def h_jacobian(self, x: np.ndarray) -> np.ndarray:
-        H = np.zeros(np.shape(x)[:-1] + (1, 4))
-        H[..., 0, 2], H[..., 0, 3] = 1.0, -1.0
-        return H
+    output_row = ((2, 1.0), (3, -1.0))
 
     def source_to_input(self, source: np.ndarray, dt: float) -> np.ndarray:
         """Base voltages on each interval: the mean of the source samples at its two ends."""

@@ -91,13 +91,7 @@ class MosfetDarlington(Model, name="mosfet_darlington"):
     def output_range(self) -> tuple[float, float]:
         return -self.params.V_DD, 2 * self.params.V_DD
 
-    def h(self, x: np.ndarray) -> np.ndarray:
-        return np.asarray(x)[..., -1:]
-
-    def h_jacobian(self, x: np.ndarray) -> np.ndarray:
-        H = np.zeros(np.shape(x)[:-1] + (1, self.n_states))
-        H[..., 0, -1] = 1.0
-        return H
+    output_row = ((-1, 1.0),)
 
     def source_to_input(self, source: np.ndarray, dt: float) -> np.ndarray:
         """Piecewise-linear source: the input on an interval is its slope."""

@@ -34,10 +34,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estim import lazy
 from estim.models.base import Model, check_params, param
+from estim.util import lazy
 
-kernels = lazy.load("estim.kernels")
+kernels = lazy.load("estim.numerics.kernels")
 
 WEAK_INVERSION = 0.1
 """Upper bound of the forward inversion coefficient in weak inversion (EKV convention)."""
@@ -199,7 +199,8 @@ class MosfetEKV(Model, name="mosfet_ekv"):
         return fx, self._Cinv @ (self._G + self._incidence[:, None] * grad[..., None, :])
 
     def kernel(self):
-        """The compiled drift for :mod:`estim.compiled` (the device laws that have one)."""
+        """The compiled drift for :mod:`estim.numerics.radau_compiled` (the device laws that have
+        one)."""
         p = self.params
         if p.drain_current not in _LAWS:
             return None
@@ -237,13 +238,7 @@ class MosfetEKV(Model, name="mosfet_ekv"):
         side allows for capacitive overshoot."""
         return -self.params.V_DD, 2 * self.params.V_DD
 
-    def h(self, x: np.ndarray) -> np.ndarray:
-        return np.asarray(x)[..., 3:4]
-
-    def h_jacobian(self, x: np.ndarray) -> np.ndarray:
-        H = np.zeros(np.shape(x)[:-1] + (1, 4))
-        H[..., 0, 3] = 1.0
-        return H
+    output_row = ((3, 1.0),)
 
     def source_to_input(self, source: np.ndarray, dt: float) -> np.ndarray:
         """Piecewise-linear source between samples: u on interval k is its slope (eq 3.26)."""

@@ -4,7 +4,7 @@ States in the printed order ``[v_G, v_B, v_S, v_D]``, input ``u = v_in`` (the so
 itself: eq 4.15's ``A3 u1``, held over each sample interval), the gate bias ``V_IN`` as the
 constant input ``u2`` (``A4``), output ``v_D`` (eq 4.49, ``H = [0 0 0 1]``). The drift is the
 quadratic polynomial ``A1 x + A2 (x (x) x) + A3 v_in + A4 V_IN`` with the matrices of
-:func:`estim.kronecker.printed_matrices`; its Jacobian and Hessian are exact.
+:func:`estim.numerics.kronecker_form.printed_matrices`; its Jacobian and Hessian are exact.
 
 This model carries the printed errors on purpose (docs/deviations.md D44-D47): its columns
 of ``A1``/``A2`` agree with eqs 4.11-4.13 only in the order ``[v_G, v_D, v_S, v_B]``, and
@@ -18,9 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estim.kronecker import printed_matrices, printed_s
 from estim.models.base import Model, check_params, param
 from estim.models.mosfet_ekv import DeviceParams
+from estim.numerics.kronecker_form import printed_matrices, printed_s
 
 
 @dataclass(frozen=True)
@@ -75,13 +75,7 @@ class MosfetPrinted(Model, name="mosfet_printed"):
         H[:, :4, :4] = self._T + self._T.swapaxes(1, 2)
         return H
 
-    def h(self, x: np.ndarray) -> np.ndarray:
-        return np.asarray(x)[..., 3:4]
-
-    def h_jacobian(self, x: np.ndarray) -> np.ndarray:
-        H = np.zeros(np.shape(x)[:-1] + (1, 4))
-        H[..., 0, 3] = 1.0
-        return H
+    output_row = ((3, 1.0),)
 
     def source_to_input(self, source: np.ndarray, dt: float) -> np.ndarray:
         """The source value at the start of each interval, held over it."""

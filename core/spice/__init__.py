@@ -12,12 +12,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from estim import registry
 from estim.errors import ConfigError
-from estim.spice.circuit import Circuit, build_model_class
-from estim.spice.parser import NetlistError, read
+from estim.spice.circuit import model_class, rebuild
+from estim.spice.parser import NetlistError
+from estim.util.shipped import shipped_folder
 
-__all__ = ["NetlistError", "find_netlist", "model_class", "resolve_model_block"]
+__all__ = ["NetlistError", "find_netlist", "model_class", "rebuild", "resolve_model_block"]
 
 
 def find_netlist(name: str, source: str) -> Path | None:
@@ -33,46 +33,10 @@ def find_netlist(name: str, source: str) -> Path | None:
         if (folder / p).is_file():
             return folder / p
     if p.parts[:1] == ("circuits",):
-        shipped = Path(__file__).resolve().parents[1] / "circuits"
-        try:
-            import importlib.util
-
-            spec = importlib.util.find_spec("estim.circuits")
-            if spec is not None and spec.submodule_search_locations:
-                shipped = Path(list(spec.submodule_search_locations)[0])
-        except ModuleNotFoundError:
-            pass
+        shipped = shipped_folder("circuits")
         if (shipped / Path(*p.parts[1:])).is_file():
             return shipped / Path(*p.parts[1:])
     return None
-
-
-def model_class(path: Path, inputs, output: str, name: str | None = None,
-                hold: str | None = None, thesis_states=None) -> type:
-    """The model class of the netlist at ``path`` (registered under ``name``, default
-    ``netlist:<stem>``); ``hold`` is how its value inputs hold a sample (``"mean"``, the
-    default, ``"start"`` or ``"end"``: :meth:`NetlistModel.source_to_input`);
-    ``thesis_states`` the quantities a filter's Q and P0 are written in
-    (:attr:`NetlistModel.thesis_map`)."""
-    inputs = (inputs,) if isinstance(inputs, str) else tuple(inputs)
-    circuit = Circuit(read(path), tuple(i.lower() for i in inputs), output)
-    name = name or f"netlist:{path.stem}"
-    cls = build_model_class(circuit, name)
-    cls.name = name
-    cls.hold = hold or "mean"
-    cls.thesis_states = tuple(thesis_states) if thesis_states else None
-    cls.origin = (str(path), inputs, output, name, hold, cls.thesis_states)
-    registry.MODELS.register(name, cls)
-    return cls
-
-
-def rebuild(origin: tuple) -> type:
-    """The model class of ``origin`` (:attr:`NetlistModel.origin`): how a netlist model class
-    crosses to a worker process (pickled as the arguments of :func:`model_class`)."""
-    known = registry.MODELS.get(origin[3])
-    if known is not None and getattr(known, "origin", None) == origin:
-        return known
-    return model_class(Path(origin[0]), *origin[1:])
 
 
 def resolve_model_block(data: dict, source: str) -> None:

@@ -22,7 +22,7 @@ reaches the circuit only through capacitors drives it by its slope (D72).
 Device laws and their ``.model`` parameters: Shockley diodes with series resistance
 (``d``: ``is n rs``; closed form by the Lambert W function), Ebers-Moll NPN/PNP (``npn``,
 ``pnp``: ``ies alpha_f alpha_r vt``, ``I_CS`` by reciprocity unless ``ics`` is given;
-:mod:`estim.devices.ebers_moll`, the thesis' law), EKV NMOS (``nmos``: ``u_t v_t0 eta i_0
+:mod:`estim.models.devices.ebers_moll`, the thesis' law), EKV NMOS (``nmos``: ``u_t v_t0 eta i_0
 w_l law``; the laws of :mod:`estim.models.mosfet_ekv`, ``law`` the index in
 :data:`NMOS_LAWS`, 0 EKV). Jacobian, input Jacobian and Hessian are
 analytic. ``F`` and ``H`` sources take the current of a voltage source as KCL at the node
@@ -34,16 +34,18 @@ from __future__ import annotations
 import copyreg
 import dataclasses
 import re
+from pathlib import Path
 
 import numpy as np
 
-from estim import lazy
-from estim.devices import ebers_moll
+from estim.config import registry
 from estim.models.base import Model, param
-from estim.spice.parser import Netlist, NetlistError
+from estim.models.devices import ebers_moll
+from estim.spice.parser import Netlist, NetlistError, read
+from estim.util import lazy
 
 special = lazy.load("scipy.special")
-kernels = lazy.load("estim.kernels")
+kernels = lazy.load("estim.numerics.kernels")
 
 GROUND = ("0", "gnd")
 
@@ -398,13 +400,7 @@ def build_model_class(circuit: Circuit, name: str) -> type:
 class _NetlistClass(type):
     """The type of the netlist model classes: they are made at run time, so a worker
     process cannot import them by name; pickled, a class is the arguments that build it
-    again (:func:`estim.spice.rebuild`)."""
-
-
-def _rebuild(origin: tuple) -> type:
-    from estim.spice import rebuild
-
-    return rebuild(origin)
+    again (:func:`rebuild`)."""
 
 
 def _rebuild_instance(cls: type, variant, overrides: dict):
@@ -413,7 +409,7 @@ def _rebuild_instance(cls: type, variant, overrides: dict):
 
 def _reduce_class(cls: type):
     origin = getattr(cls, "origin", None)
-    return (_rebuild, (origin,)) if origin is not None else cls.__qualname__
+    return (rebuild, (origin,)) if origin is not None else cls.__qualname__
 
 
 copyreg.pickle(_NetlistClass, _reduce_class)
@@ -687,8 +683,8 @@ class NetlistModel(Model, metaclass=_NetlistClass):
         return super().operating_point(x, u0)
 
     def kernel(self):
-        """The compiled drift for :mod:`estim.compiled`: the one netlist kernel of
-        :mod:`estim.kernels` (``_netlist``) with this circuit laid out as data."""
+        """The compiled drift for :mod:`estim.numerics.radau_compiled`: the one netlist kernel of
+        :mod:`estim.numerics.kernels` (``_netlist``) with this circuit laid out as data."""
         n, p = self.n_states, self.n_inputs
         k, N = len(self.circuit.state_nodes), self._P.shape[0]
         rows = []
@@ -981,3 +977,31 @@ def _nmos(vd, vg, vs, vb, p, second: bool = False):
     if second:
         hess = Is * (4 * e_s * np.outer(ga_s, ga_s) - 4 * e_d * np.outer(ga_d, ga_d))
     return cur, grad, hess
+
+
+def model_class(path: Path, inputs, output: str, name: str | None = None,
+                hold: str | None = None, thesis_states=None) -> type:
+    """The model class of the netlist at ``path`` (registered under ``name``, default
+    ``netlist:<stem>``); ``hold`` is how its value inputs hold a sample (``"mean"``, the
+    default, ``"start"`` or ``"end"``: :meth:`NetlistModel.source_to_input`);
+    ``thesis_states`` the quantities a filter's Q and P0 are written in
+    (:attr:`NetlistModel.thesis_map`)."""
+    inputs = (inputs,) if isinstance(inputs, str) else tuple(inputs)
+    circuit = Circuit(read(path), tuple(i.lower() for i in inputs), output)
+    name = name or f"netlist:{path.stem}"
+    cls = build_model_class(circuit, name)
+    cls.name = name
+    cls.hold = hold or "mean"
+    cls.thesis_states = tuple(thesis_states) if thesis_states else None
+    cls.origin = (str(path), inputs, output, name, hold, cls.thesis_states)
+    registry.MODELS.register(name, cls)
+    return cls
+
+
+def rebuild(origin: tuple) -> type:
+    """The model class of ``origin`` (:attr:`NetlistModel.origin`): how a netlist model class
+    crosses to a worker process (pickled as the arguments of :func:`model_class`)."""
+    known = registry.MODELS.get(origin[3])
+    if known is not None and getattr(known, "origin", None) == origin:
+        return known
+    return model_class(Path(origin[0]), *origin[1:])

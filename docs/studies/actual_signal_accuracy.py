@@ -23,10 +23,10 @@ from pathlib import Path
 
 import numpy as np
 
-from estim import config
-from estim.analyses import estimation
-from estim.schema import Experiment
-from estim.simulate import simulate
+from estim.config import loading as config
+from estim.config.schema import Experiment
+from estim.experiments import estimation
+from estim.numerics.simulate import simulate
 
 CONFIGS = ("mosfet_saturation", "mosfet_conduction", "mosfet_input_derivative")
 TIGHTER = (1e-12, 1e-15)

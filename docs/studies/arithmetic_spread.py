@@ -25,8 +25,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from estim import api, io
-from estim.analyses import ANALYSES
+from estim import api, store
+from estim.config.registry import ANALYSES
+from estim.run import compare
 
 
 def avx512_targets() -> str:
@@ -83,10 +84,10 @@ def measure(configs: list[str], env: dict[str, str], jobs: int) -> list[dict]:
             exp = api.experiment(config)
             tol, specs = exp.spec["check"]["tolerances"], ANALYSES[exp.analysis].TABLES
             for new_csv in sorted((Path(out) / exp.name).glob("*.csv")):
-                stored = io.read_table(Path("results") / exp.name / new_csv.name,
+                stored = store.read_table(Path("results") / exp.name / new_csv.name,
                                        specs.get(new_csv.stem))
-                new = io.read_table(new_csv)
-                failing = {d["column"] for d in io.compare_tables(stored, new, tol)}
+                new = store.read_table(new_csv)
+                failing = {d["column"] for d in compare.compare_tables(stored, new, tol)}
                 for col, rel in spread(stored, new).items():
                     if rel > 0 or col in failing:
                         rows.append({"config": exp.name, "table": new_csv.stem,

@@ -21,8 +21,10 @@ import dataclasses
 import numpy as np
 import yaml
 
-from estim import config, health, metrics, tuning
-from estim.analyses import estimation
+from estim.config import loading as config
+from estim.experiments import estimation
+from estim.experiments.shared import health, tuning
+from estim.numerics import metrics
 
 
 def load(name: str, labels: tuple[str, ...], **changes) -> object:

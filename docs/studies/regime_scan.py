@@ -17,9 +17,9 @@ import sys
 import numpy as np
 import yaml
 
-from estim import config
-from estim.analyses import estimation
+from estim.config import loading as config
 from estim.errors import ConfigError
+from estim.experiments import estimation
 
 
 def scan(path: str, regime: str, r_d: float, biases: list[float]) -> None:

@@ -13,8 +13,9 @@ import sys
 import numpy as np
 import yaml
 
-from estim import config, metrics
-from estim.analyses import estimation
+from estim.config import loading as config
+from estim.experiments import estimation
+from estim.numerics import metrics
 
 
 def experiment(v_in: float, filters_see: str):

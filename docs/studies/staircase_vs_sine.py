@@ -53,9 +53,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from estim import config
-from estim.analyses import perturbation
-from estim.schema import Experiment
+from estim.config import loading as config
+from estim.config.schema import Experiment
+from estim.experiments import perturbation
 
 COLUMNS = ("percent_distortion", "thd_percent", "gain_db")
 SHORT = {"percent_distortion": "PD", "thd_percent": "THD", "gain_db": "gain"}

@@ -4,10 +4,10 @@ unconverged LMS, or the quadratic terms.
 Run from the project folder: ``python docs/studies/wavelet_divergence_cause.py [epochs]``
 (default 2000). Every cell of ``configs/kronecker_table_4_2.yaml`` (W/L column x noise
 reading x level x frequency) is simulated with the analysis' own seeds
-(:func:`estim.analyses.kronecker.simulate_point`), and its "LMS" and "LMS (least squares)"
-estimators are run on the inputs :func:`estim.analyses.kronecker.run_point` gives them and
-judged by :func:`estim.pipeline.judge`; the per-cell divergence counts are checked
-against the stored ``results/kronecker_table_4_2/health.csv``. Over all runs it counts:
+(:func:`estim.experiments.kronecker.simulate_point`), and its "LMS" and "LMS (least squares)"
+estimators are run on the inputs :func:`estim.experiments.kronecker.run_point` gives them and
+judged by :func:`estim.experiments.shared.pipeline.judge`; the per-cell divergence counts are
+checked against the stored ``results/kronecker_table_4_2/health.csv``. Over all runs it counts:
 
 * the runs where "LMS" diverges, and of those the runs whose identified linear part
   ``I + Theta[:, :q]`` has spectral radius above one;
@@ -29,10 +29,11 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 import pandas as pd
 
-from estim import config, pipeline
-from estim.analyses import kronecker as analysis
+from estim.config import loading as config
 from estim.estimators.base import Estimate, batch_input
 from estim.estimators.wavelet_lms import WaveletLMS, fundamental
+from estim.experiments import kronecker as analysis
+from estim.experiments.shared import pipeline
 
 CONFIG = "configs/kronecker_table_4_2.yaml"
 STORED = "results/kronecker_table_4_2/health.csv"

@@ -17,10 +17,10 @@ import numpy as np
 import yaml
 from scipy import linalg
 
-from estim import kronecker
-from estim.analyses import kronecker as analysis
-from estim.config import parse_data
+from estim.config.loading import parse_data
 from estim.estimators.wavelet_lms import WaveletLMS, fundamental
+from estim.experiments import kronecker as analysis
+from estim.numerics import kronecker_form as kronecker
 
 
 def main(frequency_hz: float) -> None:

@@ -1,0 +1,480 @@
+"""Estimators against the actual circuit on noisy measurements (thesis Chapter 3).
+
+For each sweep point (noise reading x noise level x input frequency, in thesis row order):
+
+1. the source is the nominal sine plus white Gaussian noise at every sample after ``t_0``
+   (the "Gaussian noise at input source" of Tables 3.1-3.5), piecewise linear between
+   samples;
+2. the actual circuit is integrated with a stiff solver (:mod:`estim.numerics.simulate`; the batched
+   Radau IIA by default, scipy's ``solve_ivp`` with ``simulation.solver: scipy``) from its DC
+   operating point;
+3. measurements are the actual output plus white measurement noise;
+4. every estimator sees the measurements and the nominal input (or the noisy one, when
+   ``noise.filters_see`` is ``noisy``, measured with ``noise.input_sensor_sigma`` of its
+   own noise), fed to it as ``estimators[i].input_derivative`` says, and starts from the
+   actual DC operating point;
+5. every filter's health is judged (:mod:`estim.experiments.shared.health`): NEES against the actual
+states,
+   NIS, whiteness of the innovations, and divergence by the stated criterion;
+6. RMSE (eq 3.42) is reported over the runs that did not diverge and over all runs
+   (mean with its standard error, and median; a run the filter broke on counts as an
+   infinite error), beside a "measurement" row, the raw measurement's own RMSE; residual
+   statistics are over the runs that did not diverge.
+
+Each sweep point draws from its own ``SeedSequence(seed, spawn_key=(point,))``, so any cell
+can be re-run alone and comes out the same.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from estim import reference
+from estim.config import registry
+from estim.config.schema import (
+    Experiment,
+    build_estimator,
+    build_model,
+    check_input_vector,
+    file_name,
+    operating_point,
+    validate,
+)
+from estim.errors import ConfigError, UsageError
+from estim.estimators import kalman_differentiator
+from estim.experiments.base import Quote, Result
+from estim.experiments.estimation import figures as estimation_figures
+from estim.experiments.estimation.config import Config
+from estim.experiments.estimation.figures import FIGURE_KINDS
+from estim.experiments.shared import claims, pipeline
+from estim.numerics import signals
+from estim.numerics.simulate import SOLVERS
+from estim.reference.tablespec import TableSpec
+from estim.util import lazy
+from estim.util.workunits import map_tasks
+
+pd = lazy.load("pandas")
+
+SCHEMA: dict = Config.schema()
+
+_ROW_KEYS = ("table_id", "s_no", "measurement", "noise_reading", "noise_param", "noise_sigma",
+             "frequency_hz", "samples_per_period", "estimator")
+_JOIN = (("s_no", ("s_no",)), ("estimator", ("estimator",)))
+
+TABLES = {
+    "rmse": TableSpec("rmse.csv", (*_ROW_KEYS, "regime"),
+                      (*pipeline.RMSE_VALUES, "regime_fraction"),
+                      reference=("rmse",), join=_JOIN, title="RMSE (eq 3.42)",
+                      reference_ids=("3.1", "3.2", "3.5")),
+    "health": TableSpec("health.csv", _ROW_KEYS,
+                        (*pipeline.HEALTH_VALUES, "regressor_rank", "regressor_size",
+                         "lambda_at_floor", "p_max_eig"),
+                        title="filter health: divergence, consistency, whiteness, excitation"),
+    "residual": TableSpec("residual.csv", _ROW_KEYS,
+                          ("residual_mean", "residual_mean_se", "residual_variance",
+                           "residual_variance_se", "runs", "diverged"),
+                          reference=("residual_mean", "residual_variance"), join=_JOIN,
+                          title="residual (innovation) mean and variance, runs that did not "
+                                "diverge",
+                          reference_ids=("3.3", "3.4")),
+    "claims": claims.TABLE,
+}
+
+QUOTES = (
+    Quote("RMSE over all runs", "rmse", "rmse", by="estimator"),
+    Quote("RMSE over the runs that did not diverge, in the cells where a run diverged", "rmse",
+          "rmse_kept", by="estimator", where="diverged > 0"),
+    Quote("fraction of actual samples in the named regime", "rmse", "regime_fraction",
+          where="estimator == 'measurement'"),
+    Quote("diverged runs", "health", "diverged", by="estimator", total="runs"),
+    Quote("inconsistent runs (time-averaged NIS or NEES outside its 95 % band)", "health",
+          "inconsistent", by="estimator", total="runs", where="inconsistent == inconsistent"),
+    Quote("residual mean", "residual", "residual_mean", by="estimator"),
+)
+"""What ``estim summary`` quotes of an estimation experiment (:mod:`estim.report.summary`)."""
+
+
+@dataclass(frozen=True)
+class Plan:
+    """What an estimation experiment builds once: the actual circuit and, per estimator,
+    its label, the estimator object and the model it filters with."""
+
+    truth: object
+    filters: tuple
+    x0: object
+    inputs: tuple = ()
+    """Per estimator: its ``(input_derivative, derivative_bandwidth)``."""
+
+
+def prepare(spec: dict, source: str) -> Plan:
+    """Cross-checks beyond the schema; builds the models and estimators once."""
+    model_cls = registry.MODELS[spec["model"]["name"]]
+    variant = spec["model"]["variant"]
+    inp, noise = spec["input"], spec["noise"]
+    if (inp["periods"] is None) == (inp["duration_s"] is None):
+        raise ConfigError(source, "input.periods",
+                          "give exactly one of input.periods and input.duration_s")
+    for key in ("bias_v", "mix"):
+        check_input_vector(inp[key], model_cls, source, f"input.{key}")
+    if noise["pairs"]:
+        if len(noise["input_levels"]) != len(inp["frequencies_hz"]):
+            raise ConfigError(source, "noise.pairs", "with pairs: true, noise.input_levels and "
+                              "input.frequencies_hz must have the same length")
+        cells = list(zip(noise["input_levels"], inp["frequencies_hz"], strict=True))
+        for i, cell in enumerate(cells):
+            if cell in cells[:i]:
+                raise ConfigError(source, f"input.frequencies_hz[{i}]",
+                                  f"repeats the (noise level, frequency) pair {cell}")
+    else:
+        for key, values in (("noise.input_levels", noise["input_levels"]),
+                            ("input.frequencies_hz", inp["frequencies_hz"])):
+            for i, v in enumerate(values):
+                if v in values[:i]:
+                    raise ConfigError(source, f"{key}[{i}]", f"repeats {v!r}")
+    if noise["input_sensor_sigma"] > 0 and noise["filters_see"] != "noisy":
+        raise ConfigError(source, "noise.input_sensor_sigma", "applies only when the filters "
+                          "see the noisy source (noise.filters_see: noisy)")
+    truth = build_model(model_cls, variant, spec["model"]["params"], source, "model.params")
+    x0 = operating_point(truth, inp["bias_v"], source, "model.params")
+    filters, labels = [], []
+    for i, est in enumerate(spec["estimators"]):
+        path = f"estimators[{i}]"
+        if est["label"] in labels:
+            raise ConfigError(source, f"{path}.label", f"duplicate label {est['label']!r}")
+        if est["label"] == pipeline.MEASUREMENT:
+            raise ConfigError(source, f"{path}.label", f"{pipeline.MEASUREMENT!r} is the label "
+                              "of the raw-measurement baseline row; choose another")
+        labels.append(est["label"])
+        model = build_model(model_cls, variant, {**spec["model"]["params"], **est["model_params"]},
+                            source, f"{path}.model_params")
+        estimator = build_estimator(registry.ESTIMATORS[est["type"]], est["settings"], model,
+                                    source, f"{path}.settings")
+        est["settings"] = estimator.to_spec()          # the manifest records every default
+        filters.append((est["label"], estimator, model))
+        if est["input_derivative"] != "difference" and not model_cls.input_is_source_slope:
+            raise ConfigError(source, f"{path}.input_derivative",
+                              f"model {spec['model']['name']}'s input is not the derivative of "
+                              "its source; only 'difference' (the model's own mapping) applies")
+    regime = spec["regime"]
+    if regime is not None and regime not in truth.regimes:
+        raise ConfigError(source, "regime", f"expected one of {list(truth.regimes)} for "
+                          f"model {spec['model']['name']}, got {regime!r}")
+    if not any(spec["tables"].values()):
+        raise ConfigError(source, "tables", "expected at least one of tables.rmse and "
+                          "tables.residual")
+    for i, claim in enumerate(spec["claims"]):
+        for side in ("better", "worse"):
+            if claim[side] not in labels:
+                raise ConfigError(source, f"claims[{i}].{side}",
+                                  f"expected an estimator label {labels}, got {claim[side]!r}")
+        if claim["better"] == claim["worse"]:
+            raise ConfigError(source, f"claims[{i}].worse", "the same estimator as better: "
+                              "a claim compares two")
+        if spec["tables"]["rmse"] is None:
+            raise ConfigError(source, "claims", "claims compare RMSEs: set tables.rmse")
+    names = spec["figures"]["names"]
+    for kind, name in names.items():
+        if kind not in FIGURE_KINDS:
+            raise ConfigError(source, f"figures.names.{kind}",
+                              f"unknown figure kind; expected one of {list(FIGURE_KINDS)}")
+        validate(name, file_name, source, f"figures.names.{kind}")
+    used = {names.get(kind, kind): f"figures.names.{kind}" for kind in FIGURE_KINDS}
+    if len(used) < len(FIGURE_KINDS):
+        raise ConfigError(source, "figures.names", "two figure kinds share one file name")
+    for i, extra in enumerate(spec["figures"]["extra_noisy"]):
+        if extra["name"] in used:
+            raise ConfigError(source, f"figures.extra_noisy[{i}].name",
+                              f"{extra['name']!r} is already the file of {used[extra['name']]}")
+        used[extra["name"]] = f"figures.extra_noisy[{i}].name"
+    dt = inp["sample_time_s"]
+    if dt is not None and dt * max(inp["frequencies_hz"]) > 10:
+        raise ConfigError(source, "input.sample_time_s",
+                          f"{dt:g} s samples the highest input frequency "
+                          f"{max(inp['frequencies_hz']):g} Hz fewer than once in ten periods")
+    inputs = tuple((e["input_derivative"], e["derivative_bandwidth"])
+                   for e in spec["estimators"])
+    return Plan(truth=truth, filters=tuple(filters), x0=x0, inputs=inputs)
+
+
+def work_size(spec: dict) -> int:
+    """State-samples of the actual signal over every sweep point and figure batch."""
+    n = len(registry.MODELS[spec["model"]["name"]].state_names)
+    inp, mc = spec["input"], spec["monte_carlo"]
+    per_freq = 0
+    for f in inp["frequencies_hz"]:
+        dt = inp["sample_time_s"] or 1.0 / (inp["samples_per_period"] * f)
+        span = inp["duration_s"] if inp["duration_s"] is not None else (
+            (inp["periods"] or 1) / f)
+        per_freq += span / dt
+    batches = len(spec["noise"]["readings"]) * len(spec["noise"]["input_levels"])
+    if spec["noise"]["pairs"]:
+        batches = len(spec["noise"]["readings"])
+    batches *= len(spec["noise"]["measurement"])
+    figures = 2 + len(spec["figures"]["extra_noisy"])
+    return int(mc["runs"] * n * (per_freq * batches + figures * per_freq))
+
+
+def tiny(spec: dict) -> dict:
+    """Seconds of work: one frequency, one noise level and reading, two periods, 3 runs."""
+    spec["input"].update(frequencies_hz=spec["input"]["frequencies_hz"][:1])
+    if spec["input"].get("periods") is not None:
+        spec["input"]["periods"] = 2
+    else:
+        spec["input"]["duration_s"] = 2.0 / spec["input"]["frequencies_hz"][0]
+    spec["noise"].update(input_levels=spec["noise"]["input_levels"][:1],
+                         readings=(spec["noise"].get("readings") or ["sigma"])[:1],
+                         measurement=(spec["noise"].get("measurement") or ["noisy"])[:1])
+    spec["monte_carlo"]["runs"] = 3
+    spec["figures"] = {"names": (spec.get("figures") or {}).get("names", {})}
+    return spec
+
+
+@dataclass(frozen=True)
+class SweepPoint:
+    index: int
+    measurement: str
+    reading: str
+    level: float
+    sigma: float
+    frequency_hz: float
+
+
+def sweep(exp: Experiment) -> list[SweepPoint]:
+    """Sweep points in thesis row order: measurement reading, noise reading, noise level,
+    then frequency (or the (level, frequency) pairs in the order given, with
+    ``noise.pairs``). ``noise.measurement``: ``noisy``, the measured output plus white noise
+    of ``measurement_sigma``; ``noise_free``, the actual output itself (the filters keep
+    their ``R``)."""
+    noise, inp = exp.spec["noise"], exp.spec["input"]
+    if noise["pairs"]:
+        cells = list(zip(noise["input_levels"], inp["frequencies_hz"], strict=True))
+    else:
+        cells = [(level, f) for level in noise["input_levels"] for f in inp["frequencies_hz"]]
+    points = []
+    for measurement in noise["measurement"]:
+        for reading in noise["readings"]:
+            for level, f in cells:
+                points.append(SweepPoint(len(points), measurement, reading, float(level),
+                                         signals.noise_sigma(level, reading), float(f)))
+    return points
+
+
+def work_units(exp: Experiment) -> int:
+    return len(sweep(exp)) + 1
+
+
+def sampling(exp: Experiment, frequency_hz: float) -> tuple[float, int]:
+    """Sample time and number of samples after ``t_0`` for one input frequency."""
+    inp = exp.spec["input"]
+    dt = inp["sample_time_s"] or 1.0 / (inp["samples_per_period"] * frequency_hz)
+    if inp["duration_s"] is not None:
+        return dt, max(1, round(inp["duration_s"] / dt))
+    return dt, max(1, round(inp["periods"] / (frequency_hz * dt)))
+
+
+def simulate_point(exp: Experiment, frequency_hz: float, sigma: float, runs: int,
+                   rng: np.random.Generator, measurement: str = "noisy") -> dict:
+    """Actual trajectories and measurements for one frequency and input-noise level."""
+    inp, noise = exp.spec["input"], exp.spec["noise"]
+    truth = exp.plan.truth
+    dt, steps = sampling(exp, frequency_hz)
+    t = np.arange(steps + 1) * dt
+    mix, bias = np.asarray(inp["mix"], float), np.asarray(inp["bias_v"], float)
+    clean = bias + signals.sine(inp["amplitude_v"], frequency_hz, t) * mix
+    input_noise = signals.gaussian(rng, sigma, (runs, steps + 1, 1)) * mix
+    input_noise[:, 0] = 0.0    # the circuit starts at its operating point with v_in(t_0) known
+    source = clean[None] + input_noise
+    x0 = exp.plan.x0           # the DC point with the source held at its value at t_0
+    sim = exp.spec["simulation"]
+    states = SOLVERS[sim["solver"]](truth, x0, truth.source_to_input(source, dt), dt,
+                                    rtol=sim["rtol"], atol=sim["atol"])
+    actual = truth.h(states)
+    z = actual + signals.gaussian(rng, noise["measurement_sigma"], actual.shape)
+    if measurement == "noise_free":
+        z = actual.copy()
+    seen = clean[None] if noise["filters_see"] == "nominal" else source
+    if noise["input_sensor_sigma"] > 0:        # the filters measure the source imperfectly
+        seen = seen + signals.gaussian(rng, noise["input_sensor_sigma"], source.shape) * mix
+        seen[:, 0] = source[:, 0]               # v_in(t_0) is known, as for the circuit
+    return {"t": t[1:], "dt": dt, "x0": x0, "source": source, "clean": clean, "seen": seen,
+            "frequency_hz": frequency_hz, "states": states, "actual": actual, "z": z,
+            "u": truth.source_to_input(seen, dt)}
+
+
+def filter_input(exp: Experiment, data: dict, method: str, bandwidth: float) -> np.ndarray:
+    """The input a filter is given on each sample interval (:data:`DERIVATIVE_METHODS`)."""
+    if method == "difference":
+        return data["u"]
+    inp, f, dt = exp.spec["input"], data["frequency_hz"], data["dt"]
+    mix = np.asarray(inp["mix"], float)
+    if method == "analytic":
+        w = 2 * np.pi * f
+        middle = data["t"] - dt / 2
+        return (inp["amplitude_v"] * w * np.cos(w * middle))[None, :, None] * mix
+    slopes = kalman_differentiator.with_bandwidth(data["seen"], dt, bandwidth * f)
+    return 0.5 * (slopes[:, 1:] + slopes[:, :-1])
+
+
+def estimate_point(exp: Experiment, data: dict) -> list:
+    """Run every configured estimator on one simulated batch."""
+    inputs = exp.plan.inputs
+    return [est.run(model, data["z"], filter_input(exp, data, *how), data["dt"], x0=data["x0"])
+            for (_, est, model), how in zip(exp.plan.filters, inputs, strict=True)]
+
+
+def run_point(exp: Experiment, point: SweepPoint, traces: bool = False) -> tuple[list, dict,
+                                                                                  dict]:
+    """Table rows (the measurement baseline, then one per estimator) for one sweep point,
+    the per-run losses for the claims, and with ``traces`` the figure traces of its first
+    run (the figures show the runs the table averages)."""
+    mc = exp.spec["monte_carlo"]
+    rng = np.random.default_rng(np.random.SeedSequence(mc["seed"], spawn_key=(point.index,)))
+    data = simulate_point(exp, point.frequency_hz, point.sigma, mc["runs"], rng,
+                          point.measurement)
+    estimates = estimate_point(exp, data)
+    regime = exp.spec["regime"]
+    fraction = float("nan") if regime is None else float(np.mean(exp.plan.truth.in_regime(
+        regime, data["states"], data["source"][:, 1:])))
+    common = {"measurement": point.measurement, "noise_reading": point.reading,
+              "noise_param": point.level,
+              "noise_sigma": point.sigma, "frequency_hz": point.frequency_hz,
+              "samples_per_period": 1.0 / (point.frequency_hz * data["dt"]),
+              "regime": regime or "", "regime_fraction": fraction}
+    rows, losses, verdicts = pipeline.score(exp, data, exp.plan.filters, estimates, common)
+    drawn = estimation_figures.traces(exp, data, estimates, verdicts) if traces else {}
+    return rows, losses, drawn
+
+
+def _run_point_args(args):
+    return run_point(*args)
+
+
+FIGURE_SEED_KEY = 2**31
+"""Figure batches that are not a sweep point draw from ``spawn_key=(FIGURE_SEED_KEY, i)``: a
+key space no sweep point reaches."""
+
+
+def figure_cases(exp: Experiment) -> list[tuple[str, float, float, str]]:
+    """``(key, frequency, noise level, reading)`` of every noisy figure batch: the figure's
+    point and each ``figures.extra_noisy`` case."""
+    fig = exp.spec["figures"]
+    f = fig["frequency_hz"] or exp.spec["input"]["frequencies_hz"][0]
+    level = fig["noise_level"] or exp.spec["noise"]["input_levels"][0]
+    reading = fig["reading"] or exp.spec["noise"]["readings"][0]
+    cases = [("noisy", f, level, reading)]
+    cases += [(extra["name"], f, extra["noise_level"], extra["reading"])
+              for extra in fig["extra_noisy"]]
+    return cases
+
+
+def result_table(rows: list[dict], metric: str, table_id: str | None) -> pd.DataFrame:
+    """The ``metric`` table from the sweep's rows, with thesis table id and row number."""
+    df = pd.DataFrame(rows)
+    if "inconsistent" in df:
+        df["inconsistent"] = pd.array(df["inconsistent"], dtype="Float64").astype("Int64")
+    df.insert(0, "table_id", table_id if table_id and table_id != reference.OWN_TABLE else "")
+    df.insert(1, "s_no", pipeline.thesis_row_numbers(df, table_id))
+    return df[TABLES[metric].columns].reset_index(drop=True)
+
+
+def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = None) -> Result:
+    """All sweep points (rows in thesis order whatever the number of jobs), the claims and
+    the figures, drawn from the table's own batches where a figure shows a sweep point."""
+    points = sweep(exp)
+    wanted: dict[int, list[str]] = {}
+    for key, f, level, reading in figure_cases(exp):
+        match = next((p for p in points if p.measurement == points[0].measurement
+                      and p.reading == reading and np.isclose(p.level, level)
+                      and np.isclose(p.frequency_hz, f)), None)
+        if match is not None:
+            wanted.setdefault(match.index, []).append(key)
+    tasks = [(exp, p, p.index in wanted) for p in points]
+    done = map_tasks(_run_point_args, tasks, jobs, on_done)
+    rows = [row for part, _, _ in done for row in part]
+    known = {key: done[index][2] for index, keys in wanted.items() for key in keys}
+    out = Result(tables={})
+    filters_only = [row for row in rows if row["estimator"] != pipeline.MEASUREMENT]
+    table_id = exp.spec["tables"]["rmse"] or exp.spec["tables"]["residual"]
+    rmse = result_table(rows, "rmse", table_id)
+    for metric, table_id_ in exp.spec["tables"].items():
+        if table_id_ is not None:
+            out.tables[metric] = (result_table(rows, metric, table_id_) if metric == "rmse"
+                                  else result_table(filters_only, metric, table_id_))
+    out.tables["health"] = result_table(filters_only, "health", table_id)
+    out.tables["claims"] = pipeline.claims_table(exp.spec, rmse, [losses for _, losses, _ in done],
+                                        ("s_no", "measurement", "noise_reading", "noise_param",
+                                         "frequency_hz"))
+    out.figures = figures(exp, known)
+    if on_done:
+        on_done()
+    return out
+
+
+def figure_traces(exp: Experiment, known: dict) -> dict:
+    """Traces of every figure: the noiseless run (one run, its own seed) and the noisy
+    cases, taken from ``known`` (traces of sweep points) or simulated with their own seed."""
+    mc = exp.spec["monte_carlo"]
+    cases = figure_cases(exp)
+    f = cases[0][1]
+    batches = [("noiseless", 0.0, 1)] + [
+        (key, signals.noise_sigma(level, reading), mc["runs"]) for key, _, level, reading in cases]
+    out = {}
+    for i, (key, sigma, runs) in enumerate(batches):
+        if key in known:
+            out[key] = known[key]
+            continue
+        rng = np.random.default_rng(np.random.SeedSequence(mc["seed"],
+                                                           spawn_key=(FIGURE_SEED_KEY, i)))
+        data = simulate_point(exp, f, sigma, runs, rng, exp.spec["noise"]["measurement"][0])
+        estimates = estimate_point(exp, data)
+        verdicts = [pipeline.judge(exp, data, est, model)["diverged"]
+                    for (_, _, model), est in zip(exp.plan.filters, estimates, strict=True)]
+        out[key] = estimation_figures.traces(exp, data, estimates, verdicts)
+    return out
+
+
+def figures(exp: Experiment, known: dict) -> dict:
+    """Every figure: the traces of :func:`figure_traces`, drawn by
+    :func:`estim.experiments.estimation.figures.figures`."""
+    _, f, level, reading = figure_cases(exp)[0]
+    return estimation_figures.figures(exp, figure_traces(exp, known), f, level, reading)
+
+
+def summary(result: Result) -> str:
+    """RMSE by estimator (columns) and sweep point (rows)."""
+    df = result.tables.get("rmse")
+    if df is None:
+        return ""
+    view = df.pivot(index=["measurement", "noise_reading", "noise_param", "frequency_hz"],
+                    columns="estimator", values="rmse")
+    return view.to_string(float_format=lambda v: f"{v:.4g}")
+
+
+TUNE_SEED_KEY = 2**32
+"""Training draws of ``estim tune`` use ``spawn_key=(TUNE_SEED_KEY, point)``: independent of
+every table and figure batch."""
+
+
+def training(exp: Experiment, label: str, runs: int) -> tuple[int, object, object, list]:
+    """What ``estim tune`` fits (:func:`estim.experiments.shared.tuning.tune`): the index, estimator
+    and model of the filter labelled ``label``, and training draws of ``runs`` runs at every sweep
+    point (points with a noise-free measurement are left out when noisy ones exist: the likelihood
+    assumes the measurement noise ``R`` describes)."""
+    found = [(i, est, model) for i, (lab, est, model) in enumerate(exp.plan.filters)
+             if lab == label]
+    if not found:
+        raise UsageError(f"{exp.name}: no estimator labelled {label!r}; expected one of "
+                         f"{[lab for lab, _, _ in exp.plan.filters]}")
+    index, est, model = found[0]
+    mc = exp.spec["monte_carlo"]
+    batches = []
+    points = sweep(exp)
+    noisy = [p for p in points if p.measurement == "noisy"]
+    for p in noisy or points:
+        rng = np.random.default_rng(np.random.SeedSequence(mc["seed"],
+                                                           spawn_key=(TUNE_SEED_KEY, p.index)))
+        batches.append(simulate_point(exp, p.frequency_hz, p.sigma, runs, rng, p.measurement))
+    return index, est, model, batches

@@ -1,0 +1,131 @@
+"""The config of an estimation experiment (Chapter 3), each setting declared once
+(:mod:`estim.config.settings`): ``SCHEMA`` of :mod:`estim.experiments.estimation` is
+``Config.schema()``."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from estim.config.schema import (
+    MAX_VOLTS,
+    REQUIRED,
+    boolean,
+    file_name,
+    integer,
+    list_of,
+    mapping,
+    number,
+    text,
+)
+from estim.config.settings import Settings, block, blocks, setting, settings_class
+from estim.experiments.shared.blocks import (
+    READING,
+    VOLTS,
+    EstimatorEntry,
+    FigurePoint,
+    FilterTable,
+    InputNoise,
+    Sine,
+    simulation,
+)
+
+DERIVATIVE_METHODS = {"difference", "analytic", "kalman"}
+"""How a filter gets ``dv_in/dt`` for a model whose input is the source's slope (eq 3.26):
+the difference of the samples it sees on each interval (the default), the nominal sine's
+derivative at the interval's midpoint, or the Kalman differentiator of the samples it sees
+(``derivative_bandwidth`` times the input frequency;
+:mod:`estim.estimators.kalman_differentiator`)."""
+
+
+@settings_class
+class Input(Sine):
+    """The source: a sine, sampled, with a DC level per model input."""
+
+    waveform: str = setting("sine", text({"sine"}), doc="the source's waveform")
+    samples_per_period: int = setting(10, integer(2, 10_000),
+                                      doc="samples per period of each frequency")
+    sample_time_s: float | None = setting(None, number(minimum=1e-12, maximum=1e3), unit="s",
+                                          doc="one sample time for every frequency instead "
+                                              "(Table 3.5's T_s)")
+    periods: int | None = setting(None, integer(1, 100_000),
+                                  doc="record length in periods (give this or duration_s)")
+    duration_s: float | None = setting(None, number(minimum=1e-9, maximum=1e4), unit="s",
+                                       doc="record length (give this or periods)")
+    bias_v: list = setting([0.0], list_of(VOLTS), unit="V",
+                           doc="DC level of each model input")
+    mix: list = setting([1.0], list_of(number(minimum=-1e3, maximum=1e3)),
+                        doc="the sine's weight in each model input (0.5, -0.5: differential)")
+
+
+@settings_class
+class Noise(InputNoise):
+    """Noise at the input source (as the thesis prints it) and on the measured output."""
+
+    measurement: list = setting(["noisy"], list_of(text({"noisy", "noise_free"}), unique=True,
+                                                   max_length=2),
+                                doc="noisy: output plus measurement noise; noise_free: the "
+                                    "output itself (the filters keep their R)")
+    filters_see: str = setting("nominal", text({"nominal", "noisy"}),
+                               doc="the source the filters are given: the nominal sine or the "
+                                   "noisy source")
+    input_sensor_sigma: float = setting(0.0, number(minimum=0.0, maximum=MAX_VOLTS), unit="V",
+                                        doc="noise of the filters' own sensor of the source "
+                                            "(filters_see: noisy)")
+    pairs: bool = setting(False, boolean,
+                          doc="pair input_levels with frequencies_hz one to one (Table 3.5)")
+
+
+@settings_class
+class Estimator(EstimatorEntry):
+    """An estimator of a Chapter 3 table, and how it gets dv_in/dt."""
+
+    input_derivative: str = setting("difference", text(DERIVATIVE_METHODS),
+                                    doc="how the filter gets dv_in/dt (eq 3.26)")
+    derivative_bandwidth: float = setting(3.0, number(minimum=0.1, maximum=1000.0),
+                                          doc="the Kalman differentiator's bandwidth, in "
+                                              "input frequencies")
+
+
+@settings_class
+class Tables(Settings):
+    """Which printed table each result table joins (a thesis table id, or ours)."""
+
+    rmse: str | None = setting(None, text(), doc="thesis table of the RMSE (3.1, 3.2, 3.5)")
+    residual: str | None = setting(None, text(), doc="thesis table of the residual (3.3, 3.4)")
+
+
+@settings_class
+class ExtraNoisy(Settings):
+    """One more noisy-estimates figure at another noise level."""
+
+    noise_level: float = setting(REQUIRED, number(positive=True, maximum=MAX_VOLTS),
+                                 unit="V or V^2", doc="the printed noise number")
+    reading: str = setting("sigma", READING, doc="sigma or variance")
+    name: str = setting(REQUIRED, file_name, doc="the figure's file name")
+
+
+@settings_class
+class Figures(FigurePoint):
+    """The figures' sweep point and file names."""
+
+    names: dict = setting({}, mapping, doc="file name of each figure kind (noiseless, noisy, "
+                                           "rmse, residual)")
+    extra_noisy: tuple = blocks(ExtraNoisy, default=(), nonempty=False, max_length=20,
+                                doc="more noisy-estimates figures")
+
+
+@settings_class
+class Config(FilterTable):
+    """An estimation experiment (Chapter 3): the circuit, its noisy source, the estimators."""
+
+    input: Input = block(Input, required=True, doc="the source")
+    noise: Noise = block(Noise, required=True, doc="input and measurement noise")
+    simulation: Any = block(simulation(rtol=1e-6, atol=1e-7), doc="the actual circuit's solver")
+    estimators: tuple = blocks(Estimator, max_length=20, doc="the estimators compared")
+    tables: Tables = block(Tables, required=True, doc="the thesis tables joined")
+    regime: str | None = setting(None, text(max_length=60),
+                                 doc="the operating regime the table names (rmse.csv gives the "
+                                     "fraction of samples in it)")
+    figures: Figures = block(Figures, doc="the figures")
+
+

@@ -1,0 +1,53 @@
+"""The figures of an estimation experiment (Figs 3.2-3.7, 3.9-3.11), drawn from the traces of
+the batches the analysis simulated (:mod:`estim.experiments.estimation` chooses them)."""
+
+from __future__ import annotations
+
+from estim.config.schema import Experiment
+from estim.experiments.shared import plots
+from estim.numerics import metrics
+
+FIGURE_KINDS = ("noiseless", "noisy", "rmse", "residual")
+
+
+def traces(exp: Experiment, data: dict, estimates: list, diverged: list) -> dict:
+    """What a figure draws of a batch: run 0's signals and every estimator's running RMSE
+    over the runs that did not diverge."""
+    labels = [label for label, _, _ in exp.plan.filters]
+    pairs = list(zip(labels, estimates, strict=True))
+    kept = dict(zip(labels, diverged, strict=True))
+    return {
+        "t": data["t"], "source": data["source"][0, 1:, 0], "clean": data["clean"][1:, 0],
+        "actual": data["actual"][0, :, 0], "z": data["z"][0, :, 0],
+        "y_hat": {lab: e.y_hat[0, :, 0] for lab, e in pairs},
+        "innovation": {lab: e.innovation[0, :, 0] for lab, e in pairs},
+        "running_rmse": {lab: metrics.running_rmse(data["actual"][~kept[lab]],
+                                                   e.y_hat[~kept[lab]]) for lab, e in pairs},
+    }
+
+
+def figures(exp: Experiment, data: dict, f: float, level: float, reading: str) -> dict:
+    """Figs 3.2-3.7, 3.9-3.11 from the traces ``data`` (:func:`traces` of each figure batch,
+    by key): estimates without and with input noise, running RMSE and residuals, under the
+    names of ``figures.names``; ``f``, ``level`` and ``reading`` are the noisy batch's."""
+    names = exp.spec["figures"]["names"]
+    what = exp.spec["title"] or exp.name
+    period = 1.0 / f
+
+    def noise(level: float, reading: str) -> str:
+        return (f"input noise sigma = {level:g} V" if reading == "sigma"
+                else f"input noise variance = {level:g} V^2")
+
+    where = f"{f:g} Hz, {noise(level, reading)}"
+    makers = {
+        "noiseless": lambda: plots.estimates(data["noiseless"], f"{what}; {f:g} Hz, no input "
+                                             "noise", period),
+        "noisy": lambda: plots.estimates(data["noisy"], f"{what}; {where}", period),
+        "rmse": lambda: plots.running_rmse(data["noisy"], f"RMSE over runs: {what}; {where}"),
+        "residual": lambda: plots.residuals(data["noisy"], f"Residual (run 1): {what}; {where}"),
+    }
+    out = {names.get(kind, kind): makers[kind]() for kind in FIGURE_KINDS}
+    for extra in exp.spec["figures"]["extra_noisy"]:
+        title = f"{what}; {f:g} Hz, {noise(extra['noise_level'], extra['reading'])}"
+        out[extra["name"]] = plots.estimates(data[extra["name"]], title, period)
+    return out

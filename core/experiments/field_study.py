@@ -1,0 +1,193 @@
+"""Studies of the Chapter 5 field filter (D61): one ``dipole_field`` experiment run over a
+list of values of one setting (the grid's points per side, the sensor fraction, the
+ensemble size), everything else as configured. For each value the same cycle as
+``dipole_field`` (:func:`estim.experiments.dipole_field.cycle`): the field filter (LETKF), the
+source-only ETKF, the amplitude-only fit, the plain simulation, RLS and the raw nearest
+sensor, with their RMSE per zone, component and part.
+
+The first noise row of the config is run (the thesis' source-noise rows do not enter the
+field, D59). A figure shows the relative RMSE of the real part against the value.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from estim.config.schema import REQUIRED, Experiment, list_of, number, text
+from estim.config.settings import Settings, block, settings_class
+from estim.config.settings import setting as declare
+from estim.errors import ConfigError
+from estim.experiments import dipole_field as field
+from estim.experiments.base import Quote, Result
+from estim.experiments.shared import claims, plots
+from estim.numerics import metrics
+from estim.reference.tablespec import TableSpec
+from estim.util import lazy
+from estim.util.workunits import map_tasks
+
+pd = lazy.load("pandas")
+
+SETTINGS = {"grid.n": int, "sensors.fraction": float, "filter.members": int}
+"""The settings a study may vary, and their type."""
+
+
+@settings_class
+class StudySettings(Settings):
+    """The setting varied and its values."""
+
+    setting: str = declare(REQUIRED, text(set(SETTINGS)), doc="the setting varied")
+    values: list = declare(REQUIRED, list_of(number(positive=True, maximum=1e4),
+                                             max_length=12),
+                           doc="its values, one experiment each")
+
+
+@settings_class
+class Config(field.Config):
+    """The field filter over one setting's values (D61)."""
+
+    study: StudySettings = block(StudySettings, required=True, doc="the setting varied")
+
+
+SCHEMA: dict = Config.schema()
+
+_KEYS = ("study", "value", "scenario", "zone", "beta_r", "estimator", "field_component",
+         "part")
+TABLES = {
+    "rmse": TableSpec("rmse.csv", _KEYS, ("rmse", "rmse_se", "runs", "field_rms", "relative",
+                                          "sensors", "members"),
+                      title="RMSE of the fields against the analytic dipole, per value of the "
+                            "studied setting"),
+    "claims": claims.TABLE,
+}
+QUOTES = (Quote("relative RMSE (RMSE / field RMS)", "rmse", "relative", by="estimator"),)
+CLAIMS = ((field.KF, field.FIT), (field.KF, field.PLAIN), (field.KF, field.SOURCE_ONLY))
+"""At each value: the field filter against the amplitude-only fit, the plain simulation and
+the source-only ETKF."""
+
+
+@dataclass(frozen=True)
+class Plan:
+    """Per value: the experiment ``dipole_field`` would run with it."""
+
+    experiments: tuple
+
+
+def _with(spec: dict, path: str, value) -> dict:
+    out = copy.deepcopy(spec)
+    out.pop("study", None)
+    head, key = path.split(".")
+    out[head][key] = SETTINGS[path](value)
+    return out
+
+
+def prepare(spec: dict, source: str) -> Plan:
+    study = spec["study"]
+    if not study["values"]:
+        raise ConfigError(source, "study.values", "expected at least one value")
+    exps = []
+    for i, value in enumerate(study["values"]):
+        kind = SETTINGS[study["setting"]]
+        if kind is int and value != int(value):
+            raise ConfigError(source, f"study.values[{i}]", f"expected a whole number for "
+                              f"{study['setting']}")
+        one = _with(spec, study["setting"], value)
+        try:
+            plan = field.prepare(one, source)
+        except ConfigError as e:
+            raise ConfigError(source, f"study.values[{i}]", f"{study['setting']} = {value:g}: "
+                              f"{e.path}: {e.message}") from None
+        exps.append(Experiment(name=spec["name"], source=source, spec=one, plan=plan))
+    return Plan(experiments=tuple(exps))
+
+
+def work_size(spec: dict) -> int:
+    return sum(field.work_size(_with(spec, spec["study"]["setting"], v))
+               for v in spec["study"]["values"])
+
+
+def _tasks(exp: Experiment) -> list[tuple]:
+    return [(v, s, r) for v in range(len(exp.plan.experiments))
+            for s in range(len(exp.spec["scenarios"]))
+            for r in range(exp.spec["monte_carlo"]["runs"])]
+
+
+def work_units(exp: Experiment) -> int:
+    return len(_tasks(exp))
+
+
+def tiny(spec: dict) -> dict:
+    spec = field.tiny(spec)
+    setting_ = spec["study"]["setting"]
+    spec["study"]["values"] = {"grid.n": [8, 12], "sensors.fraction": [0.05, 0.1],
+                               "filter.members": [4, 6]}[setting_]
+    return spec
+
+
+def _one(args) -> dict:
+    """One value, scenario and run: per (estimator, zone, component, part) the mean squared
+    error and the mean squared truth."""
+    exp, v, s, run = args
+    one = exp.plan.experiments[v]
+    su = field._setup(one.spec, one.plan)
+    scenario = one.spec["scenarios"][s]
+    rng = np.random.default_rng(np.random.SeedSequence(exp.spec["monte_carlo"]["seed"],
+                                                       spawn_key=(v, s, run)))
+    out = field.cycle(one, su, field._amplitude(scenario["nominal_amplitude"]), rng)
+    smooth = field._smoothed(out["measured"], out["times"], su.dipole.omega, one.spec["rls"])
+    return field._errors(one, one.plan.grid, out["phasors"], su.dipole, one.plan.sensors,
+                         out["times"], out["traces"], out["measured"], smooth, su.quarter)
+
+
+def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = None) -> Result:
+    tasks = _tasks(exp)
+    done = map_tasks(_one, [(exp, *t) for t in tasks], jobs, on_done)
+    study = exp.spec["study"]
+    grouped: dict = {}
+    for (v, s, _), errors in zip(tasks, done, strict=True):
+        for (name, zone, comp, part), (mse, ref) in errors.items():
+            grouped.setdefault((v, s, zone, comp, part), {}).setdefault(name, []).append(
+                (mse, ref))
+    rows, cells = [], []
+    for (v, s, zone, comp, part), by_name in grouped.items():
+        one = exp.plan.experiments[v]
+        value = study["values"][v]
+        scenario = exp.spec["scenarios"][s]["name"]
+        losses = {}
+        for name, pairs in by_name.items():
+            values = np.sqrt([p[0] for p in pairs])
+            ref = float(np.mean([p[1] for p in pairs]))
+            broke = ~(values <= field.DIVERGED_RATIO * np.sqrt(ref))
+            mean, se = (metrics.mean_and_se(values) if len(values) > 1
+                        else (float(values[0]), float("nan")))
+            if broke.any():
+                mean, se = float("inf"), float("nan")
+            losses[name] = claims.Losses(values, broke)
+            rows.append({"study": study["setting"], "value": value, "scenario": scenario,
+                         "zone": zone, "beta_r": one.plan.beta_r[zone], "estimator": name,
+                         "field_component": comp, "part": part, "rmse": mean, "rmse_se": se,
+                         "runs": len(values), "field_rms": np.sqrt(ref),
+                         "relative": mean / np.sqrt(ref),
+                         "sensors": int(one.plan.sensors.size),
+                         "members": int(one.spec["filter"]["members"])})
+        cells.append((claims.cell(study=study["setting"], value=f"{value:g}",
+                                  scenario=scenario, zone=zone, field_component=comp,
+                                  part=part), losses))
+    df = pd.DataFrame(rows)[TABLES["rmse"].columns]
+    table = claims.table(cells, CLAIMS, "RMSE")
+    figure = plots.field_study(df, study["setting"], (field.KF, field.FIT, field.PLAIN,
+                                                      field.SOURCE_ONLY))
+    return Result(tables={"rmse": df, "claims": table}, figures={"study": figure})
+
+
+def summary(result: Result) -> str:
+    df = result.tables["rmse"]
+    view = df[(df["part"] == "real") & df["estimator"].isin(
+        [field.KF, field.FIT, field.PLAIN])].pivot_table(
+        index=["scenario", "zone", "field_component", "estimator"], columns="value",
+        values="relative", sort=False)
+    return "relative RMSE (RMSE / field RMS), real part\n" + view.to_string(
+        float_format=lambda v: f"{v:.3g}")

@@ -1,0 +1,235 @@
+"""One rule for every claim: a paired comparison on the same draws (docs/claims.md).
+
+A claim says that estimator ``better`` has a smaller loss than estimator ``worse`` (RMSE,
+mean absolute error, MSE, taps, multiplications: whatever the table measures, smaller is
+better) in one table cell. Both were run on the same noise draws, so the claim is judged on
+the paired per-run differences ``d_i = loss_better_i - loss_worse_i``, at the level
+:data:`LEVEL`, by one of three methods chosen by the data alone:
+
+``exact``  a deterministic computation (one "run" with no noise): the difference itself; a
+           tie when it is within :data:`TIE_RTOL` of the larger loss (rounding), or when
+           both diverged.
+``t``      every loss finite and no run diverged: the mean difference and its Student-t
+           interval (``n - 1`` degrees of freedom; a single random run has none: undecided).
+``sign``   two or more runs, some run diverged or a loss is not finite: a diverged run is a
+           loss for its filter larger than any finite one (``d = +inf`` where only
+           ``better`` diverged, ``-inf`` where only ``worse`` did, ``0`` where both did), and
+           the interval is the distribution-free interval of the median difference from the
+           sign test (order statistics ``d_(k), d_(n-k+1)``), which infinities do not break.
+           Fewer than six runs give no such interval at 95 %: undecided.
+
+The verdict reads the interval: ``holds`` when it lies below zero, ``fails`` when it lies
+above zero, ``undecided`` when it contains zero. Analyses declare which pairs they compare;
+they never judge (``tests/test_analyses.py`` checks that every claims table comes from
+:func:`table`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from fractions import Fraction
+
+import numpy as np
+
+from estim.reference.tablespec import TableSpec
+from estim.util import lazy
+
+pd = lazy.load("pandas")
+
+LEVEL = 0.95
+"""Two-sided coverage of every claim's interval."""
+
+TIE_RTOL = 1e-9
+"""A deterministic difference within this fraction of the larger loss is rounding: a tie."""
+
+HOLDS, FAILS, UNDECIDED = "holds", "fails", "undecided"
+VERDICTS = (HOLDS, FAILS, UNDECIDED)
+METHODS = ("exact", "t", "sign")
+
+KEYS = ("claim", "cell", "better", "worse", "metric")
+VALUES = ("runs", "diverged_better", "diverged_worse", "loss_better", "loss_worse",
+          "difference", "difference_se", "difference_low", "difference_high", "ratio",
+          "ratio_low", "ratio_high", "method", "verdict")
+
+TABLE = TableSpec(
+    "claims.csv", KEYS, VALUES, text=("method", "verdict"),
+    title="claims: paired comparisons on the same draws, holds / fails / undecided "
+          "(docs/claims.md)")
+"""The claims table of every analysis: the same columns everywhere."""
+
+
+@dataclass(frozen=True)
+class Losses:
+    """One estimator's loss in one cell, per run (``values``), and which runs diverged by
+    the analysis' stated criterion (``None``: none did; a non-finite loss always counts)."""
+
+    values: np.ndarray
+    diverged: np.ndarray | None = None
+
+    def flags(self) -> np.ndarray:
+        values = np.atleast_1d(np.asarray(self.values, float))
+        out = ~np.isfinite(values)
+        if self.diverged is not None:
+            out |= np.atleast_1d(np.asarray(self.diverged, bool))
+        return out
+
+
+def _mean(values: np.ndarray) -> float:
+    """Mean loss over every run; a run with a non-finite loss counts as infinite."""
+    return float(np.mean(np.where(np.isfinite(values), values, np.inf)))
+
+
+def sign_interval_rank(n: int, level: float = LEVEL) -> int:
+    """The largest ``k`` with ``P(Binomial(n, 1/2) <= k - 1) <= (1 - level) / 2``: the
+    interval ``[d_(k), d_(n-k+1)]`` covers the median with probability at least ``level``.
+    0 when no such interval exists (``n < 6`` at 95 %)."""
+    tail = Fraction((1.0 - level) / 2.0)
+    k, below = 0, 1                          # below: 2^n P(Binomial(n, 1/2) <= k), exact
+    while k + 1 <= n // 2 + 1 and Fraction(below, 2**n) <= tail:
+        k += 1
+        below += math.comb(n, k)
+    return k
+
+
+def t_quantile(n: int, level: float = LEVEL) -> float:
+    """The two-sided ``level`` quantile of Student's t with ``n - 1`` degrees of freedom
+    (``inf`` for one run): ``stdtrit``, the computation of ``scipy.stats.t.ppf`` (tested
+    equal), without importing scipy.stats."""
+    if n < 2:
+        return float("inf")
+    from scipy import special
+
+    return float(special.stdtrit(n - 1, 0.5 + level / 2))
+
+
+def _verdict(low: float, high: float) -> str:
+    if high < 0:
+        return HOLDS
+    if low > 0:
+        return FAILS
+    return UNDECIDED
+
+
+def judge(better: Losses, worse: Losses, level: float = LEVEL, exact: bool = False) -> dict:
+    """The claim ``better`` < ``worse`` on paired per-run losses, by the rule of the module
+    docstring: the columns :data:`VALUES` of one row of the claims table. ``exact``: the
+    losses come from a deterministic computation, one value each."""
+    b = np.atleast_1d(np.asarray(better.values, float))
+    w = np.atleast_1d(np.asarray(worse.values, float))
+    if b.shape != w.shape or b.ndim != 1 or b.size == 0:
+        raise ValueError(f"paired losses need one value per run on both sides, got {b.shape} "
+                         f"and {w.shape}")
+    fb, fw = better.flags(), worse.flags()
+    n = b.size
+    nan = float("nan")
+    out = {"runs": n, "diverged_better": int(fb.sum()), "diverged_worse": int(fw.sum()),
+           "loss_better": _mean(b), "loss_worse": _mean(w)}
+    if exact:
+        if n != 1:
+            raise ValueError(f"an exact claim compares one value a side, got {n}")
+        method = "exact"
+        if fb[0] and fw[0]:
+            d = 0.0
+        elif fb[0]:
+            d = float("inf")
+        elif fw[0]:
+            d = -float("inf")
+        else:
+            d = float(b[0] - w[0])
+            if abs(d) <= TIE_RTOL * max(abs(b[0]), abs(w[0])):
+                d = 0.0
+        low = high = d
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = float(np.inf if fb[0] and not fw[0] else 0.0 if fw[0] and not fb[0]
+                          else 1.0 if fb[0] else b[0] / w[0])
+        out.update(difference=d, difference_se=0.0, difference_low=low, difference_high=high,
+                   ratio=ratio, ratio_low=ratio, ratio_high=ratio)
+        verdict = UNDECIDED if d == 0 else _verdict(low, high)
+    elif not fb.any() and not fw.any():
+        method = "t"
+        d = b - w
+        mean = float(np.mean(d))
+        se = float(np.std(d, ddof=1) / np.sqrt(n)) if n > 1 else float("nan")
+        q = t_quantile(n, level)
+        low, high = mean - q * se, mean + q * se
+        mw = np.mean(w)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = float(np.mean(b) / mw)
+            ratio_se = (float(np.std(b - ratio * w, ddof=1) / np.sqrt(n) / np.abs(mw))
+                        if n > 1 else float("nan"))
+        if n == 1:
+            low, high, r_low, r_high = -np.inf, np.inf, 0.0, np.inf
+        else:
+            r_low, r_high = ratio - q * ratio_se, ratio + q * ratio_se
+        out.update(difference=mean, difference_se=se, difference_low=low, difference_high=high,
+                   ratio=ratio, ratio_low=r_low, ratio_high=r_high)
+        verdict = UNDECIDED if se == 0 and mean == 0 else _verdict(low, high)
+    else:
+        method = "sign"
+        with np.errstate(invalid="ignore", divide="ignore"):
+            d = np.where(fb & fw, 0.0, np.where(fb, np.inf, np.where(fw, -np.inf, b - w)))
+            r = np.where(fb & fw, 1.0, np.where(fb, np.inf, np.where(fw, 0.0, b / w)))
+        d, r = np.sort(d), np.sort(r)
+        k = sign_interval_rank(n, level)
+        low, high = (float(d[k - 1]), float(d[n - k])) if k else (-np.inf, np.inf)
+        r_low, r_high = (float(r[k - 1]), float(r[n - k])) if k else (0.0, np.inf)
+        out.update(difference=float(np.median(d)), difference_se=nan, difference_low=low,
+                   difference_high=high, ratio=float(np.median(r)), ratio_low=r_low,
+                   ratio_high=r_high)
+        verdict = _verdict(low, high)
+    out["method"], out["verdict"] = method, verdict
+    return out
+
+
+CELL_SEPARATOR = "; "
+
+
+def cell(**keys) -> str:
+    """A table cell named by its key values: ``"s_no=3; frequency_hz=1000"`` (floats as
+    ``%g``, missing values left out)."""
+    parts = []
+    for key, value in keys.items():
+        if value is None or (isinstance(value, float) and np.isnan(value)) or value is pd.NA:
+            continue
+        if isinstance(value, (float, np.floating)):
+            value = f"{float(value):g}"
+        parts.append(f"{key}={value}")
+    return CELL_SEPARATOR.join(parts)
+
+
+def cell_keys(text: str) -> dict[str, str]:
+    """The key values of a cell named by :func:`cell`."""
+    return dict(part.split("=", 1) for part in text.split(CELL_SEPARATOR) if "=" in part)
+
+
+def table(cells: Iterable[tuple[str, Mapping[str, Losses]]], pairs: Sequence[tuple[str, str]],
+          metric: str, claim: str | None = None, exact: bool = False) -> pd.DataFrame:
+    """The claims table: every pair ``(better, worse)`` judged in every cell that has both.
+
+    ``cells`` gives each cell's description (:func:`cell`) and its losses by estimator;
+    ``claim`` names the claim (default ``"<better> <metric> < <worse> <metric>"``);
+    ``exact``: the losses are deterministic (one value each, judged exactly)."""
+    rows = []
+    cells = list(cells)
+    for better, worse in pairs:
+        for where, losses in cells:
+            if better not in losses or worse not in losses:
+                continue
+            rows.append({"claim": claim or f"{better} {metric} < {worse} {metric}",
+                         "cell": where, "better": better, "worse": worse, "metric": metric,
+                         **judge(losses[better], losses[worse], exact=exact)})
+    return pd.DataFrame(rows, columns=TABLE.columns)
+
+
+def counts(df: pd.DataFrame) -> pd.DataFrame:
+    """Verdict counts per claim: ``holds``, ``fails``, ``undecided`` and ``cells``, in the
+    order the claims first appear."""
+    out = []
+    for claim, part in df.groupby("claim", sort=False):
+        v = part["verdict"].astype(str)
+        out.append({"claim": claim, HOLDS: int((v == HOLDS).sum()),
+                    FAILS: int((v == FAILS).sum()), UNDECIDED: int((v == UNDECIDED).sum()),
+                    "cells": len(part)})
+    return pd.DataFrame(out, columns=["claim", HOLDS, FAILS, UNDECIDED, "cells"])

@@ -1,0 +1,150 @@
+"""The per-point pipeline every estimation table shares (Chapters 3 and 4): each filter's
+health and divergence on a batch (:mod:`estim.experiments.shared.health`), its RMSE over all runs
+and over the runs that did not diverge, its residual statistics, the raw measurement's row beside
+it, the thesis row each of our rows joins, and the claims judged on the per-run losses
+(:mod:`estim.experiments.shared.claims`)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from estim import reference
+from estim.config.schema import Experiment
+from estim.experiments.shared import claims, health
+from estim.numerics import metrics
+from estim.util import lazy
+
+pd = lazy.load("pandas")
+
+MEASUREMENT = "measurement"
+"""Label of the baseline row: the raw measurement taken as the estimate."""
+
+RMSE_VALUES = ("rmse", "rmse_se", "rmse_median", "runs", "diverged", "rmse_kept",
+               "rmse_kept_se")
+"""RMSE over every run (the headline; a run whose estimate broke counts as an infinite
+error), its standard error and median, the runs and how many diverged, and the RMSE over
+the runs that did not diverge."""
+HEALTH_VALUES = ("runs", "broken", "diverged", "inconsistent", "nees_mean", "nees_in_band",
+                 "nis_mean", "nis_in_band", "white_fraction", "whiteness_lag")
+
+def judge(exp: Experiment, data: dict, est, model) -> dict:
+    """One estimator's health on one batch (:mod:`estim.experiments.shared.health`): per run
+    ``diverged`` (the estimate broke or ran away), ``broken`` and ``inconsistent`` (NIS or NEES
+    outside its band; NaN-free only for filters with a noise model), and the batch summaries."""
+    cfg = exp.spec["health"]
+    nis = None if est.S is None else health.nis(est.innovation, est.S)
+    nees = None
+    if est.x_hat is not None and est.P is not None and est.x_hat.shape == data["states"].shape:
+        nees = health.nees(data["states"], est.x_hat, est.P)
+    out = {"diverged": health.diverged(est, data["actual"], model.output_range(),
+                                       cfg["consecutive"], cfg["growth"]),
+           "broken": np.asarray(est.broken, bool),
+           "inconsistent": health.inconsistent(nis, est.innovation.shape[-1], nees,
+                                               0 if est.x_hat is None else est.x_hat.shape[-1],
+                                               cfg["band"])}
+    nan = float("nan")
+    out["nees_mean"] = out["nees_in_band"] = out["nis_mean"] = out["nis_in_band"] = nan
+    if nees is not None:
+        out["nees_mean"], out["nees_in_band"] = health.averaged_in_band(
+            nees, est.x_hat.shape[-1], cfg["band"])
+    if nis is not None:
+        out["nis_mean"], out["nis_in_band"] = health.averaged_in_band(
+            nis, est.innovation.shape[-1], cfg["band"])
+    out["white_fraction"] = float(np.mean(health.white(
+        est.innovation, cfg["whiteness_lag"], cfg["whiteness_level"])))
+    out["whiteness_lag"] = health.effective_lag(est.innovation.shape[1], cfg["whiteness_lag"])
+    for key in ("regressor_rank", "regressor_size", "lambda_at_floor", "p_max_eig"):
+        values = np.asarray(est.diagnostics.get(key, []), float)
+        finite = values[np.isfinite(values)]
+        out[key] = float(np.median(finite)) if finite.size else nan
+    return out
+
+
+def rmse_columns(actual: np.ndarray, y_hat: np.ndarray, diverged: np.ndarray) -> tuple[dict,
+                                                                                       np.ndarray]:
+    """The RMSE columns (:data:`RMSE_VALUES`) of one estimator on one batch, and its per-run
+    RMSE (a run whose estimate is not finite has an infinite error): the loss its claims
+    compare."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        per_run = metrics.rmse_per_run(actual, y_hat)
+    per_run = np.where(np.isfinite(per_run), per_run, np.inf)
+    if np.isinf(per_run).any():
+        mean, se = float("inf"), float("nan")
+    else:
+        mean, se = metrics.mean_and_se(per_run)
+    kept, kept_se = metrics.mean_and_se(per_run[~diverged])
+    return {"rmse": mean, "rmse_se": se, "rmse_median": float(np.median(per_run)),
+            "runs": int(per_run.size), "diverged": int(diverged.sum()), "rmse_kept": kept,
+            "rmse_kept_se": kept_se}, per_run
+
+
+def score(exp: Experiment, data: dict, filters: tuple, estimates: list, common: dict,
+          measured: str = "") -> tuple[list[dict], dict, list]:
+    """Rows of every table for one batch: the raw measurement's row, then one per filter
+    (``filters``: ``(label, estimator, model, ...)``, with their ``estimates``), each with
+    its RMSE, health and residual columns; the per-run losses of every row for the claims;
+    and each filter's per-run divergence flags. ``measured`` names what the measurement row
+    measures, when the table says."""
+    raw = metrics.rmse_per_run(data["actual"], data["z"])
+    none = np.zeros(raw.size, bool)
+    columns, _ = rmse_columns(data["actual"], data["z"], none)
+    rows = [{**common, **columns, "estimator": MEASUREMENT, "broken": 0,
+             **({"measures": measured} if measured else {})}]
+    losses = {MEASUREMENT: claims.Losses(raw)}
+    verdicts = []
+    for (label, _, model, *_), est in zip(filters, estimates, strict=True):
+        verdict = judge(exp, data, est, model)
+        diverged = verdict["diverged"]
+        verdicts.append(diverged)
+        columns, per_run = rmse_columns(data["actual"], est.y_hat, diverged)
+        ok = ~diverged
+        res_mean, res_var = metrics.residual_stats(est.innovation[ok])
+        mean, mean_se = metrics.mean_and_se(res_mean)
+        var, var_se = metrics.mean_and_se(res_var)
+        flags = verdict["inconsistent"]
+        rows.append({
+            **common, **{k: v for k, v in verdict.items()
+                         if k not in ("diverged", "broken", "inconsistent")},
+            **columns, "estimator": label,
+            "broken": int(verdict["broken"].sum()),
+            "inconsistent": float("nan") if flags is None else int(flags.sum()),
+            "residual_mean": mean, "residual_mean_se": mean_se,
+            "residual_variance": var, "residual_variance_se": var_se,
+        })
+        losses[label] = claims.Losses(per_run, diverged)
+    return rows, losses, verdicts
+
+
+def thesis_row_numbers(rows: pd.DataFrame, table_id: str | None) -> pd.Series:
+    """The thesis row (``s_no``) of each of our rows: same noise number and frequency (none
+    where ``table_id`` is a label of our own, not a thesis table)."""
+    if table_id is None or not reference.has_reference_table(table_id):
+        return pd.Series([pd.NA] * len(rows), dtype="Int64")
+    ref = reference.reference_table(table_id).drop_duplicates("s_no")
+    s_no = []
+    for level, f in zip(rows["noise_param"], rows["frequency_hz"], strict=True):
+        hit = ref[np.isclose(ref["noise_param_value"], level) & np.isclose(ref["frequency_hz"], f)]
+        s_no.append(int(hit["s_no"].iloc[0]) if len(hit) else pd.NA)
+    return pd.Series(s_no, dtype="Int64")
+
+
+def claim_pairs(spec: dict) -> list[tuple[str, str]]:
+    """The claims an estimation table judges: the config's ``claims`` (the thesis' headline),
+    then every filter against the raw measurement."""
+    pairs = [(c["better"], c["worse"]) for c in spec["claims"]]
+    pairs += [(e["label"], MEASUREMENT) for e in spec["estimators"]
+              if (e["label"], MEASUREMENT) not in pairs]
+    return pairs
+
+
+def claims_table(spec: dict, rmse: pd.DataFrame, losses: list[dict],
+                 keys: tuple[str, ...]) -> pd.DataFrame:
+    """The claims of :func:`claim_pairs` judged by :mod:`estim.experiments.shared.claims` in every
+    cell; a cell is named by the ``keys`` of its rows in ``rmse`` (its first row per cell, in
+    order)."""
+    firsts = rmse[rmse["estimator"] == MEASUREMENT]
+    cells = [(claims.cell(**{k: row[k] for k in keys}), cell_losses)
+             for (_, row), cell_losses in zip(firsts.iterrows(), losses, strict=True)]
+    return claims.table(cells, claim_pairs(spec), "RMSE")
+
+

@@ -1,0 +1,377 @@
+"""One self-contained HTML page of stored results (``estim report``), the page a reader opens
+first. At the top, a summary: per experiment its claims' verdicts (holds / fails /
+undecided, from claims.csv), how many of its cells sit beside a printed value and the range
+of their ratios, and its health flags (runs that diverged, filters outside the NEES band),
+each linking to the experiment's section. Per experiment: its tables (ours beside the printed
+values and their ratio; rows where a claim fails in red; a table with no value at all is
+named, not drawn), its figures (PNGs shrunk to :data:`FIGURE_WIDTH` pixels, in
+:data:`FIGURE_COLOURS` colours or as WebP; tables cut to :data:`ROWS_MAX` rows; unless
+``full``: the page of the shipped results stays under 3 MB), the deviations its config cites
+rendered from their markdown, and the seeds and versions of its manifest. A table of
+contents stays in view. :func:`sections` reads a results folder; :func:`page` writes no file.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import re
+from dataclasses import dataclass, field
+
+from estim import reference
+from estim.errors import UsageError
+from estim.report import tables
+from estim.util import lazy
+
+pd = lazy.load("pandas")
+
+STYLE = """
+body { font-family: sans-serif; margin: 0; color: #222; display: flex; }
+nav#toc { position: sticky; top: 0; align-self: flex-start; height: 100vh; overflow-y: auto;
+  min-width: 15em; max-width: 17em; padding: 1em; background: #f7f7f7;
+  border-right: 1px solid #ddd; font-size: 0.85em; box-sizing: border-box; }
+nav#toc a { display: block; margin: 0.15em 0; text-decoration: none; color: #134; }
+main { padding: 1em 2em; max-width: 110em; min-width: 0; }
+h1 { font-size: 1.6em; } h2 { margin-top: 2.2em; border-bottom: 1px solid #bbb; }
+table.summary td.bad { background: #f8d0d0; } table.summary td.good { background: #d8efd8; }
+.deviation { border-left: 3px solid #bbb; padding-left: 0.8em; font-size: 0.9em; }
+table { border-collapse: collapse; font-size: 0.8em; margin: 0.6em 0 1.2em; }
+th, td { border: 1px solid #ccc; padding: 0.15em 0.45em; text-align: right; }
+th { background: #f0f0f0; } td.t, td.text { text-align: left; }
+tr.fail td { background: #f8d0d0; } .meta { color: #555; font-size: 0.85em; }
+figure { display: inline-block; margin: 0.5em; } figure img { max-width: 46em; }
+figcaption { font-size: 0.8em; color: #555; } pre { white-space: pre-wrap; font-size: 0.85em; }
+"""
+
+FIGURE_WIDTH = 560
+"""Widest embedded PNG, in pixels, unless ``full`` (the stored figures are 800-1400)."""
+FIGURE_COLOURS = 64
+"""Colours of an embedded PNG unless ``full`` (line plots use a few dozen)."""
+ROWS_MAX = 40
+"""Rows of a table drawn unless ``full``: the CSV holds them all."""
+
+
+MEDIA = {"png": "image/png", "svg": "image/svg+xml"}
+
+
+@dataclass
+class Section:
+    """One experiment's part of the page."""
+
+    name: str
+    title: str
+    manifest: dict
+    tables: list[tuple[str, str, pd.DataFrame]] = field(default_factory=list)
+    """``(metric, caption, table)``, joined to the printed values where there are any."""
+    figures: list[tuple[str, bytes]] = field(default_factory=list)   # (file name, bytes)
+    deviations: list[tuple[str, str]] = field(default_factory=list)
+    empty: list[str] = field(default_factory=list)
+    """Captions of the tables with no value in any cell (keys alone): named, not drawn."""
+
+
+def deviation_entries(markdown: str) -> dict[str, str]:
+    """``{"D12": text}`` from docs/deviations.md: each entry runs from its bold ``**D12.``
+    to the next entry or heading."""
+    out: dict[str, str] = {}
+    current, lines = None, []
+    for line in markdown.splitlines():
+        match = re.match(r"\*\*(D\d+)\.", line)
+        if match or line.startswith("#"):
+            if current:
+                out[current] = "\n".join(lines).strip()
+            current, lines = (match.group(1), [line]) if match else (None, [])
+        elif current:
+            lines.append(line)
+    if current:
+        out[current] = "\n".join(lines).strip()
+    return out
+
+
+def cited(text_: str) -> list[str]:
+    """The deviation numbers a config's text cites (``D12``, ``D44-D47``), in order."""
+    found: list[str] = []
+    for a, b in re.findall(r"\bD(\d+)(?:\s*[-\u2013]\s*D?(\d+))?\b", text_):
+        for n in range(int(a), int(b or a) + 1):
+            if f"D{n}" not in found:
+                found.append(f"D{n}")
+    return found
+
+
+def _table(caption: str, df: pd.DataFrame, source: str = "", rows_max: int | None = None) -> str:
+    """A table as HTML; with ``rows_max``, at most that many rows (for claims, chosen from
+    the rows that do not hold first; shown in the table's order) and a line naming the CSV
+    that holds them all."""
+    failing = (df["verdict"].astype(str) == "fails") if "verdict" in df else None
+    note = ""
+    if rows_max is not None and len(df) > rows_max:
+        order = (df.index[df["verdict"].astype(str) != "holds"].tolist()
+                 + df.index[df["verdict"].astype(str) == "holds"].tolist()
+                 if "verdict" in df else df.index.tolist())
+        shown = sorted(order[:rows_max])
+        note = (f'<p class="meta">{rows_max} of {len(df)} rows shown'
+                + (" (chosen from the claims that do not hold first)" if "verdict" in df else "")
+                + f"; all of them in {html.escape(source)} and in "
+                "<code>estim report --full</code>.</p>")
+        df, failing = df.loc[shown], failing.loc[shown] if failing is not None else None
+    head = "".join(f"<th>{html.escape(str(c))}</th>" for c in df.columns)
+    rows = []
+    for i, row in enumerate(df.itertuples(index=False)):
+        cells = "".join(("<td class=t>" if isinstance(v, str) else "<td>")
+                        + html.escape(tables.number(v)) + "</td>" for v in row)
+        cls = ' class="fail"' if failing is not None and bool(failing.iloc[i]) else ""
+        rows.append(f"<tr{cls}>{cells}</tr>")
+    return (f"<h3>{html.escape(caption)}</h3><table><thead><tr>{head}</tr></thead>"
+            f"<tbody>{''.join(rows)}</tbody></table>{note}")
+
+
+def _meta(manifest: dict) -> str:
+    """Seed, runs, wall time, command, commit, overrides and versions; what the manifest
+    does not hold (an analysis without Monte Carlo has no seed) is left out."""
+    versions = manifest.get("versions") or {}
+    parts = [f"{label} {html.escape(str(manifest[key]))}{unit}"
+             for key, label, unit in (("seed", "seed", ""), ("runs", "runs", ""),
+                                      ("wall_time_s", "wall time", " s"))
+             if manifest.get(key) is not None]
+    if manifest.get("command"):
+        parts.append(f"command <code>{html.escape(str(manifest['command']))}</code>")
+    if manifest.get("git_commit"):
+        parts.append(f"commit {html.escape(str(manifest['git_commit']))}")
+    if manifest.get("overrides"):
+        parts.append(f"overrides {html.escape(str(manifest['overrides']))}")
+    if versions:
+        parts.append("versions " + html.escape(", ".join(f"{k} {v}" for k, v in
+                                                          sorted(versions.items()))))
+    return '<p class="meta">' + "; ".join(parts) + "</p>"
+
+
+def _inline(text_: str) -> str:
+    """The inline markdown docs/deviations.md uses: ``**bold**``, ``*emphasis*``,
+    `` `code` `` and ``[text](#anchor)`` (a link elsewhere is shown as its text)."""
+    out = html.escape(text_, quote=False)
+    out = re.sub(r"`([^`]+)`", r"<code>\1</code>", out)
+    out = re.sub(r"\*\*(.+?)\*\*", r"<strong>\1</strong>", out)
+    out = re.sub(r"(?<![\w*])\*(?!\s)(.+?)(?<!\s)\*(?![\w*])", r"<em>\1</em>", out)
+    return re.sub(r"\[([^\]]+)\]\((#[^)\s]*)\)", r'<a href="\2">\1</a>',
+                  re.sub(r"\[([^\]]+)\]\((?!#)[^)]*\)", r"\1", out))
+
+
+def markdown(text_: str) -> str:
+    """A deviation's markdown as HTML: paragraphs, ``-`` lists (an indented line continues
+    its item) and the inline forms of :func:`_inline`."""
+    blocks, para, items = [], [], []
+
+    def close() -> None:
+        if para:
+            blocks.append(f"<p>{_inline(' '.join(para))}</p>")
+            para.clear()
+        if items:
+            blocks.append("<ul>" + "".join(f"<li>{_inline(i)}</li>" for i in items) + "</ul>")
+            items.clear()
+
+    for line in text_.splitlines():
+        stripped = line.strip()
+        if not stripped:
+            close()
+        elif re.match(r"^\s*[-*] ", line):
+            if para:
+                close()
+            items.append(stripped[2:])
+        elif items and line.startswith((" ", "\t")):
+            items[-1] += " " + stripped
+        else:
+            if items:
+                close()
+            para.append(stripped)
+    close()
+    return "\n".join(blocks)
+
+
+def shrink_png(data: bytes, width: int = FIGURE_WIDTH,
+               colours: int = FIGURE_COLOURS) -> tuple[str, bytes]:
+    """A stored PNG for the page: at most ``width`` pixels wide, as a PNG of ``colours``
+    colours (line plots lose nothing a reader sees) or a WebP of quality 70 (photographs
+    and colour maps, which a palette would band), whichever is smaller; the original where
+    neither is. Returns the media type and the bytes."""
+    from PIL import Image
+
+    with Image.open(io.BytesIO(data)) as image:
+        image = image.convert("RGB")
+        if image.width > width:
+            image = image.resize((width, round(image.height * width / image.width)),
+                                 Image.Resampling.LANCZOS)
+        png, webp = io.BytesIO(), io.BytesIO()
+        image.quantize(colours).save(png, format="PNG", optimize=True)
+        image.save(webp, format="WEBP", quality=70, method=6)
+    return min((("image/png", data), ("image/png", png.getvalue()),
+                ("image/webp", webp.getvalue())), key=lambda pair: len(pair[1]))
+
+
+def _has_values(df: pd.DataFrame) -> bool:
+    """Whether a table holds any value (a cell that is neither missing, empty nor ``--``)."""
+    return any(pd.notna(v) and str(v).strip() not in ("", "--")
+               for column in df.columns for v in df[column])
+
+
+def summary(section: Section) -> dict:
+    """What the page's summary says of one experiment: its claims' verdict counts, the
+    number of cells beside a printed value and the range of ratio ours/printed, and its
+    health flags (runs that diverged or broke; filter rows inconsistent in NEES)."""
+    frames = {metric: df for metric, _, df in section.tables}
+    out = {"holds": 0, "fails": 0, "undecided": 0, "printed": 0, "ratio": None, "flags": []}
+    claims = frames.get("claims")
+    if claims is not None and "verdict" in claims:
+        counts = claims["verdict"].astype(str).value_counts()
+        out.update({k: int(counts.get(k, 0)) for k in ("holds", "fails", "undecided")})
+    ratios = []
+    for df in frames.values():
+        for column in (c for c in df.columns if c.startswith("thesis_")):
+            value = column[len("thesis_"):]
+            printed = pd.to_numeric(df[column], errors="coerce").notna()
+            out["printed"] += int(printed.sum())
+            if f"ratio_{value}" in df:
+                r = pd.to_numeric(df[f"ratio_{value}"], errors="coerce")[printed]
+                ratios += [float(x) for x in r if pd.notna(x) and abs(x) != float("inf")]
+    if ratios:
+        out["ratio"] = (min(ratios), max(ratios))
+    health = frames.get("health")
+    if health is not None:
+        for column, words in (("diverged", "diverged"), ("broken", "broke")):
+            if column in health:
+                n = int(pd.to_numeric(health[column], errors="coerce").fillna(0).sum())
+                if n:
+                    out["flags"].append(f"{n} runs {words} (summed over cells and filters)")
+        if "nees_in_band" in health:
+            band = pd.to_numeric(health["nees_in_band"], errors="coerce")
+            low = int((band < 0.5).sum())
+            if low:
+                out["flags"].append(f"{low} of {int(band.notna().sum())} filter rows with "
+                                    "NEES in its band in under half the runs")
+    return out
+
+
+def _summary_table(sections: list[Section]) -> str:
+    head = ("<tr><th>experiment</th><th>claims hold</th><th>fail</th><th>undecided</th>"
+            "<th>cells beside a printed value</th><th>ratio ours/printed</th>"
+            "<th>health</th></tr>")
+    rows = []
+    for s in sections:
+        v = summary(s)
+        ratio = (f"{tables.number(v['ratio'][0])} to {tables.number(v['ratio'][1])}"
+                 if v["ratio"] else "--")
+        link = f'<a href="#{html.escape(s.name)}">{html.escape(s.name)}</a>'
+        rows.append(
+            f'<tr><td class="text">{link}</td>'
+            f'<td class="{"good" if v["holds"] else "num"}">{v["holds"]}</td>'
+            f'<td class="{"bad" if v["fails"] else "num"}">{v["fails"]}</td>'
+            f'<td class="num">{v["undecided"]}</td><td class="num">{v["printed"]}</td>'
+            f'<td class="num">{ratio}</td>'
+            f'<td class="text">{html.escape("; ".join(v["flags"]) or "--")}</td></tr>')
+    return ('<h2 id="summary">Summary</h2><p class="meta">Claims are paired comparisons on '
+            "the same noise draws (claims.csv); a ratio is our value over the printed one. "
+            "Health: runs that diverged (the estimate broke or ran away) are counted, never "
+            "dropped; a filter row is flagged when its NEES sits in the consistency band in "
+            'under half of its runs.</p><table class="summary"><thead>'
+            f"{head}</thead><tbody>{''.join(rows)}</tbody></table>")
+
+
+def page(title: str, sections: list[Section], full: bool = False) -> str:
+    """The whole page as one string (UTF-8 HTML5, no external resources); with ``full``
+    every PNG as stored, else shrunk (:func:`shrink_png`)."""
+    toc = ['<nav id="toc"><strong>Contents</strong><a href="#summary">Summary</a>']
+    toc += [f'<a href="#{html.escape(s.name)}">{html.escape(s.name)}</a>' for s in sections]
+    toc.append("</nav>")
+    body = [_summary_table(sections)]
+    for s in sections:
+        part = [f'<h2 id="{html.escape(s.name)}">{html.escape(s.name)}: '
+                f"{html.escape(s.title)}</h2>", _meta(s.manifest)]
+        empty = s.empty + [caption for _, caption, df in s.tables if not _has_values(df)]
+        part += [_table(caption, df, f"results/{s.name}/{metric}.csv",
+                        None if full else ROWS_MAX)
+                 for metric, caption, df in s.tables if _has_values(df)]
+        if empty:
+            part.append('<p class="meta">Left out, no values in any cell: '
+                        + html.escape("; ".join(empty)) + "</p>")
+        skipped = []
+        for name, data in s.figures:
+            kind = MEDIA.get(name.rpartition(".")[2])
+            if kind is None:
+                skipped.append(name)
+                continue
+            if kind == "image/png" and not full:
+                try:
+                    kind, data = shrink_png(data)
+                except (OSError, ValueError, SyntaxError):     # PIL's errors for junk
+                    raise UsageError(f"{s.name}/figures/{name} (under the results folder): "
+                                     "not a readable PNG image") from None
+            encoded = base64.b64encode(data).decode("ascii")
+            part.append(f'<figure><img alt="{html.escape(name)}" '
+                        f'src="data:{kind};base64,{encoded}"><figcaption>{html.escape(name)}'
+                        "</figcaption></figure>")
+        if skipped:
+            part.append('<p class="meta">Not shown (a browser page cannot embed PDF as an '
+                        "image; re-run with --figure-format png or svg): "
+                        + html.escape(", ".join(skipped)) + "</p>")
+        if s.deviations:
+            part.append("<h3>Deviations this config cites (docs/deviations.md)</h3>")
+            part += [f'<div class="deviation" id="{html.escape(s.name)}-{number}">'
+                     f"{markdown(text_)}</div>" for number, text_ in s.deviations]
+        body.append("\n".join(part))
+    return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
+            f"<title>{html.escape(title)}</title><style>{STYLE}</style></head><body>"
+            + "".join(toc) + f"<main><h1>{html.escape(title)}</h1>\n" + "\n".join(body)
+            + "\n</main></body></html>\n")
+
+
+MAX_FIGURE_BYTES = 32 << 20
+"""Largest stored figure embedded (the shipped PNGs are under 1 MB)."""
+
+
+def sections(results, deviations_text: str, config_dir, analyses: dict) -> list[Section]:
+    """One :class:`Section` per experiment stored under ``results``: its tables (joined to
+    the printed values where there are any), figures, and the deviations (from the text of
+    docs/deviations.md) its config in ``config_dir`` cites. A manifest that cannot be read
+    is a ``UsageError`` naming it."""
+    from pathlib import Path
+
+    from estim.errors import ReferenceJoinError
+    from estim.store import read_manifest, read_stored, read_table, stored_table_path
+
+    entries = deviation_entries(deviations_text) if deviations_text else {}
+    out = []
+    for manifest_path in sorted(Path(results).glob("*/manifest.json")):
+        folder = manifest_path.parent
+        manifest = read_manifest(folder)
+        if manifest is None or not isinstance(manifest.get("config"), dict):
+            raise UsageError(f"{manifest_path}: not a readable estim manifest")
+        config = manifest["config"]
+        name = config.get("analysis", "estimation")
+        analysis = analyses.get(name) if isinstance(name, str) else None
+        if analysis is None:
+            raise UsageError(f"{manifest_path}: names an unknown analysis {str(name)[:60]!r}")
+        section = Section(folder.name, str(config.get("title") or ""), manifest)
+        for metric, spec in analysis.TABLES.items():
+            path = stored_table_path(folder, spec)
+            if path is None:
+                continue
+            df = reference.view(read_table(path, spec), spec)
+            caption = f"{metric}: {spec.title}"
+            values = df.drop(columns=[*spec.keys, *reference.sweep_columns(df)], errors="ignore")
+            if values.isna().all().all():             # ours are empty, printed ones or not
+                section.empty.append(caption)
+                continue
+            if spec.join and "table_id" in df and df["table_id"].astype(str).str.len().any():
+                try:
+                    df = reference.with_reference(df, spec, allow_unmatched=True)
+                except ReferenceJoinError:
+                    pass
+            section.tables.append((metric, caption, df))
+        for figure in sorted((folder / "figures").glob("*")):
+            if figure.suffix in (".png", ".svg", ".pdf"):
+                section.figures.append((figure.name,
+                                        read_stored(figure, MAX_FIGURE_BYTES, "figure")))
+        source = Path(config_dir) / f"{folder.name}.yaml" if config_dir else None
+        text_ = source.read_text() if source is not None and source.is_file() else ""
+        section.deviations = [(d, entries[d]) for d in cited(text_) if d in entries]
+        out.append(section)
+    return out

@@ -1,0 +1,161 @@
+"""Results prose generated from the stored tables (``estim summary``).
+
+For every stored experiment: each claim's verdict counts (holds / fails / undecided out of
+the cells it was judged in, :mod:`estim.experiments.shared.claims`) with the range of the ratio of
+the losses, and the ranges of the quantities its analysis quotes (:class:`Quote`, declared in the
+analysis module as ``QUOTES``). The README's results sections embed these blocks between
+markers (:func:`refresh`), and a test fails when one of them no longer matches the stored
+tables.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from estim.experiments.base import Quote
+from estim.experiments.shared import claims
+from estim.store import read_manifest, read_table
+from estim.util import lazy
+
+pd = lazy.load("pandas")
+
+
+LIST_AT_MOST = 3
+"""A claim's cells are listed by verdict when at most this many have it (and not all)."""
+
+
+def number(value: float) -> str:
+    """Three significant digits; ``inf`` and ``nan`` spelled out."""
+    if value is None or (isinstance(value, float) and np.isnan(value)):
+        return "nan"
+    if np.isinf(value):
+        return "inf" if value > 0 else "-inf"
+    return f"{value:.3g}"
+
+
+def span(values) -> str:
+    """``"a–b"`` over the finite values (with ``inf`` when any is infinite), or ``"a"``."""
+    v = np.asarray(pd.to_numeric(pd.Series(values), errors="coerce"), float)
+    v = v[~np.isnan(v)]
+    if v.size == 0:
+        return "none"
+    lo, hi = float(v.min()), float(v.max())
+    return number(lo) if number(lo) == number(hi) else f"{number(lo)}–{number(hi)}"
+
+
+def claim_lines(df: pd.DataFrame) -> list[str]:
+    """One line per claim of a claims table, in the order they first appear."""
+    lines = []
+    for claim, part in df.groupby("claim", sort=False):
+        v = part["verdict"].astype(str)
+        n = {k: int((v == k).sum()) for k in claims.VERDICTS}
+        line = (f"- `{claim}`: holds {n['holds']}, fails {n['fails']}, undecided "
+                f"{n['undecided']} of {len(part)} cells; ratio {span(part['ratio'])}")
+        keys = [claims.cell_keys(str(c)) for c in part["cell"]]
+        varying = [k for k in keys[0] if len({row.get(k) for row in keys}) > 1]
+        for verdict in claims.VERDICTS:
+            if 0 < n[verdict] <= LIST_AT_MOST and n[verdict] < len(part):
+                shown = [", ".join(f"{k}={row[k]}" for k in varying if k in row)
+                         for row, hit in zip(keys, v == verdict, strict=True) if hit]
+                line += f"; {verdict} at " + " | ".join(f"({c})" for c in shown)
+        lines.append(line)
+    return lines
+
+
+def quote_line(quote: Quote, df: pd.DataFrame) -> str | None:
+    """The line of one quote, or ``None`` when the table has no value for it."""
+    if quote.where:
+        df = df.query(quote.where)
+    values = df.eval(quote.column) if quote.column not in df else df[quote.column]
+    frame = pd.DataFrame({"value": pd.to_numeric(values, errors="coerce")})
+    if frame["value"].isna().all():
+        return None
+    if quote.total:
+        frame["of"] = pd.to_numeric(df.eval(quote.total) if quote.total not in df
+                                    else df[quote.total], errors="coerce")
+    if quote.by:
+        frame["by"] = df[quote.by].astype(str).to_numpy()
+        groups = list(frame.groupby("by", sort=False))
+    else:
+        groups = [(None, frame)]
+    parts = []
+    for key, part in groups:
+        if quote.total:
+            shown = f"{int(part['value'].sum())} of {int(part['of'].sum())}"
+        else:
+            shown = span(part["value"])
+        parts.append(shown if key is None else f"{key} {shown}")
+    return f"- {quote.label}: " + "; ".join(parts)
+
+
+def experiment(folder: Path, analyses: dict) -> list[str]:
+    """The summary lines of one stored experiment (empty when the folder holds none)."""
+    manifest = read_manifest(folder)
+    if manifest is None or not isinstance(manifest.get("config"), dict):
+        return []
+    config = manifest["config"]
+    module = analyses.get(config.get("analysis", "estimation"))
+    if module is None:
+        return []
+    title = str(config.get("title") or "")
+    runs = (config.get("monte_carlo") or {}).get("runs")
+    head = f"**{folder.name}**" + (f": {title}" if title else "")
+    if runs and runs > 1:
+        head += f" ({runs} runs per cell)"
+    lines = [head]
+    path = folder / claims.TABLE.file
+    if path.is_file():
+        lines += claim_lines(read_table(path, claims.TABLE))
+    loaded: dict[str, pd.DataFrame] = {}
+    for quote in getattr(module, "QUOTES", ()):
+        spec = module.TABLES[quote.metric]
+        if quote.metric not in loaded:
+            table = folder / spec.file
+            if not table.is_file():
+                continue
+            loaded[quote.metric] = read_table(table, spec)
+        line = quote_line(quote, loaded[quote.metric])
+        if line is not None:
+            lines.append(line)
+    return lines
+
+
+def everything(results: Path, analyses: dict) -> dict[str, list[str]]:
+    """The summary lines of every stored experiment under ``results``, by name; a manifest
+    that cannot be read is a ``UsageError`` naming it (as ``estim table`` and ``estim
+    report`` have it)."""
+    from estim.errors import UsageError
+
+    out = {}
+    for manifest in sorted(results.glob("*/manifest.json")):
+        stored = read_manifest(manifest.parent)
+        if stored is None or not isinstance(stored.get("config"), dict):
+            raise UsageError(f"{manifest}: not a readable estim manifest")
+        lines = experiment(manifest.parent, analyses)
+        if lines:
+            out[manifest.parent.name] = lines
+    return out
+
+
+BLOCK = re.compile(r"(<!-- summary: (?P<name>[A-Za-z0-9_.-]+) -->\n)(?P<body>.*?)"
+                   r"(<!-- /summary -->)", re.S)
+"""A generated block in a Markdown file: ``<!-- summary: NAME -->`` ... ``<!-- /summary -->``."""
+
+
+def refresh(text: str, results: Path, analyses: dict) -> tuple[str, list[str]]:
+    """``text`` with every summary block re-generated from ``results``, and the names of
+    the blocks whose content changed (a stale README names them)."""
+    stale = []
+
+    def fill(match: re.Match) -> str:
+        name = match.group("name")
+        lines = experiment(results / name, analyses)
+        body = ("\n".join(lines) if lines else f"(no stored results for {name})") + "\n"
+        if body != match.group("body"):
+            stale.append(name)
+        return match.group(1) + body + match.group(4)
+
+    return BLOCK.sub(fill, text), stale

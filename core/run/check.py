@@ -1,0 +1,103 @@
+"""The stored-vs-new comparison of ``estim check``: re-run a config and compare every cell
+of its tables with the stored ones under the config's tolerances (docs/checking.md)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from concurrent.futures import Executor
+from pathlib import Path
+
+from estim import reference, store
+from estim.config.registry import ANALYSES
+from estim.config.schema import Experiment
+from estim.errors import ReferenceJoinError, UsageError
+from estim.run import compare, runner
+from estim.store import read_manifest, read_table
+
+
+def config_differences(stored: dict, current: dict, path: str = "") -> list[str]:
+    """Key paths where two resolved configs differ, with both values."""
+    if isinstance(stored, dict) and isinstance(current, dict):
+        out = []
+        for key in sorted(set(stored) | set(current), key=str):
+            sub = f"{path}.{key}" if path else str(key)
+            out += config_differences(stored.get(key), current.get(key), sub)
+        return out
+    if stored != current:
+        return [f"{path or '(config)'}: stored {stored!r}, config {current!r}"]
+    return []
+
+
+def check(exp: Experiment, stored_dir: Path, tmp: Path, jobs: int, say: Callable[[str], None],
+          same_config: bool = True, on_done: Callable[[], None] | None = None,
+          note: Callable[[str], None] | None = None, pool: Executor | None = None) -> int:
+    """Re-run ``exp`` into ``tmp`` and compare it with the stored results in ``stored_dir``:
+    the number of differences, each reported through ``say`` (one line each; ``note`` gets
+    progress, e.g. the run's time). With ``same_config`` the stored manifest must record
+    this config. ``pool``: a process pool shared with other configs (:mod:`estim.run.scheduler`)."""
+    note = note or (lambda _text: None)
+    if not stored_dir.is_dir():
+        say(f"{exp.name}: no stored results in {stored_dir}")
+        return 1
+    manifest = read_manifest(stored_dir)
+    if manifest is None:
+        say(f"{exp.name}: {stored_dir / 'manifest.json'} is missing or not JSON")
+        return 1
+    if same_config and manifest.get("config_sha256") != store.spec_hash(exp.spec):
+        changes = config_differences(manifest.get("config"), exp.spec)
+        shown = "; ".join(changes[:5]) + (f"; and {len(changes) - 5} more" if
+                                          len(changes) > 5 else "")
+        say(f"{exp.name}: the stored results were made with another config than "
+            f"{exp.source}: {shown or 'config hash differs'}")
+        return 1
+    total = runner.work_units(exp)
+    note(f"{exp.name}: running {total} work units ...")
+    start = time.perf_counter()
+    result, _ = runner.run_to_folder(exp, tmp, jobs, on_done=on_done, pool=pool)
+    note(f"{exp.name}: ran in {time.perf_counter() - start:.0f} s")
+    tol = exp.spec["check"]["tolerances"]
+    for column in sorted(c for c, t in tol.items() if t.get("skip")):
+        say(f"{exp.name}: column {column} not compared ({tol[column]['skip']})")
+    analysis = ANALYSES[exp.analysis]
+    differing = 0
+    for metric, new in result.tables.items():
+        path = stored_dir / f"{metric}.csv"
+        if not path.exists():
+            say(f"{exp.name}/{metric}.csv: missing from the stored results")
+            differing += 1
+            continue
+        try:
+            stored = read_table(path, analysis.TABLES.get(metric))
+        except UsageError as exc:
+            say(f"{exp.name}/{metric}.csv: {exc}")
+            differing += 1
+            continue
+        diffs = compare.compare_tables(stored, read_table(tmp / exp.name / f"{metric}.csv"), tol)
+        for d in diffs:
+            say(f"{exp.name}/{metric}.csv row {d['row']} {d['column']}: obtained "
+                f"{d['obtained']}, expected {d['expected']}, difference {d['difference']}")
+        differing += len(diffs)
+        spec = analysis.TABLES.get(metric)
+        if spec is not None and spec.join:
+            try:
+                reference.with_reference(reference.view(stored, spec), spec, allow_unmatched=True)
+            except ReferenceJoinError as exc:
+                say(f"{exp.name}/{metric}.csv: {exc}")
+                differing += 1
+        if not diffs:
+            say(f"{exp.name}/{metric}.csv: {len(new)} rows match")
+    recorded = manifest.get("files") if isinstance(manifest.get("files"), dict) else {}
+    for name in sorted(result.figures):
+        stored_as = [stored_dir / "figures" / f"{name}.{fmt}" for fmt in ("png", "svg", "pdf")]
+        present = [f for f in stored_as if f.is_file() and f.stat().st_size > 0]
+        if not present:
+            say(f"{exp.name}/figures/{name}.png: missing from the stored results")
+            differing += 1
+        for f in present:
+            want = recorded.get(f"figures/{f.name}")
+            if want is not None and store.sha256(f) != want:
+                say(f"{exp.name}/figures/{f.name}: not the file its manifest records "
+                    "(sha256 differs: damaged or replaced)")
+                differing += 1
+    return differing

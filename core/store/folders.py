@@ -1,0 +1,216 @@
+"""Result folders written as a unit (all old or all new), atomic file writes, and the CSV
+and figure files inside them. These functions take paths from their caller (the CLI);
+nothing here picks a location."""
+
+from __future__ import annotations
+
+import ctypes
+import errno
+import fcntl
+import hashlib
+import io
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+from estim.errors import UsageError
+from estim.util import lazy
+
+pd = lazy.load("pandas")
+
+
+_UMASK = os.umask(0)
+os.umask(_UMASK)
+
+
+def atomic_write_bytes(path: Path, data: bytes) -> None:
+    """Write ``data`` to a temporary file beside ``path`` and rename it into place. Something
+    at ``path`` that is not a regular file (a folder, a FIFO, a device; a symbolic link is
+    followed) is a :class:`UsageError`, never replaced: renaming over ``/dev/full`` as root
+    would replace the device."""
+    path = Path(path)
+    if path.exists() and not path.is_file():
+        raise UsageError(f"{path}: exists and is not a regular file; not replaced")
+    if path.is_symlink():
+        path = path.resolve()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        os.fchmod(fd, 0o666 & ~_UMASK)
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+_RENAME_EXCHANGE = 2
+_AT_FDCWD = -100
+
+
+def _exchange(a: Path, b: Path) -> bool:
+    """Swap two paths in one atomic step (Linux ``renameat2(RENAME_EXCHANGE)``); False where
+    the system has no such call."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        renameat2 = libc.renameat2
+    except (OSError, AttributeError):
+        return False
+    renameat2.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p,
+                          ctypes.c_uint]
+    if renameat2(_AT_FDCWD, os.fsencode(a), _AT_FDCWD, os.fsencode(b), _RENAME_EXCHANGE) == 0:
+        return True
+    err = ctypes.get_errno()
+    if err in (errno.ENOSYS, errno.EINVAL, errno.ENOTSUP):
+        return False
+    raise OSError(err, os.strerror(err), str(b))
+
+
+def _fsync_dir(folder: Path) -> None:
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+class ResultFolder:
+    """A result folder written as a unit: ``with ResultFolder(out, name) as rf:`` locks
+    ``out/name`` against other runs, hands out a staging folder ``rf.path`` beside it, and
+    ``rf.commit()`` swaps the staging folder in. Until the swap ``out/name`` is all old;
+    after it all new; a run that fails or is killed before leaves it untouched (its staging
+    folder is removed now, or by the next run).
+
+    The swap is one ``renameat2(RENAME_EXCHANGE)`` on Linux; elsewhere two renames, and a
+    folder caught between them is restored by the next run.
+    """
+
+    def __init__(self, out: Path, name: str, min_free_bytes: int = 20 * 2**20) -> None:
+        self.out, self.name = Path(out), name
+        self.final = self.out / name
+        self.path = self.out / f".{name}.partial-{os.getpid()}"
+        self._old = self.out / f".{name}.old-{os.getpid()}"
+        self.min_free_bytes = min_free_bytes
+        self._lock_fd: int | None = None
+        self.committed = False
+
+    def __enter__(self) -> ResultFolder:
+        ensure_writable(self.out)
+        if (self.final.exists() or self.final.is_symlink()) and not self.final.is_dir():
+            raise UsageError(f"{self.final} exists and is not a folder; move it away or give "
+                             "another --out")
+        lock = self.out / f".{self.name}.lock"
+        try:
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666 & ~_UMASK)
+        except OSError as exc:
+            raise UsageError(f"cannot open the lock file {lock} ({exc.strerror or exc})") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            raise UsageError(f"another estim run is writing {self.final}; try again when it "
+                             "has finished") from None
+        self._lock_fd = fd
+        self._recover()
+        need = max(self.min_free_bytes, 2 * _size(self.final))
+        free = shutil.disk_usage(self.out).free
+        if free < need:
+            self._release()
+            raise UsageError(f"not enough free space in {self.out}: {free / 2**20:.1f} MiB, "
+                             f"need {need / 2**20:.1f} MiB")
+        self.path.mkdir()
+        return self
+
+    def _recover(self) -> None:
+        """Undo what a killed run left: staging folders, and a folder caught mid-swap."""
+        olds = sorted(self.out.glob(f".{self.name}.old-*"))
+        if not self.final.exists() and olds:
+            os.rename(olds[-1], self.final)
+            olds = olds[:-1]
+        for stale in [*olds, *self.out.glob(f".{self.name}.partial-*")]:
+            shutil.rmtree(stale, ignore_errors=True)
+
+    def commit(self) -> None:
+        for path in self.path.rglob("*"):
+            if path.is_dir():
+                _fsync_dir(path)
+        _fsync_dir(self.path)
+        if self.final.exists():
+            if _exchange(self.path, self.final):
+                shutil.rmtree(self.path)
+            else:
+                os.rename(self.final, self._old)
+                os.rename(self.path, self.final)
+                shutil.rmtree(self._old)
+        else:
+            os.rename(self.path, self.final)
+        _fsync_dir(self.out)
+        self.committed = True
+
+    def _release(self) -> None:
+        if self._lock_fd is not None:
+            fcntl.flock(self._lock_fd, fcntl.LOCK_UN)
+            os.close(self._lock_fd)
+            self._lock_fd = None
+
+    def __exit__(self, *exc) -> None:
+        try:
+            if not self.committed:
+                shutil.rmtree(self.path, ignore_errors=True)
+        finally:
+            self._release()
+
+
+def _size(folder: Path) -> int:
+    if not folder.is_dir():
+        return 0
+    return sum(p.stat().st_size for p in folder.rglob("*") if p.is_file())
+
+
+def write_csv(df: pd.DataFrame, path: Path) -> None:
+    """Tidy CSV; floats as repr, so they round-trip."""
+    atomic_write_bytes(path, df.to_csv(index=False, lineterminator="\n").encode())
+
+
+FIGURE_FORMATS = ("png", "pdf", "svg")
+
+
+def write_figure(fig, path: Path) -> None:
+    """A figure in the format its suffix names (PNG, PDF or SVG), without a timestamp or
+    software tag (the same figure gives the same bytes), written atomically."""
+    fmt = path.suffix.lstrip(".").lower() or "png"
+    if fmt not in FIGURE_FORMATS:
+        raise ValueError(f"figure format {fmt!r}: expected one of {FIGURE_FORMATS}")
+    meta = {"png": {"Software": None}, "pdf": {"Creator": None, "Producer": None,
+                                               "CreationDate": None},
+            "svg": {"Creator": None, "Date": None}}[fmt]
+    buf = io.BytesIO()
+    import matplotlib
+
+    from estim.util.drawing import DRAWING
+
+    with DRAWING, matplotlib.rc_context({"svg.hashsalt": "estim"}):
+        fig.savefig(buf, format=fmt, dpi=fig.dpi, metadata=meta)
+    atomic_write_bytes(path, buf.getvalue())
+
+
+def sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def ensure_writable(folder: Path) -> None:
+    """Create ``folder`` and prove a file can be written in it, before any work starts.
+
+    Raises :class:`estim.errors.UsageError` naming the folder and the reason.
+    """
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(dir=folder, prefix=".estim-probe.", suffix=".tmp")
+        os.close(fd)
+        Path(probe).unlink()
+    except OSError as exc:
+        raise UsageError(f"cannot write to {folder} ({exc.strerror or exc})") from None

@@ -1,0 +1,89 @@
+"""``manifest.json``: the resolved config and its hash, the models, seed and runs, versions,
+wall time and the sha256 of every file of a result folder."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import platform
+from importlib import metadata
+from pathlib import Path
+
+from estim.store.folders import atomic_write_bytes, sha256, write_csv
+from estim.util import lazy
+
+pd = lazy.load("pandas")
+
+
+PACKAGES = ("estim", "numpy", "scipy", "pandas", "matplotlib", "click", "PyYAML")
+
+
+def versions() -> dict[str, str]:
+    out = {"python": platform.python_version()}
+    for name in PACKAGES:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = "not installed"
+    return out
+
+
+def git_commit() -> str | None:
+    """The commit of the project checkout this package runs from (with "+dirty" when its
+    tracked files differ), or ``None`` outside a git checkout (an installed copy)."""
+    import subprocess
+
+    here = Path(__file__).resolve().parents[2]
+    if not (here / ".git").exists():
+        return None
+    try:
+        head = subprocess.run(["git", "-C", str(here), "rev-parse", "HEAD"], capture_output=True,
+                              text=True, timeout=10, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(here), "status", "--porcelain",
+                                "--untracked-files=no"], capture_output=True, text=True,
+                               timeout=10, check=True).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return head + ("+dirty" if dirty else "")
+
+
+def spec_hash(spec: dict) -> str:
+    """sha256 of the resolved config: what ``estim check`` compares with the manifest."""
+    text_ = json.dumps(spec, sort_keys=True, separators=(",", ":"), default=float)
+    return hashlib.sha256(text_.encode()).hexdigest()
+
+
+def write_manifest(folder: Path, spec: dict, wall_time_s: float, command: str = "",
+                   overrides: dict | None = None, models: dict | None = None) -> None:
+    """``manifest.json``: resolved config (every default filled in) and its hash, every model
+    the config builds with every parameter, seed and runs, versions, wall time, and the sha256
+    of every file written beside it."""
+    files = sorted(p for p in folder.rglob("*") if p.is_file() and p.name != "manifest.json")
+    mc = spec.get("monte_carlo") or {}
+    manifest = {
+        "config": spec,
+        "config_sha256": spec_hash(spec),
+        "models": models or {},
+        "seed": mc.get("seed"),
+        "runs": mc.get("runs"),
+        "command": command,
+        "overrides": overrides or {},
+        "git_commit": git_commit(),
+        "versions": versions(),
+        "wall_time_s": round(wall_time_s, 3),
+        "files": {str(p.relative_to(folder)): sha256(p) for p in files},
+    }
+    text = json.dumps(manifest, indent=2, sort_keys=True, default=float) + "\n"
+    atomic_write_bytes(folder / "manifest.json", text.encode())
+
+
+def write_tables_and_manifest(folder: Path, tables: dict, spec: dict, wall_time_s: float,
+                              command: str = "", overrides: dict | None = None,
+                              models: dict | None = None) -> None:
+    """Each table as ``<metric>.csv``, then ``manifest.json`` over everything in ``folder``
+    (the figures written before it included): how ``estim run`` and ``Result.save`` end a
+    result folder."""
+    for metric, df in tables.items():
+        write_csv(df, folder / f"{metric}.csv")
+    write_manifest(folder, spec, wall_time_s, command=command, overrides=overrides,
+                   models=models)

@@ -1,0 +1,136 @@
+"""Reading stored results: regular files only, each bounded in size, every problem one
+``UsageError`` naming the file."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+import stat
+from pathlib import Path
+
+from estim.errors import UsageError
+from estim.util import lazy
+
+pd = lazy.load("pandas")
+
+
+MAX_TABLE_BYTES = 8 << 20
+"""Largest stored table read (50 times the largest a shipped config writes, 155 KB)."""
+MAX_MANIFEST_BYTES = 4 << 20
+"""Largest stored manifest read (the shipped ones are at most 23 KB)."""
+
+
+def read_stored(path: Path, limit: int, what: str) -> bytes:
+    """The bytes of a stored file, which must be a regular file of at most ``limit`` bytes:
+    a FIFO, a device, a directory or a symbolic-link loop is refused before anything is read
+    (opening a FIFO would wait for a writer). Raises :class:`UsageError` naming the file."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    except OSError as exc:
+        raise UsageError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    info = os.fstat(fd)
+    if not stat.S_ISREG(info.st_mode):       # before fdopen, which refuses a folder itself
+        os.close(fd)
+        raise UsageError(f"{path}: not a regular file (a stored {what} must be one)")
+    with os.fdopen(fd, "rb") as fh:
+        if info.st_size > limit:
+            raise UsageError(f"{path}: larger than {limit >> 20} MiB, the limit of a stored "
+                             f"{what}")
+        try:
+            data = fh.read(limit + 1)
+        except OSError as exc:
+            raise UsageError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    if len(data) > limit:
+        raise UsageError(f"{path}: larger than {limit >> 20} MiB, the limit of a stored {what}")
+    return data
+
+
+def stored_table_path(folder: Path, spec) -> Path | None:
+    """``folder``'s file of the table ``spec``: None when there is none; a
+    :class:`UsageError` when something that is not a regular file stands in its place."""
+    path = Path(folder) / spec.file
+    if not os.path.lexists(path):
+        return None
+    try:
+        mode = path.stat().st_mode
+    except OSError as exc:
+        raise UsageError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    if not stat.S_ISREG(mode):
+        raise UsageError(f"{path}: not a regular file (a stored table must be one)")
+    return path
+
+
+def read_table(path: Path, spec=None) -> pd.DataFrame:
+    """A stored result table, with an empty ``table_id`` kept as an empty string.
+
+    Raises :class:`UsageError` naming the file when it cannot be read as a table: not a
+    regular file, over :data:`MAX_TABLE_BYTES`, empty or a header alone, not CSV, ragged
+    rows, missing columns of ``spec``, or text in one of its value columns.
+    """
+    try:
+        text_ = read_stored(path, MAX_TABLE_BYTES, "table").decode("utf-8")
+        rows = list(csv.reader(io.StringIO(text_, newline="")))
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise UsageError(f"{path}: cannot read ({exc})") from None
+    if not rows or not rows[0]:
+        raise UsageError(f"{path}: empty, not a table")
+    if len(rows) == 1:
+        raise UsageError(f"{path}: a header and no rows (estim writes no empty table)")
+    width = len(rows[0])
+    for number, row in enumerate(rows[1:], start=2):
+        if len(row) != width:
+            raise UsageError(f"{path}: line {number} has {len(row)} fields, the header {width}")
+    try:
+        df = pd.read_csv(io.StringIO(text_), dtype={"table_id": str}, keep_default_na=False,
+                         na_values=["", "NaN", "nan", "<NA>"])
+    except (ValueError, pd.errors.ParserError) as exc:
+        raise UsageError(f"{path}: not a table ({str(exc).splitlines()[0]})") from None
+    if "table_id" in df:
+        df["table_id"] = df["table_id"].fillna("")
+    if spec is not None:
+        missing = [c for c in spec.columns if c not in df.columns]
+        if missing:
+            raise UsageError(f"{path}: no column {missing[0]!r}")
+        for column in (c for c in spec.values if c not in spec.text):
+            if not pd.api.types.is_numeric_dtype(df[column]):
+                for i, cell in enumerate(df[column]):
+                    if pd.isna(cell) or str(cell) in ("True", "False"):
+                        continue
+                    try:
+                        float(cell)
+                    except ValueError:
+                        raise UsageError(f"{path}: line {i + 2}, column {column}: "
+                                         f"{str(cell)[:40]!r} is not a number") from None
+    return df
+
+
+def stored_tables(results: Path, metric: str, analyses: dict):
+    """``(folder, TableSpec, path)`` of every stored experiment under ``results`` that has
+    the table ``metric``; a manifest that cannot be read is a ``UsageError`` naming it."""
+    for manifest_path in sorted(Path(results).glob("*/manifest.json")):
+        folder = manifest_path.parent
+        manifest = read_manifest(folder)
+        if manifest is None or not isinstance(manifest.get("config"), dict):
+            raise UsageError(f"{manifest_path}: not a readable estim manifest")
+        name = manifest["config"].get("analysis", "estimation")
+        analysis = analyses.get(name) if isinstance(name, str) else None
+        if analysis is None:
+            raise UsageError(f"{manifest_path}: names an unknown analysis {str(name)[:60]!r}")
+        spec = analysis.TABLES.get(metric)
+        path = stored_table_path(folder, spec) if spec is not None else None
+        if path is not None:
+            yield folder, spec, path
+
+
+def read_manifest(folder: Path) -> dict | None:
+    """``folder``'s manifest.json as a mapping; None when it is missing, is not a bounded
+    regular file (:func:`read_stored`), or is not JSON that Python can hold (a document
+    nested deeper than the interpreter's recursion limit is not)."""
+    try:
+        data = read_stored(Path(folder) / "manifest.json", MAX_MANIFEST_BYTES, "manifest")
+        manifest = json.loads(data.decode("utf-8"))
+    except (UsageError, ValueError, RecursionError):
+        return None
+    return manifest if isinstance(manifest, dict) else None
