@@ -13,7 +13,7 @@ import pytest
 from estim.models.diffamp_em import DiffAmpEbersMoll
 from estim.numerics.simulate import simulate
 from estim.spice import model_class
-from estim.spice.circuit import Circuit, source_value
+from estim.spice.circuit import Circuit
 from estim.spice.parser import NetlistError, evaluate, parse
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -60,13 +60,6 @@ X1 a 0 rc r=5k
     assert net.element("x1.r").value == 5000.0
     assert net.element("x1.r").nodes == ("a", "x1.mid")
     assert net.ic == {"a": 0.25}
-
-
-def test_source_waveforms():
-    assert source_value(("sin", 0.5, 1.0, 1e3), 0.25e-3)[0] == pytest.approx(1.5)
-    assert source_value(("pulse", 0.0, 1.0, 1e-3, 1e-4, 1e-4, 1e-3, 5e-3), 1.05e-3)[0] \
-        == pytest.approx(0.5)
-    assert source_value(("pwl", 0.0, 0.0, 1.0, 2.0), 0.25) == (0.5, 2.0)
 
 
 def _twin(kind: str = "em"):

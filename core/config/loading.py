@@ -239,14 +239,15 @@ def _parse_checked(data: dict, sweep: Any, source: str, default_name: str, max_w
         raise ConfigError(source, "", f"the experiment computes about {work:.3g} "
                           f"state-samples{limit}")
     if not plan:
-        return Experiment(name=spec["name"], source=source, spec=spec, plan=None, models={})
+        return Experiment(name=spec["name"], source=source, spec=spec, plan=None, models={},
+                          config=module.Config.build(spec))
     with recording_models() as models:
         prepared = module.prepare(spec, source)
     _check_tolerances(spec, module, source)
     if sweep is not None:
         spec["sweep"] = _check_sweep(sweep, data, source, default_name, max_work, work)
     return Experiment(name=spec["name"], source=source, spec=spec, plan=prepared,
-                      models=models)
+                      models=models, config=module.Config.build(spec))
 
 
 def _wrong_analysis(exc: ConfigErrors, data: dict, analysis: str,

@@ -339,8 +339,7 @@ def run_point(exp: Experiment, point: Point) -> tuple[list[dict], list]:
     dt = 1.0 / (spec["source"]["frequency"] * spec["time"]["samples_per_period"])
     steps = spec["time"]["samples_per_period"] * spec["time"]["periods"]
     t = np.arange(steps + 1) * dt
-    rng = np.random.default_rng(np.random.SeedSequence(spec["monte_carlo"]["seed"],
-                                                       spawn_key=point.key))
+    rng = exp.config.monte_carlo.rng(*point.key)
     exact = analytic(dipole, zone, t)
     nr, nth = zone.r.size, zone.theta.size
     shape = (runs, 2, nr, nth)

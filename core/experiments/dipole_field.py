@@ -611,8 +611,7 @@ def run_point(exp: Experiment, key: tuple) -> tuple[list[dict], list, dict, list
     nominal = _amplitude(scenario["nominal_amplitude"])
     per_run, health = {}, []
     for run in range(spec["monte_carlo"]["runs"]):
-        rng = np.random.default_rng(np.random.SeedSequence(spec["monte_carlo"]["seed"],
-                                                           spawn_key=(*key, run)))
+        rng = exp.config.monte_carlo.rng(*key, run)
         out = cycle(exp, su, nominal, rng, euler=run == 0)
         health += [{**h, "run": run} for h in out["health"]]
         smooth = _smoothed(out["measured"], out["times"], su.dipole.omega, spec["rls"])

@@ -100,7 +100,8 @@ def prepare(spec: dict, source: str) -> Plan:
         except ConfigError as e:
             raise ConfigError(source, f"study.values[{i}]", f"{study['setting']} = {value:g}: "
                               f"{e.path}: {e.message}") from None
-        exps.append(Experiment(name=spec["name"], source=source, spec=one, plan=plan))
+        exps.append(Experiment(name=spec["name"], source=source, spec=one, plan=plan,
+                               config=field.Config.build(one)))
     return Plan(experiments=tuple(exps))
 
 
@@ -134,8 +135,7 @@ def _one(args) -> dict:
     one = exp.plan.experiments[v]
     su = field._setup(one.spec, one.plan)
     scenario = one.spec["scenarios"][s]
-    rng = np.random.default_rng(np.random.SeedSequence(exp.spec["monte_carlo"]["seed"],
-                                                       spawn_key=(v, s, run)))
+    rng = exp.config.monte_carlo.rng(v, s, run)
     out = field.cycle(one, su, field._amplitude(scenario["nominal_amplitude"]), rng)
     smooth = field._smoothed(out["measured"], out["times"], su.dipole.omega, one.spec["rls"])
     return field._errors(one, one.plan.grid, out["phasors"], su.dipole, one.plan.sensors,

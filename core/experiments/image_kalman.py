@@ -241,8 +241,7 @@ def run_unit(exp: Experiment, image: str, run: int) -> dict:
     M = spec["nshp"]["order"]
     clean = _load(image, spec["crop"])
     index = spec["images"].index(image)
-    rng = np.random.default_rng(np.random.SeedSequence(spec["monte_carlo"]["seed"],
-                                                       spawn_key=(index, run)))
+    rng = exp.config.monte_carlo.rng(index, run)
     sigma_v2 = float(np.var(clean) / 10 ** (spec["input_snr_db"] / 10))
     noisy = clean + np.sqrt(sigma_v2) * rng.standard_normal(clean.shape)
     y = noisy - noisy.mean()

@@ -135,8 +135,7 @@ def run_case(exp: Experiment, index: int) -> tuple[tuple, dict]:
     P_post = Pd - Pd @ H @ np.linalg.inv(S) @ H.T @ Pd
     runs = spec["monte_carlo"]["runs"]
     steps = int(round(spec["record_s"] / dt))
-    rng = np.random.default_rng(np.random.SeedSequence(spec["monte_carlo"]["seed"],
-                                                       spawn_key=(index,)))
+    rng = exp.config.monte_carlo.rng(index)
     L = np.linalg.cholesky(Qd)
     noise = rng.standard_normal((runs, steps, 2)) @ L.T
     x = np.zeros((runs, 2))

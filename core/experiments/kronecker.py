@@ -341,8 +341,7 @@ def tiny(spec: dict) -> dict:
 def simulate_point(exp: Experiment, column: Column, point: SweepPoint, runs: int) -> dict:
     """Actual trajectories and measurements of every state for one column and point."""
     inp, noise = exp.spec["input"], exp.spec["noise"]
-    rng = np.random.default_rng(np.random.SeedSequence(exp.spec["monte_carlo"]["seed"],
-                                                       spawn_key=point.key))
+    rng = exp.config.monte_carlo.rng(*point.key)
     f = point.frequency_hz
     dt = 1.0 / (inp["samples_per_period"] * f)
     steps = inp["samples_per_period"] * inp["periods"]

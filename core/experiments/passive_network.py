@@ -170,8 +170,7 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     dt, steps, runs = spec["sample_time"], spec["samples"], spec["monte_carlo"]["runs"]
     rows, cells, figure_data = [], [], {}
     for s_idx, sig in enumerate(spec["signals"]):
-        rng = np.random.default_rng(np.random.SeedSequence(spec["monte_carlo"]["seed"],
-                                                           spawn_key=(s_idx,)))
+        rng = exp.config.monte_carlo.rng(s_idx)
         noise = sig["sigma"] * rng.standard_normal((runs, steps))
         for reading in spec["readings"]:
             t = times(spec, reading)

@@ -253,11 +253,6 @@ def row_params(row: dict) -> str:
     return ", ".join(f"{k}={v:g}" for k, v in row["params"].items())
 
 
-def run_row(exp: Experiment, row: dict) -> dict:
-    """One row of ``distortion.csv``."""
-    return _evaluate((exp, row))[0]
-
-
 def summarize(exp: Experiment, row: dict, r: Response, amplitudes: np.ndarray) -> dict:
     """The ``distortion.csv`` row of the responses ``r`` at ``amplitudes`` (A, A/2)."""
     periodic = exp.spec["excitation"]["waveform"] == "sine"

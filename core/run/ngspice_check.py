@@ -72,7 +72,7 @@ def cases(exp) -> list[tuple[str, object, np.ndarray, float, float | None]]:
         inp, noise = spec["input"], spec["noise"]
         mix, bias = np.asarray(inp["mix"], float), np.asarray(inp["bias_v"], float)
         level = max(noise["input_levels"])
-        rng = np.random.default_rng(np.random.SeedSequence(spec["monte_carlo"]["seed"]))
+        rng = exp.config.monte_carlo.rng()
         for f in sorted(set(inp["frequencies_hz"])):
             dt, steps = estimation.sampling(exp, f)
             t = np.arange(steps + 1) * dt

@@ -129,11 +129,11 @@ def run_to_folder(exp: Experiment, out: Path, jobs: int = 1,
     (:mod:`estim.run.scheduler`); ``on_start`` is called once the folder is open (its space and
     lock checked), ``on_done`` once per finished work unit."""
     start = time.perf_counter()
-    store = cell_store(exp, out)
+    done = cell_store(exp, out)
     if not resume:
-        store.clear()
+        done.clear()
     written: dict[str, None] = {}
-    with store.ResultFolder(Path(out), exp.name) as folder, execution(executor, store,
+    with store.ResultFolder(Path(out), exp.name) as folder, execution(executor, done,
                                                                     pool=pool):
         def write_figures(figures: dict) -> None:
             for name, fig in figures.items():
@@ -147,8 +147,8 @@ def run_to_folder(exp: Experiment, out: Path, jobs: int = 1,
                                      time.perf_counter() - start, command=command,
                                      overrides=overrides, models=exp.models)
         folder.commit()
-    resumed = store.hits
-    store.clear()
+    resumed = done.hits
+    done.clear()
     return Result(tables=result.tables, figures=written), resumed
 
 
@@ -166,8 +166,8 @@ def run_shard(exp: Experiment, out: Path, k: int, n: int, jobs: int = 1) -> tupl
     its sweep cells) into its cell store in ``out``, for :func:`gather_cells` and a later run
     to finish. Returns the cells computed, and whether the analysis splits into work units at
     all (one that does not is left to the merge, whole)."""
-    store = cell_store(exp, out)
-    with execution(None, store, shard=(k, n)) as ctx:
+    done = cell_store(exp, out)
+    with execution(None, done, shard=(k, n)) as ctx:
         try:
             execute(exp, jobs)
         except ShardDone:

@@ -50,47 +50,6 @@ kernels = lazy.load("estim.numerics.kernels")
 GROUND = ("0", "gnd")
 
 
-def source_value(waveform: tuple, t: float) -> tuple[float, float]:
-    """A source's value and slope at time ``t`` (SPICE's DC, SIN, PULSE, PWL)."""
-    kind, *a = waveform
-    if kind == "dc":
-        return a[0], 0.0
-    if kind == "sin":
-        vo, va, freq = a[:3]
-        td, theta, phase = (a[3:] + [0.0, 0.0, 0.0])[:3]
-        if t < td:
-            return vo + va * np.sin(np.radians(phase)), 0.0
-        s = t - td
-        w = 2 * np.pi * freq
-        damp = np.exp(-theta * s)
-        arg = w * s + np.radians(phase)
-        return (vo + va * damp * np.sin(arg),
-                va * damp * (w * np.cos(arg) - theta * np.sin(arg)))
-    if kind == "pulse":
-        v1, v2, td, tr, tf, pw, per = (a + [0.0, 0.0, 0.0, np.inf, np.inf])[:7]
-        tr, tf = tr or 1e-12, tf or 1e-12
-        s = t - td
-        if s < 0:
-            return v1, 0.0
-        if np.isfinite(per) and per > 0:
-            s = s % per
-        if s < tr:
-            return v1 + (v2 - v1) * s / tr, (v2 - v1) / tr
-        if s < tr + pw:
-            return v2, 0.0
-        if s < tr + pw + tf:
-            return v2 + (v1 - v2) * (s - tr - pw) / tf, (v1 - v2) / tf
-        return v1, 0.0
-    times, values = np.array(a[0::2]), np.array(a[1::2])
-    if t <= times[0]:
-        return values[0], 0.0
-    if t >= times[-1]:
-        return values[-1], 0.0
-    k = int(np.searchsorted(times, t, side="right")) - 1
-    slope = (values[k + 1] - values[k]) / (times[k + 1] - times[k])
-    return values[k] + slope * (t - times[k]), slope
-
-
 DIODE_VT = 0.025852
 """The diode's thermal voltage (300 K), as the BJT model's default ``vt``."""
 DIODE = {"is": 1e-14, "n": 1.0, "rs": 0.0}
@@ -454,7 +413,6 @@ class NetlistModel(Model, metaclass=_NetlistClass):
         source of an F or H (the currents leaving the node it fixes); ``A`` adds each F's
         current, gain times its control row, to the rows of its two nodes."""
         c = self.circuit
-        self._ic = c.netlist.ic
         nodes = ["0", *c.state_nodes, *c.fixed]
         self._node = {n: i for i, n in enumerate(nodes)}
         self._node["gnd"] = 0
@@ -853,14 +811,6 @@ class NetlistModel(Model, metaclass=_NetlistClass):
         if term[0] == "v" and term[2] is not None:
             H[..., 0, term[2]] = -1.0
         return H
-
-    def initial_state(self) -> np.ndarray:
-        """``.ic`` values where given, zero elsewhere."""
-        x = np.zeros(self.n_states)
-        for node, value in self._ic.items():
-            if node in self.circuit.index:
-                x[self.circuit.index[node]] = value
-        return x
 
 
 def _with_params(text: str, lines: list[str]) -> str:

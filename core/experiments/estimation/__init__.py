@@ -331,7 +331,7 @@ def run_point(exp: Experiment, point: SweepPoint, traces: bool = False) -> tuple
     the per-run losses for the claims, and with ``traces`` the figure traces of its first
     run (the figures show the runs the table averages)."""
     mc = exp.spec["monte_carlo"]
-    rng = np.random.default_rng(np.random.SeedSequence(mc["seed"], spawn_key=(point.index,)))
+    rng = exp.config.monte_carlo.rng(point.index)
     data = simulate_point(exp, point.frequency_hz, point.sigma, mc["runs"], rng,
                           point.measurement)
     estimates = estimate_point(exp, data)
@@ -426,8 +426,7 @@ def figure_traces(exp: Experiment, known: dict) -> dict:
         if key in known:
             out[key] = known[key]
             continue
-        rng = np.random.default_rng(np.random.SeedSequence(mc["seed"],
-                                                           spawn_key=(FIGURE_SEED_KEY, i)))
+        rng = exp.config.monte_carlo.rng(FIGURE_SEED_KEY, i)
         data = simulate_point(exp, f, sigma, runs, rng, exp.spec["noise"]["measurement"][0])
         estimates = estimate_point(exp, data)
         verdicts = [pipeline.judge(exp, data, est, model)["diverged"]
@@ -469,12 +468,10 @@ def training(exp: Experiment, label: str, runs: int) -> tuple[int, object, objec
         raise UsageError(f"{exp.name}: no estimator labelled {label!r}; expected one of "
                          f"{[lab for lab, _, _ in exp.plan.filters]}")
     index, est, model = found[0]
-    mc = exp.spec["monte_carlo"]
     batches = []
     points = sweep(exp)
     noisy = [p for p in points if p.measurement == "noisy"]
     for p in noisy or points:
-        rng = np.random.default_rng(np.random.SeedSequence(mc["seed"],
-                                                           spawn_key=(TUNE_SEED_KEY, p.index)))
+        rng = exp.config.monte_carlo.rng(TUNE_SEED_KEY, p.index)
         batches.append(simulate_point(exp, p.frequency_hz, p.sigma, runs, rng, p.measurement))
     return index, est, model, batches

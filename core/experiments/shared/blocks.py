@@ -6,6 +6,10 @@ use these blocks (``monte_carlo: MonteCarlo = block(MonteCarlo, required=True)``
 
 from __future__ import annotations
 
+import re
+
+import numpy as np
+
 from estim.config import registry
 from estim.config.schema import MAX_VOLTS, REQUIRED, integer, list_of, mapping, number, text
 from estim.config.settings import Settings, block, blocks, setting, settings_class
@@ -23,12 +27,27 @@ class MonteCarlo(Settings):
     seed: int = setting(REQUIRED, integer(0, 2**63 - 1),
                         doc="root of every cell's SeedSequence (same seed, same tables)")
 
+    def rng(self, *key: int) -> np.random.Generator:
+        """The random generator of the work unit ``key`` (a sweep point, a run, ...): its own
+        ``SeedSequence(seed, spawn_key=key)``, so a unit draws the same numbers wherever and
+        whenever it runs."""
+        return np.random.default_rng(np.random.SeedSequence(self.seed, spawn_key=key))
+
+
+_SIMULATIONS: dict[tuple[float, float], type] = {}
+
 
 def simulation(rtol: float, atol: float) -> type:
-    default_rtol, default_atol = rtol, atol
     """The ``simulation`` block (the stiff solver of the "actual" signal) with an analysis'
-    default tolerances."""
+    default tolerances: one class per pair, named ``Simulation_<rtol>_<atol>`` in this module
+    (its ``__getattr__`` builds it again by that name, so a config holding one crosses to a
+    worker process)."""
     from estim.numerics.simulate import SOLVERS
+
+    key = (float(rtol), float(atol))
+    if key in _SIMULATIONS:
+        return _SIMULATIONS[key]
+    default_rtol, default_atol = key
 
     @settings_class
     class Simulation(Settings):
@@ -41,7 +60,17 @@ def simulation(rtol: float, atol: float) -> type:
         atol: float = setting(default_atol, number(minimum=1e-15, maximum=1.0), unit="state",
                               doc="absolute tolerance of the solver")
 
+    Simulation.__qualname__ = Simulation.__name__ = f"Simulation_{key[0]!r}_{key[1]!r}"
+    _SIMULATIONS[key] = Simulation
     return Simulation
+
+
+def __getattr__(name: str) -> type:
+    """``Simulation_<rtol>_<atol>``: the class :func:`simulation` makes (for pickle)."""
+    m = re.fullmatch(r"Simulation_([^_]+)_([^_]+)", name)
+    if m is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return simulation(float(m.group(1)), float(m.group(2)))
 
 
 def _quantities(v):
