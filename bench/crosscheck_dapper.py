@@ -100,7 +100,7 @@ def _field_setup(n: int = 16):
     spec.pop("check", None)
     spec["grid"]["n"] = n
     exp = parse_data(spec, "dipole_field.yaml", "dipole_field")
-    return exp, dipole_field._setup(exp.spec, exp.plan)
+    return exp, dipole_field.setup(exp.spec, exp.plan)
 
 
 def check_local_analysis() -> list[tuple[str, float, float]]:
@@ -121,10 +121,10 @@ def check_local_analysis() -> list[tuple[str, float, float]]:
     after = su.sim.step(state, t, amps)
     jitter = 0.01 * model_error.smooth_noise(rng, 2 * m, grid.n, su.smoother)
     after = model_error.perturb(after, su.dipole.omega * su.dt, jitter[:m], jitter[m:])
-    Y = df._sensor_rows(grid, state, after, su.dt, su.dipole.mu0, plan.sensor_ops)
+    Y = df.sensor_rows(grid, state, after, su.dt, su.dipole.mu0, plan.sensor_ops)
     y = Y.mean(axis=0) + 0.05 * rng.standard_normal(Y.shape[1:])
     R = rng.uniform(0.5, 2.0, y.shape) * 1e-3
-    X = df._rows_of(state, after)
+    X = df.rows_of(state, after)
     W = letkf.transforms(Y - Y.mean(axis=0), y - Y.mean(axis=0), R, su.local.taper)
     ours = letkf.analyse(X, su.local, W)
     theirs = dapper_local(X, Y, y, R, su.local, su.local_half_width)
@@ -144,9 +144,9 @@ def _dapper_field_analysis(su, before, after, amps, y_rows, Y, inflation):
     if inflation != 1.0:
         raise ValueError("the DAPPER swap is written for inflation 1")
     m = Y.shape[0]
-    X = df._rows_of(before, after)
+    X = df.rows_of(before, after)
     Yp, dy = Y - Y.mean(axis=0), y_rows - Y.mean(axis=0)
-    rank, nis = letkf.effective_rank(after[:, 0]), df._nis(Yp, dy, su.R_field)
+    rank, nis = letkf.effective_rank(after[:, 0]), df.nis_of(Yp, dy, su.R_field)
     X = dapper_local(X, Y, y_rows, su.R_field, su.local, su.local_half_width)
     coeff = np.repeat(dist2coeff(su.source_distances, su.amplitude_half_width / 1.82, "GC"),
                       Y.shape[2])
@@ -155,7 +155,7 @@ def _dapper_field_analysis(su, before, after, amps, y_rows, Y, inflation):
     A = np.stack([amps.real, amps.imag], axis=1)
     A = EnKF_analysis(A, Y.reshape(m, -1)[:, keep] * scale, GaussRV(C=1, M=keep.size),
                       y_rows.ravel()[keep] * scale, "Sqrt")
-    after[...] = df._levels(X)
+    after[...] = df.levels(X)
     return after, A[:, 0] + 1j * A[:, 1], X.mean(axis=0), rank, nis
 
 

@@ -61,9 +61,9 @@ def test_the_in_place_analysis_of_the_levels_is_the_analysis_of_the_five_rows(ha
     Yp -= Yp.mean(axis=0)
     W = letkf.transforms(Yp, rng.standard_normal((S, 6)), rng.uniform(0.5, 2.0, (S, 6)),
                          local.taper, 1.1)
-    rows = letkf.analyse(df._rows_of(before, after), local, W)
+    rows = letkf.analyse(df.rows_of(before, after), local, W)
     means = letkf.analyse_levels(after, before[:, 0, 0], local, W)
-    np.testing.assert_allclose(after, df._levels(rows), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(after, df.levels(rows), rtol=0, atol=1e-12)
     np.testing.assert_allclose(means, rows.mean(axis=0), rtol=0, atol=1e-12)
     assert (len(local.points) < local.cubes) == (half_width < 1), len(local.points)
 
@@ -111,7 +111,7 @@ def test_letkf_without_localisation_and_a_large_ensemble_is_the_dense_kf_with_it
     ``1/sqrt(m)``: measured 8.5 %, 5.6 %, 3.1 % at 300, 1000, 3000 members; tolerance 6 %.
     (With the ensemble's own mean and covariance the two agree to 1e-11.)"""
     exp = _spec()
-    su = df._setup(exp.spec, exp.plan)
+    su = df.setup(exp.spec, exp.plan)
     grid, sensors = exp.plan.grid, exp.plan.sensors
     m, size = MEMBERS, 0.01
     state = np.zeros((1, 2, 2, grid.size))
@@ -127,14 +127,14 @@ def test_letkf_without_localisation_and_a_large_ensemble_is_the_dense_kf_with_it
     jitter = size * model_error.smooth_noise(rng, 2 * m, grid.n, su.smoother)
     ens_after = model_error.perturb(np.repeat(after, m, axis=0), omega_dt, jitter[:m],
                                     jitter[m:])
-    X = df._rows_of(before, ens_after)                        # (m, 5, points)
-    x0 = df._rows_of(before[:1], after)[0]
+    X = df.rows_of(before, ens_after)                        # (m, 5, points)
+    x0 = df.rows_of(before[:1], after)[0]
     X += x0 - X.mean(axis=0)                                 # the exact mean: only P sampled
     # the observation operator on the 5-row state, column by column
     basis = np.eye(5 * grid.size).reshape(-1, 5, grid.size)
     first = np.zeros((len(basis), 2, 2, grid.size))
     first[:, 0, 0] = basis[:, 0]                               # only A(t - dt) is read
-    H = df._sensor_rows(grid, first, df._levels(basis), su.dt, su.dipole.mu0,
+    H = df.sensor_rows(grid, first, df.levels(basis), su.dt, su.dipole.mu0,
                         exp.plan.sensor_ops).reshape(5 * grid.size, -1).T
     Y = (X.reshape(m, -1) @ H.T).reshape(m, sensors.size, 6)
     x0 = x0.ravel()
@@ -162,7 +162,7 @@ def twin():
     itself (true source, no noise in the model), the sensors read it with noise 0.001."""
     exp = _spec(n=16, length=2.0, fraction=0.06, members=20, sensors_r=(0.2, 0.9))
     exp.spec["sensors"]["measurement_sigma"] = 1e-3
-    su = df._setup(exp.spec, exp.plan)
+    su = df.setup(exp.spec, exp.plan)
     su.R_field[:] = 1e-6
     su.R_source[:] = 1e-6 + 0.02**2
     return exp, su
@@ -199,9 +199,9 @@ def _twin_run(exp, su, bump: float, nominal: complex, steps: int = 8):
         jit = model_error.smooth_noise(rng, 2 * m, grid.n, su.smoother)
         field_next = model_error.perturb(field_next, su.dipole.omega * dt, jit[:m], jit[m:],
                                          su.error_scale)
-        y = df._sensor_rows(grid, truth, truth_next, dt, mu0, plan.sensor_ops)[0]
+        y = df.sensor_rows(grid, truth, truth_next, dt, mu0, plan.sensor_ops)[0]
         y = y + 1e-3 * rng.standard_normal(y.shape)
-        Y = df._sensor_rows(grid, field, field_next, dt, mu0, plan.sensor_ops)
+        Y = df.sensor_rows(grid, field, field_next, dt, mu0, plan.sensor_ops)
         forecast_before = field
         field, af, X, _, _ = df.field_analysis(su, field, field_next, af, y, Y, 1.0)
         if k == 0:
@@ -210,7 +210,7 @@ def _twin_run(exp, su, bump: float, nominal: complex, steps: int = 8):
             mixed = (X[3] - forecast_before[:, 0, 0].mean(0)) / (2 * dt)
             out["first"] = (np.linalg.norm(ours - exact) / np.linalg.norm(exact),
                             np.linalg.norm(mixed - exact) / np.linalg.norm(exact))
-        Ys = df._sensor_rows(grid, src, src_next, dt, mu0, plan.sensor_ops)
+        Ys = df.sensor_rows(grid, src, src_next, dt, mu0, plan.sensor_ops)
         src, asrc, _, _, _ = df.source_analysis(su, src, src_next, asrc, y, Ys, 1.0)
         truth = truth_next
         t += dt
@@ -263,7 +263,7 @@ def test_the_truncation_profile_is_the_leapfrogs_own_error_per_step():
     spec.pop("check", None)
     spec["filter"]["field_error_profile"] = "truncation"
     exp = parse_data(spec, "t.yaml", "t")
-    su = df._setup(exp.spec, exp.plan)
+    su = df.setup(exp.spec, exp.plan)
     assert len(su.local.points) == su.local.cubes == 512     # every cube has a sensor in reach
     r = exp.plan.grid.r
     far = (r >= 1.2) & (r < 1.9)
@@ -272,7 +272,7 @@ def test_the_truncation_profile_is_the_leapfrogs_own_error_per_step():
     A, Phi = su.error_scale[:, near].mean(axis=1)
     assert 0.006 < A < 0.012 and 0.025 < Phi < 0.045, (A, Phi)
     spec["filter"]["field_error_profile"] = "uniform"
-    su = df._setup(parse_data(spec, "t.yaml", "t").spec, exp.plan)
+    su = df.setup(parse_data(spec, "t.yaml", "t").spec, exp.plan)
     assert np.all(su.error_scale == spec["filter"]["field_error"])
 
 
@@ -317,18 +317,18 @@ def test_the_source_only_filter_on_its_amplitudes_equals_it_on_the_stepped_membe
         members_next = sim.step(members, t, a_members)
         basis_next = sim.step(basis, t, basis_amps)
         truth_next = sim.step(truth, t, np.array([1.0]))
-        y = df._sensor_rows(grid, truth, truth_next, dt, mu0, ops)[0]
+        y = df.sensor_rows(grid, truth, truth_next, dt, mu0, ops)[0]
         y = y + 1e-3 * rng.standard_normal(y.shape)
-        Y = df._sensor_rows(grid, members, members_next, dt, mu0, ops)
+        Y = df.sensor_rows(grid, members, members_next, dt, mu0, ops)
         members, a_members, X, rank, nis = df.source_analysis(su, members, members_next,
                                                               a_members, y, Y, 1.0)
         ours = df.source_analysis_on_basis(
-            su, a_basis, basis_next[:, 0], df._sensor_rows(grid, basis, basis_next, dt, mu0, ops),
-            df._observe(grid, basis, basis_next, dt, mu0), y, 1.0)
+            su, a_basis, basis_next[:, 0], df.sensor_rows(grid, basis, basis_next, dt, mu0, ops),
+            df.observe(grid, basis, basis_next, dt, mu0), y, 1.0)
         moved = max(moved, float(np.max(np.abs(ours[0] - a_basis))))
         a_basis = ours[0]
         np.testing.assert_allclose(a_basis, a_members, rtol=0, atol=1e-10)
-        theirs = df._fields_of(grid, X.mean(axis=0), dt, mu0)
+        theirs = df.fields_of(grid, X.mean(axis=0), dt, mu0)
         for F in ("E", "H"):
             np.testing.assert_allclose(ours[1][F], theirs[F], rtol=0,
                                        atol=1e-9 * np.abs(theirs[F]).max())

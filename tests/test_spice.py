@@ -183,7 +183,7 @@ def test_the_netlist_mosfet_laws_are_the_hand_written_ones(law):
     laws a trajectory within 1e-9 (the Taylor polynomials run away from the actual device's
     DC point, and the stiff solve of that takes minutes: they are filters' models only)."""
     from estim.models.mosfet_ekv import MosfetEKV
-    from estim.spice.circuit import NMOS_LAWS
+    from estim.spice.devices import NMOS_LAWS
 
     net, _, order = _mosfet_twin(law=float(law))
     hand = MosfetEKV(drain_current=NMOS_LAWS[law])

@@ -133,12 +133,12 @@ def _one(args) -> dict:
     error and the mean squared truth."""
     exp, v, s, run = args
     one = exp.plan.experiments[v]
-    su = field._setup(one.spec, one.plan)
+    su = field.setup(one.spec, one.plan)
     scenario = one.spec["scenarios"][s]
     rng = exp.config.monte_carlo.rng(v, s, run)
-    out = field.cycle(one, su, field._amplitude(scenario["nominal_amplitude"]), rng)
-    smooth = field._smoothed(out["measured"], out["times"], su.dipole.omega, one.spec["rls"])
-    return field._errors(one, one.plan.grid, out["phasors"], su.dipole, one.plan.sensors,
+    out = field.cycle(one, su, field.amplitude(scenario["nominal_amplitude"]), rng)
+    smooth = field.smoothed(out["measured"], out["times"], su.dipole.omega, one.spec["rls"])
+    return field.run_errors(one, one.plan.grid, out["phasors"], su.dipole, one.plan.sensors,
                          out["times"], out["traces"], out["measured"], smooth, su.quarter)
 
 

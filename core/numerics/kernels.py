@@ -179,7 +179,7 @@ def _lambertw_exp(z):
 
 
 def _netlist(x, u, P, f, J):
-    """A netlist model (``estim.spice.circuit.NetlistModel``) in scalar form, in the numpy
+    """A netlist model (``estim.spice.netlist_model.NetlistModel``) in scalar form, in the numpy
     path's order: the currents of each row (a state node's supernode, then each controlling
     source of an F or H), linear part ``Y x + W u + c`` (R, G, I and the sources), plus each
     device (D, Q, M) from its terminal voltages ``V = Pm x + Qm u + r``, added to its node's
@@ -198,7 +198,7 @@ def _netlist(x, u, P, f, J):
     four node indices (-1: none), five parameters]``: type 0 a diode (``a, b``; ``I_s, n
     V_T, r_s``), 1/2 an NPN/PNP (``c, b, e``; ``I_ES, I_CS, alpha_F, alpha_R, V_T``), 3 an
     NMOS (``d, g, s, b``; ``U_T, V_T0, eta, I_s``, law: 0 EKV, 1 weak inversion, 2 weak
-    saturation, 3 and 4 the Taylor polynomials, ``estim.spice.circuit.NMOS_LAWS``)."""
+    saturation, 3 and 4 the Taylor polynomials, ``estim.spice.devices.NMOS_LAWS``)."""
     n, k, p, N, nd, nc = int(P[0]), int(P[1]), int(P[2]), int(P[3]), int(P[4]), int(P[5])
     kc = k + nc
     R = kc + n - k

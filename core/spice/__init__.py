@@ -1,6 +1,7 @@
 """SPICE netlists as estim models: :mod:`estim.spice.parser` reads the netlist,
-:mod:`estim.spice.circuit` builds the model by nodal analysis, :mod:`estim.spice.ngspice`
-runs the same circuit in ngspice to compare. A config names a netlist in its model block,
+:mod:`estim.spice.circuit` lays out the nodal analysis, :mod:`estim.spice.netlist_model` builds the
+model, :mod:`estim.spice.ngspice` runs the same circuit in ngspice to compare. A config names a
+netlist in its model block,
 
     model: {netlist: circuits/diffamp_em.cir, input: [VB1, VB2], output: "v(c1,c2)"}
 
@@ -13,7 +14,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from estim.errors import ConfigError
-from estim.spice.circuit import model_class, rebuild
+from estim.spice.netlist_model import model_class, rebuild
 from estim.spice.parser import NetlistError
 from estim.util.shipped import shipped_folder
 

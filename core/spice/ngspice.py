@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from estim.errors import EstimError
-from estim.spice.circuit import BJT, DIODE_VT, EKV, NMOS_LAWS
+from estim.spice.devices import BJT, DIODE_VT, EKV, NMOS_LAWS
 from estim.spice.parser import Netlist
 
 K_OVER_Q = 1.38064852e-23 / 1.6021766208e-19
@@ -73,7 +73,7 @@ def _models(net: Netlist) -> tuple[list[str], float | None]:
 
 def _ekv_source(e, net: Netlist) -> str:
     """An NMOS as an ngspice B source from drain to source: the law of its ``.model``
-    (:func:`estim.spice.circuit._nmos`) written out; EKV's softplus as ``max(a, 0) +
+    (:func:`estim.spice.devices.nmos`) written out; EKV's softplus as ``max(a, 0) +
     ln(1 + exp(-abs(a)))`` (no overflow, no loss for negative ``a``)."""
     p = {**EKV, **net.models[e.ref].params}
     d, g, s, b = (f"v({flat(n)})" if n not in ("0", "gnd") else "0" for n in e.nodes)

@@ -1,0 +1,124 @@
+"""The device laws of a netlist's ``.model`` lines, with their default parameters: Shockley
+diodes with series resistance (``d``: ``is n rs``; closed form by the Lambert W function),
+Ebers-Moll NPN/PNP (``npn``, ``pnp``; :mod:`estim.models.devices.ebers_moll`), EKV NMOS
+(``nmos``; the laws of :mod:`estim.models.mosfet_ekv`, ``law`` the index in
+:data:`NMOS_LAWS`)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from estim.util import lazy
+
+special = lazy.load("scipy.special")
+kernels = lazy.load("estim.numerics.kernels")
+
+
+DIODE_VT = 0.025852
+"""The diode's thermal voltage (300 K), as the BJT model's default ``vt``."""
+
+
+DIODE = {"is": 1e-14, "n": 1.0, "rs": 0.0}
+
+
+BJT = {"ies": 1e-14, "alpha_f": 0.99, "alpha_r": 0.5, "vt": 0.025852, "ics": None}
+
+
+EKV = {"u_t": 0.0256, "v_t0": 0.5, "eta": 1.0, "i_0": 1e-9, "w_l": 1.0, "law": 0.0}
+
+
+NMOS_LAWS = ("ekv", "weak_inversion", "weak_saturation", "taylor_conduction",
+             "taylor_saturation")
+"""The drain-current laws of an ``nmos`` ``.model``'s ``law`` (its index here): those of
+:mod:`estim.models.mosfet_ekv` (``drain_current``), so that a filter can model the
+transistor with the thesis' approximations as the hand-written model's filters do (D77)."""
+
+
+DEFAULTS = {"d": DIODE, "npn": BJT, "pnp": BJT, "nmos": EKV}
+
+
+def diode(vd, p):
+    """Shockley diode with series resistance: current and conductance. With ``rs > 0`` the
+    junction voltage is eliminated in closed form: ``i = a W(b e^{(v + Is rs)/a}) / rs - Is``
+    with ``a = n V_T``, ``b = Is rs / a`` (Lambert W)."""
+    a = p["n"] * DIODE_VT
+    Is, rs = p["is"], p["rs"]
+    if rs <= 0:
+        with np.errstate(over="ignore"):
+            e = np.exp(vd / a)
+        return Is * (e - 1), Is * e / a
+    z = np.log(Is * rs / a) + (vd + Is * rs) / a           # log of W's argument
+    w = np.where(z < 500, np.real(special.lambertw(np.exp(np.minimum(z, 500)))),
+                 z - np.log(np.maximum(z, 1.0)))
+    i = a * w / rs - Is
+    g = (i + Is) / (a + rs * (i + Is))
+    return i, g
+
+
+def nmos(vd, vg, vs, vb, p, second: bool = False):
+    """The drain-to-source current of an ``nmos`` device by its ``.model``'s ``law``
+    (:data:`NMOS_LAWS`, the laws of :meth:`estim.models.mosfet_ekv.MosfetEKV.drain_current`),
+    its gradient w.r.t. the drain, gate, source and bulk voltages (last axis), and with
+    ``second`` (one point) its 4x4 Hessian."""
+    from estim.models.mosfet_ekv import _sigmoid, _softplus
+
+    ut, vt0, eta = p["u_t"], p["v_t0"], p["eta"]
+    Is = p["i_0"] * p["w_l"]
+    law = NMOS_LAWS[int(p.get("law", 0))]
+    vd, vg, vs, vb = np.broadcast_arrays(*(np.asarray(v, float) for v in (vd, vg, vs, vb)))
+    hess = np.zeros((4, 4))
+    if law == "taylor_conduction":
+        xr = vt0 / (eta * ut)
+        c0 = 1 - xr + xr**2 / 2 - xr**3 / 6
+        c1 = (1 - xr + xr**2 / 2) / (eta * ut)
+        k, q = Is / ut, 1 / (2 * ut)
+        cur = k * (c0 * ((vd - vs) + q * (vs**2 - vd**2 - 2 * (vs * vb - vd * vb)))
+                   + c1 * (vg * vd - vb * vd - vg * vs + vb * vs))
+        grad = k * np.stack([c0 * (1 + q * (2 * vb - 2 * vd)) + c1 * (vg - vb),
+                             c1 * (vd - vs),
+                             c0 * (-1 + q * (2 * vs - 2 * vb)) + c1 * (vb - vg),
+                             c0 * q * 2 * (vd - vs) + c1 * (vs - vd)], axis=-1)
+        hess = k * np.array([[-2 * c0 * q, c1, 0.0, 2 * c0 * q - c1],
+                             [c1, 0.0, -c1, 0.0],
+                             [0.0, -c1, 2 * c0 * q, c1 - 2 * c0 * q],
+                             [2 * c0 * q - c1, 0.0, c1 - 2 * c0 * q, 0.0]])
+        return cur, grad, hess
+    if law == "taylor_saturation":
+        vgs = vg - vs
+        a1 = 1 / ut - vt0 / ut**2
+        cur = Is * ((1 - vt0 / ut + vt0**2 / ut**2) + vgs * a1 + vgs**2 / (2 * ut**2))
+        d = Is * (a1 + vgs / ut**2)
+        zero = np.zeros_like(d)
+        c = Is / ut**2
+        hess = np.array([[0.0, 0.0, 0.0, 0.0], [0.0, c, -c, 0.0], [0.0, -c, c, 0.0],
+                         [0.0, 0.0, 0.0, 0.0]])
+        return cur, np.stack([zero, d, -d, zero], axis=-1), hess
+    vp = (vg - vb - vt0) / eta
+    a_s = (vp - (vs - vb)) / (2 * ut)
+    a_d = (vp - (vd - vb)) / (2 * ut)
+    ga_s = np.array([0.0, 1 / eta, -1.0, 1 - 1 / eta]) / (2 * ut)
+    ga_d = np.array([-1.0, 1 / eta, 0.0, 1 - 1 / eta]) / (2 * ut)
+    if law == "ekv" and second:
+        d1, d2 = np.zeros(4), np.zeros((4, 4))
+        for a_, ga, sign in ((a_s, ga_s, 1.0), (a_d, ga_d, -1.0)):
+            sp, sg = np.logaddexp(0.0, a_), 0.5 * (1.0 + np.tanh(0.5 * a_))
+            d1 += sign * Is * 2 * sp * sg * ga
+            d2 += sign * Is * (2 * sg * sg + 2 * sp * sg * (1 - sg)) * np.outer(ga, ga)
+        return Is * (_softplus(a_s) ** 2 - _softplus(a_d) ** 2), d1, d2
+    if law == "ekv":
+        Fs, Fd = _softplus(a_s) ** 2, _softplus(a_d) ** 2
+        dFs = 2 * _softplus(a_s) * _sigmoid(a_s) / (2 * ut)
+        dFd = 2 * _softplus(a_d) * _sigmoid(a_d) / (2 * ut)
+        cur = Is * (Fs - Fd)
+        grad = np.stack([Is * dFd, Is * (dFs - dFd) / eta, -Is * dFs,
+                         Is * (dFs - dFd) * (1 - 1 / eta)], axis=-1)
+        return cur, grad, hess
+    with np.errstate(over="ignore"):
+        e_s, e_d = np.exp(2 * a_s), np.exp(2 * a_d)
+    if law == "weak_saturation":
+        e_d = np.zeros_like(e_d)
+    cur = Is * (e_s - e_d)
+    grad = Is * (2 * e_s[..., None] * ga_s - 2 * e_d[..., None] * ga_d)
+    if second:
+        hess = Is * (4 * e_s * np.outer(ga_s, ga_s) - 4 * e_d * np.outer(ga_d, ga_d))
+    return cur, grad, hess

@@ -1,0 +1,556 @@
+"""The model class of a netlist (:class:`NetlistModel`, an :class:`estim.models.base.Model`):
+the drift and its Jacobian by the nodal analysis of :class:`estim.spice.circuit.Circuit`,
+the output, the operating point, and the compiled kernel; :func:`model_class` builds and
+registers it. One algorithm, the nodal-analysis model, over 500 lines: its parts share
+the circuit's index arrays and are not used apart."""
+
+from __future__ import annotations
+
+import copyreg
+import dataclasses
+import re
+from pathlib import Path
+
+import numpy as np
+
+from estim.config import registry
+from estim.models.base import Model, param
+from estim.models.devices import ebers_moll
+from estim.spice.circuit import Circuit
+from estim.spice.devices import DEFAULTS, DIODE_VT, diode, nmos
+from estim.spice.parser import NetlistError, read
+from estim.util import lazy
+
+special = lazy.load("scipy.special")
+kernels = lazy.load("estim.numerics.kernels")
+
+
+def build_model_class(circuit: Circuit, name: str) -> type:
+    """A :class:`Model` subclass for ``circuit``: its ``Params`` are the netlist's ``.param``
+    values (overridable in a config's ``model.params``), re-evaluated into element values
+    when they change."""
+    net = circuit.netlist
+    fields = [(k, float, param(float(v), "-", "netlist .param")) for k, v in net.params.items()]
+    Params = dataclasses.make_dataclass(f"{name}_params", fields, frozen=True)
+    inputs = tuple(f"d({i})/dt" for i in circuit.inputs) if circuit.slope \
+        else tuple(circuit.inputs)
+    attrs = {"state_names": circuit.state_names, "input_names": inputs,
+             "input_is_source_slope": circuit.slope, "input_affine": circuit.slope,
+             "output_names": (circuit.output,), "Params": Params, "variants": {},
+             "circuit": circuit, "__doc__": f"Netlist model of {net.source} ({net.title})."}
+    clean = re.sub(r"\W", "_", name)
+    return type(f"Netlist_{clean}", (NetlistModel,), attrs)
+
+
+class _NetlistClass(type):
+    """The type of the netlist model classes: they are made at run time, so a worker
+    process cannot import them by name; pickled, a class is the arguments that build it
+    again (:func:`rebuild`)."""
+
+
+def _rebuild_instance(cls: type, variant, overrides: dict):
+    return cls(variant, **overrides)
+
+
+def _reduce_class(cls: type):
+    origin = getattr(cls, "origin", None)
+    return (rebuild, (origin,)) if origin is not None else cls.__qualname__
+
+
+copyreg.pickle(_NetlistClass, _reduce_class)
+
+
+class NetlistModel(Model, metaclass=_NetlistClass):
+    """Base of the netlist model classes :func:`build_model_class` makes."""
+
+    circuit: Circuit
+    from_netlist = True
+    hold = "mean"
+    thesis_states: tuple | None = None
+
+    def __init__(self, variant: str | None = None, **overrides) -> None:
+        super().__init__(variant, **overrides)
+        self._made_with = (variant, overrides)
+        net = self.circuit.netlist
+        if any(getattr(self.params, k) != v for k, v in net.params.items()):
+            from estim.spice.parser import parse
+            text = self._source_text()
+            values = dataclasses.asdict(self.params)
+            lines = [f".param {k}={v!r}" for k, v in values.items()]
+            net = parse(_with_params(text, lines), net.source)
+            self.circuit = Circuit(net, self.circuit.inputs, self.circuit.output)
+        self._prepare()
+
+    def __reduce__(self):
+        """Pickled as its class and the arguments that made it (its ``Params`` class is made
+        at run time too, and cannot be imported by name in a worker)."""
+        variant, overrides = self._made_with
+        return (_rebuild_instance, (type(self), variant, overrides))
+
+    def _source_text(self) -> str:
+        from pathlib import Path
+        return Path(self.circuit.netlist.source).read_text()
+
+    def _prepare(self) -> None:
+        """Everything linear, once: every node's voltage as ``V = P x + Q u + r`` (states,
+        inputs, DC sources and E and H sources are affine), the linear branches (R, G, I, L)
+        as matrices, and the devices (D, Q, M) left for the per-call loop. The currents are
+        summed in rows: one per state node (its supernode's KCL), then one per controlling
+        source of an F or H (the currents leaving the node it fixes); ``A`` adds each F's
+        current, gain times its control row, to the rows of its two nodes."""
+        c = self.circuit
+        nodes = ["0", *c.state_nodes, *c.fixed]
+        self._node = {n: i for i, n in enumerate(nodes)}
+        self._node["gnd"] = 0
+        n, p, k = self.n_states, self.n_inputs, len(c.state_nodes)
+        kc = k + len(c.controls)
+        self._rowmap = np.array([-1] + [c.row[x] if c.row[x] is not None else -1
+                                        for x in nodes[1:]], dtype=np.int64)
+        control = {node: k + j for j, (_, node, _) in enumerate(c.controls)}
+        self._crowmap = np.array([control.get(x, -1) for x in nodes], dtype=np.int64)
+        self._control_sign = np.array([sign for _, _, sign in c.controls])
+        r = self._affine(np.zeros(n), np.zeros(p))
+        self._r = r
+        self._P = np.stack([self._affine(e, np.zeros(p)) - r for e in np.eye(n)], axis=-1)
+        self._Q = np.stack([self._affine(np.zeros(n), e) - r for e in np.eye(p)], axis=-1) \
+            if p else np.zeros((len(nodes), 0))
+        G = np.zeros((kc, len(nodes)))              # current leaving each row's node(s)
+        K = np.zeros((kc, n))
+        i0 = np.zeros(kc)
+        L = np.zeros((n, len(nodes)))                # inductor rows of dx/dt
+        A = np.zeros((k, len(c.controls)))
+        self._devices = []
+
+        def leave(node, col, value, where):
+            for i in (self._rowmap[self._node[node]], self._crowmap[self._node[node]]):
+                if i >= 0:
+                    where[i, col] += value
+
+        for e in c.netlist.elements:
+            if e.kind == "r" or e.kind == "g":
+                a, b = e.nodes[:2]
+                cp, cm = (a, b) if e.kind == "r" else e.nodes[2:]
+                g = 1 / e.value if e.kind == "r" else e.value
+                for node, sign in ((a, 1.0), (b, -1.0)):
+                    leave(node, self._node[cp], sign * g, G)
+                    leave(node, self._node[cm], -sign * g, G)
+            elif e.kind == "i":
+                for node, sign in ((e.nodes[0], 1.0), (e.nodes[1], -1.0)):
+                    for i in (self._rowmap[self._node[node]], self._crowmap[self._node[node]]):
+                        if i >= 0:
+                            i0[i] += sign * e.waveform[1]
+            elif e.kind == "l":
+                j = k + [x.name for x in c.inductors].index(e.name)
+                a, b = e.nodes
+                leave(a, j, 1.0, K)
+                leave(b, j, -1.0, K)
+                L[j, self._node[a]] += 1 / e.value
+                L[j, self._node[b]] -= 1 / e.value
+            elif e.kind == "f":
+                j = c.control_index(e.ref)
+                for node, sign in ((e.nodes[0], 1.0), (e.nodes[1], -1.0)):
+                    i = self._rowmap[self._node[node]]
+                    if i >= 0:
+                        A[i, j] += sign * e.value * self._control_sign[j]
+            elif e.kind in "dqm":
+                model = c.netlist.models[e.ref]
+                self._devices.append((model.type, {**DEFAULTS[model.type], **model.params},
+                                      [self._node[x] for x in e.nodes]))
+        self._G, self._K, self._i0, self._L = G, K, i0, L
+        self._A = A if c.controls else None
+        U = np.zeros((kc, p))
+        U[:k] = -c.B                                   # a slope input's capacitor current
+        self._U = U
+        self._linear = G @ self._P + K                # d(linear currents)/dx
+        term = c.output_terms
+        if term[0] == "node":
+            a, b = (self._node[x] if x else None for x in term[1:])
+            pick = (lambda M: M[a] - M[b]) if b is not None else (lambda M: M[a])
+            if np.any(pick(self._Q) != 0):
+                raise NetlistError(c.netlist.source, 0, f"output {c.output!r} follows the "
+                                   "model input directly; take a node behind an element")
+            self._h = (pick(self._P), float(pick(self._r)))
+
+    def _sum_rows(self, out, d_out):
+        """The state rows' currents with each F source's current added (``A``): the rows
+        of the supernodes, before ``C^-1``."""
+        k = len(self.circuit.state_nodes)
+        if self._A is None:
+            return out, d_out
+        return (out[..., :k] + out[..., k:] @ self._A.T,
+                d_out[..., :k, :] + np.einsum("ij,...jn->...in", self._A, d_out[..., k:, :]))
+
+    def _affine(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Every node's voltage (in ``self._node`` order) at states ``x``, inputs ``u``."""
+        c = self.circuit
+        v = {"0": 0.0, "gnd": 0.0}
+        v.update(zip(c.state_nodes, x[:len(c.state_nodes)], strict=True))
+        todo = list(c.fixed)
+        guard = 0
+        while todo:
+            guard += 1
+            node = todo.pop(0)
+            e, other, sign = c.fixed[node]
+            need = [other] + (list(e.nodes[2:4]) if e.kind == "e" else [])
+            if e.kind == "h":
+                need += self._control_nodes(e.ref)
+            if not all(x_ in v for x_ in need):
+                if guard > 10 * len(c.fixed) + 10:
+                    raise NetlistError(c.netlist.source, e.line, f"{e.name}: its controlling "
+                                       "nodes depend on it")
+                todo.append(node)
+                continue
+            if e.kind == "v" and e.name in c.inputs:
+                value = 0.0 if c.slope else u[c.inputs.index(e.name)]
+            elif e.kind == "v":
+                value = e.waveform[1]
+            elif e.kind == "e":                    # v(p) - v(m) = gain (v(cp) - v(cm))
+                value = e.value * (v[e.nodes[2]] - v[e.nodes[3]])
+            else:                                  # H: v(p) - v(m) = gain i(control)
+                value = e.value * self._control_current(e.ref, v, x)
+            v[node] = v[other] + sign * value
+        nodes = sorted(self._node, key=self._node.get)
+        return np.array([v[n] for n in nodes if n != "gnd"])
+
+    def _control_nodes(self, ref: str) -> list[str]:
+        """The nodes whose voltages set the current of source ``ref`` (an H's control)."""
+        vx, node, _ = self.circuit.controls[self.circuit.control_index(ref)]
+        out = [node]
+        for e in self.circuit.netlist.elements:
+            if e is not vx and node in e.nodes[:2] and e.kind in "rg":
+                out += list(e.nodes[:2] if e.kind == "r" else e.nodes[2:4])
+        return out
+
+    def _control_current(self, ref: str, v: dict, x: np.ndarray) -> float:
+        """SPICE's current through source ``ref`` from the linear branches (R, G, I, L) at
+        the node it fixes (:meth:`Circuit._controls`)."""
+        c = self.circuit
+        vx, node, sign = c.controls[c.control_index(ref)]
+        total = 0.0
+        for e in c.netlist.elements:
+            if e is vx or node not in e.nodes[:2]:
+                continue
+            way = 1.0 if e.nodes[0] == node else -1.0      # the branch current leaves node
+            if e.kind == "r":
+                total += way * (v[e.nodes[0]] - v[e.nodes[1]]) / e.value
+            elif e.kind == "g":
+                total += way * e.value * (v[e.nodes[2]] - v[e.nodes[3]])
+            elif e.kind == "i":
+                total += way * e.waveform[1]
+            elif e.kind == "l":
+                j = len(c.state_nodes) + [y.name for y in c.inductors].index(e.name)
+                total += way * x[j]
+        return sign * total
+
+    def f_and_jacobian(self, x, u, t: float = 0.0):
+        """``f = -C^-1 (currents leaving the state nodes)`` on the node states and
+        ``L^-1 (v(n1) - v(n2))`` on the inductor currents, and its Jacobian."""
+        out, d_out, V = self._currents(x, u)
+        c = self.circuit
+        k = len(c.state_nodes)
+        lead = out.shape[:-1]
+        dxdt = V @ self._L.T
+        dxdt[..., :k] = -out @ c.C_inv.T
+        J = np.broadcast_to(self._L @ self._P, lead + (self.n_states, self.n_states)).copy()
+        J[..., :k, :] = -np.einsum("ij,...jn->...in", c.C_inv, d_out)
+        return dxdt, J
+
+    def _currents(self, x, u):
+        """The currents leaving each state node (KCL), their Jacobian w.r.t. the states, and
+        every node's voltage."""
+        x = np.asarray(x, float)
+        u = np.asarray(u, float)
+        lead = np.broadcast_shapes(x.shape[:-1], u.shape[:-1])
+        V = x @ self._P.T + u @ self._Q.T + self._r          # every node's voltage
+        out = V @ self._G.T + x @ self._K.T + self._i0 + u @ self._U.T   # leaving each row
+        d_out = np.broadcast_to(self._linear, lead + self._linear.shape).copy()
+        for kind, p, idx in self._devices:
+            if kind == "d":
+                a, b = idx
+                cur, g = diode(V[..., a] - V[..., b], p)
+                terms = ((a, cur, g[..., None] * (self._P[a] - self._P[b])),)
+                terms += ((b, -cur, -terms[0][2]),)
+            elif kind in ("npn", "pnp"):
+                col, base, emi = idx
+                sign = -1.0 if kind == "pnp" else 1.0
+                aF, aR = p["alpha_f"], p["alpha_r"]
+                tc = ebers_moll.currents(sign * (V[..., base] - V[..., emi]),
+                                         sign * (V[..., base] - V[..., col]), p["ies"],
+                                         _ics(p), aF, aR, p["vt"])
+                dbe = sign * (self._P[base] - self._P[emi])
+                dbc = sign * (self._P[base] - self._P[col])
+                # a terminal current flows into the device: it leaves the node
+                terms = tuple((node, sign * cur, sign * (d_be[..., None] * dbe
+                                                         + d_bc[..., None] * dbc))
+                              for node, cur, d_be, d_bc in (
+                                  (col, tc.I_C, tc.dIC_be, tc.dIC_bc),
+                                  (emi, tc.I_E, tc.dIE_be, tc.dIE_bc),
+                                  (base, tc.I_B, tc.dIB_be, tc.dIB_bc)))
+            else:
+                d_, g_, s_, b_ = idx
+                cur, grad, _ = nmos(V[..., d_], V[..., g_], V[..., s_], V[..., b_], p)
+                dcur = (grad[..., 0, None] * self._P[d_] + grad[..., 1, None] * self._P[g_]
+                        + grad[..., 2, None] * self._P[s_] + grad[..., 3, None] * self._P[b_])
+                terms = ((d_, cur, dcur), (s_, -cur, -dcur))
+            for node, cur, dcur in terms:
+                for i in (self._rowmap[node], self._crowmap[node]):
+                    if i >= 0:
+                        out[..., i] += cur
+                        d_out[..., i, :] += dcur
+        out, d_out = self._sum_rows(out, d_out)
+        return out, d_out, V
+
+    def operating_point(self, x_guess: np.ndarray | None = None,
+                        u: np.ndarray | None = None) -> np.ndarray:
+        """DC point as SPICE finds it: Newton on KCL itself (the currents, not ``C^-1`` times
+        them, whose rows differ by the ratio of the largest to the smallest capacitor) with
+        inductors as shorts, each step limited to 0.1 V per node (junction limiting: a
+        transistor's exponential cannot overshoot); then the default polish on ``f``."""
+        u0 = np.zeros(self.n_inputs) if u is None else np.asarray(u, float)
+        x = np.zeros(self.n_states) if x_guess is None else np.array(x_guess, float)
+        k = len(self.circuit.state_nodes)
+        LP = self._L @ self._P
+        for _ in range(2000):
+            out, d_out, V = self._currents(x, u0)
+            g = np.concatenate([out, (V @ self._L.T)[k:]])
+            G = np.vstack([d_out, LP[k:]])
+            try:
+                step = np.linalg.solve(G, -g)
+            except np.linalg.LinAlgError:
+                break
+            big = np.abs(step[:k]).max(initial=0.0)
+            if big > 0.1:
+                step = step * (0.1 / big)
+            x = x + step
+            if big <= 1e-13 * max(1.0, np.abs(x[:k]).max(initial=0.0)):
+                break
+        return super().operating_point(x, u0)
+
+    def kernel(self):
+        """The compiled drift for :mod:`estim.numerics.radau_compiled`: the one netlist kernel of
+        :mod:`estim.numerics.kernels` (``_netlist``) with this circuit laid out as data."""
+        n, p = self.n_states, self.n_inputs
+        k, N = len(self.circuit.state_nodes), self._P.shape[0]
+        rows = []
+        for kind, prm, idx in self._devices:
+            nodes = [*idx, -1, -1, -1][:4]
+            if kind == "d":
+                values = [prm["is"], prm["n"] * DIODE_VT, prm["rs"], 0.0, 0.0]
+                code = 0.0
+            elif kind in ("npn", "pnp"):
+                values = [prm["ies"], _ics(prm),
+                          prm["alpha_f"], prm["alpha_r"], prm["vt"]]
+                code = 1.0 if kind == "npn" else 2.0
+            else:
+                values = [prm["u_t"], prm["v_t0"], prm["eta"], prm["i_0"] * prm["w_l"],
+                          float(prm.get("law", 0.0))]
+                code = 3.0
+            rows.append([code, *nodes, *values])
+        Y = np.vstack([self._linear, (self._L @ self._P)[k:]])
+        W = np.vstack([self._G @ self._Q + self._U, (self._L @ self._Q)[k:]])
+        c = np.concatenate([self._G @ self._r + self._i0, (self._L @ self._r)[k:]])
+        nc = len(self.circuit.controls)
+        A = self._A if self._A is not None else np.zeros((k, 0))
+        P = np.concatenate([[n, k, p, N, len(rows), nc], Y.ravel(), W.ravel(), c,
+                            self._P.ravel(), self._Q.ravel(), self._r,
+                            (-self.circuit.C_inv).ravel(), A.ravel(), self._rowmap,
+                            self._crowmap, np.ravel(rows)]).astype(float)
+        return kernels.NETLIST, P
+
+    def source_to_input(self, source: np.ndarray, dt: float) -> np.ndarray:
+        """Source voltages on each interval: the mean of the samples at its two ends (a
+        netlist's inputs are source voltages, as the hand-written diffamp_em's are), or, for
+        inputs that drive through capacitors, the slope of the piecewise-linear source (as
+        the hand-written MOSFET's, eq 3.26); with ``model.hold`` ``start`` or ``end`` the
+        sample at the interval's start (zero-order hold) or end (as the hand-written cco)."""
+        if self.circuit.slope:
+            return np.diff(source, axis=-2) / dt
+        if self.hold in ("start", "end"):
+            source = np.asarray(source)
+            return source[..., :-1, :] if self.hold == "start" else source[..., 1:, :]
+        return 0.5 * (source[..., 1:, :] + source[..., :-1, :])
+
+    def _device_derivatives(self, V: np.ndarray):
+        """At one point (node voltages ``V``): for each device its control nodes, and for each
+        terminal the node, the first and second derivatives of the current leaving that node
+        into the device w.r.t. the control nodes' voltages."""
+        for kind, p, idx in self._devices:
+            if kind == "d":
+                a, b = idx
+                cur, g = diode(V[a] - V[b], p)
+                y = cur + p["is"]
+                aa = p["n"] * DIODE_VT
+                dg = aa * g / (aa + p["rs"] * y) ** 2 if p["rs"] > 0 else g / aa
+                d1 = np.array([g, -g])
+                d2 = dg * np.array([[1.0, -1.0], [-1.0, 1.0]])
+                yield [a, b], [(a, d1, d2), (b, -d1, -d2)]
+            elif kind in ("npn", "pnp"):
+                c, b, e = idx
+                s = -1.0 if kind == "pnp" else 1.0
+                VT = p["vt"]
+                tc = ebers_moll.currents(s * (V[b] - V[e]), s * (V[b] - V[c]), p["ies"],
+                                         _ics(p), p["alpha_f"], p["alpha_r"], VT)
+                dbe, dbc = np.array([0.0, 1.0, -1.0]), np.array([-1.0, 1.0, 0.0])
+                be, bc = np.outer(dbe, dbe), np.outer(dbc, dbc)
+                # current into each terminal = s I(v_be, v_bc), v_.. = s (...); every term
+                # is linear in e^(v/V_T), so its second derivative is its first over V_T
+                terms = [(node, d_be * dbe + d_bc * dbc, s * (d_be * be + d_bc * bc) / VT)
+                         for node, d_be, d_bc in ((c, tc.dIC_be, tc.dIC_bc),
+                                                  (b, tc.dIB_be, tc.dIB_bc),
+                                                  (e, tc.dIE_be, tc.dIE_bc))]
+                yield [c, b, e], terms
+            else:
+                d_, g_, s_, b_ = idx
+                _, d1, d2 = nmos(V[d_], V[g_], V[s_], V[b_], p, second=True)
+                yield [d_, g_, s_, b_], [(d_, d1, d2), (s_, -d1, -d2)]
+
+    def _node_voltages(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        return self._P @ np.asarray(x, float) + self._Q @ np.asarray(u, float) + self._r
+
+    def input_jacobian(self, x: np.ndarray, u: np.ndarray, t: float = 0.0) -> np.ndarray:
+        """``df/du`` at one point, analytic (through the node map's input columns ``Q``)."""
+        k = len(self.circuit.state_nodes)
+        dcur = self._G @ self._Q + self._U
+        for nodes, terms in self._device_derivatives(self._node_voltages(x, u)):
+            for node, d1, _ in terms:
+                for i in (self._rowmap[node], self._crowmap[node]):
+                    if i >= 0:
+                        dcur[i] += d1 @ self._Q[nodes]
+        if self._A is not None:
+            dcur = dcur[:k] + self._A @ dcur[k:]
+        out = self._L @ self._Q
+        out[:k] = -self.circuit.C_inv @ dcur
+        return out
+
+    def hessian(self, x: np.ndarray, u: np.ndarray, t: float = 0.0) -> np.ndarray:
+        """Second derivatives of ``f`` w.r.t. ``z = [x, u]`` at one point, analytic: only the
+        devices are nonlinear, and each node voltage is affine in ``z`` (``V = P x + Q u +
+        r``), so ``d2f/dz2 = -C^-1 sum_devices Z^T (d2 i / dV2) Z`` with ``Z`` the rows of
+        ``[P Q]`` at the device's nodes. (The default second differences of ``f`` are at the
+        mercy of its rounding: with shunt capacitors of 1 pF, ``f`` sums currents into 1e9 V/s,
+        and the percent distortion moved by 3e-3 relative as the difference step changed.)"""
+        k, n = len(self.circuit.state_nodes), self.n_states
+        Z = np.hstack([self._P, self._Q])
+        m = Z.shape[1]
+        Hcur = np.zeros((k + len(self.circuit.controls), m, m))
+        for nodes, terms in self._device_derivatives(self._node_voltages(x, u)):
+            Zd = Z[nodes]
+            for node, _, d2 in terms:
+                for i in (self._rowmap[node], self._crowmap[node]):
+                    if i >= 0:
+                        Hcur[i] += Zd.T @ d2 @ Zd
+        if self._A is not None:
+            Hcur = Hcur[:k] + np.einsum("ij,jab->iab", self._A, Hcur[k:])
+        H = np.zeros((n, m, m))
+        H[:k] = -np.einsum("ij,jab->iab", self.circuit.C_inv, Hcur)
+        return H
+
+    @property
+    def thesis_map(self) -> np.ndarray | None:
+        """``M`` with ``x = M z + const`` from the quantities ``z`` of ``thesis_states`` (the
+        coordinates a filter's Q and P0 are written in, D77) to this model's states, or
+        None where the config names none (the netlist's own states, :attr:`state_scales`)."""
+        if not self.thesis_states:
+            return None
+        src, n = self.circuit.netlist.source, self.n_states
+        if len(self.thesis_states) != n:
+            raise NetlistError(src, 0, f"thesis_states: {len(self.thesis_states)} given, the "
+                               f"netlist has {n} states ({', '.join(self.state_names)})")
+        rows = []
+        for text in self.thesis_states:
+            term = self.circuit._output(text)
+            if term[0] == "i":
+                rows.append(np.eye(n)[term[1]])
+                continue
+            names = (self.circuit.state_nodes[term[1]], None if term[2] is None else
+                     self.circuit.state_nodes[term[2]]) if term[0] == "v" else term[1:]
+            a, b = (self._node[x] if x else None for x in names)
+            row, qrow = self._P[a].copy(), self._Q[a].copy()
+            if b is not None:
+                row, qrow = row - self._P[b], qrow - self._Q[b]
+            if np.any(qrow != 0):
+                raise NetlistError(src, 0, f"thesis_states: {text!r} follows the model input")
+            rows.append(row)
+        T = np.array(rows)
+        if np.linalg.matrix_rank(T) < n:
+            raise NetlistError(src, 0, "thesis_states: the quantities do not determine the "
+                               "states (one is a combination of the others)")
+        return np.linalg.inv(T)
+
+    def h(self, x):
+        term = self.circuit.output_terms
+        x = np.asarray(x, float)
+        if term[0] == "node":
+            return (x @ self._h[0] + self._h[1])[..., None]
+        if term[0] == "i" or term[2] is None:
+            return x[..., term[1]:term[1] + 1]
+        return (x[..., term[1]] - x[..., term[2]])[..., None]
+
+    def h_jacobian(self, x):
+        term = self.circuit.output_terms
+        x = np.asarray(x, float)
+        H = np.zeros(x.shape[:-1] + (1, self.n_states))
+        if term[0] == "node":
+            H[..., 0, :] = self._h[0]
+            return H
+        H[..., 0, term[1]] = 1.0
+        if term[0] == "v" and term[2] is not None:
+            H[..., 0, term[2]] = -1.0
+        return H
+
+
+def _with_params(text: str, lines: list[str]) -> str:
+    """The netlist ``text`` with its ``.param`` values replaced by those of ``lines``: all of
+    them on one line where the first ``.param`` was (after the title if there was none), the
+    other ``.param`` lines and their continuations blanked, so that every element keeps its
+    line number for the messages."""
+    rows = text.splitlines()
+    merged = ".param " + " ".join(line.split(None, 1)[1] for line in lines)
+    out, in_param, placed = [rows[0]], False, False
+    for r in rows[1:]:
+        s = r.strip().lower()
+        if s.startswith(".param") or (in_param and s.startswith("+")):
+            in_param = True
+            out.append("*" if placed else merged)
+            placed = True
+            continue
+        in_param = False
+        out.append(r)
+    if not placed:
+        out.insert(1, merged)
+    return "\n".join(out)
+
+
+def _ics(p: dict) -> float:
+    """The collector junction's saturation current: the ``.model``'s ``ics`` where given
+    (``ics=0``: no collector junction, the base-emitter-diode law of eqs 2.48-2.51), else by
+    reciprocity ``alpha_f ies / alpha_r`` (the thesis gives neither; docs/deviations.md D23)."""
+    return p["alpha_f"] * p["ies"] / p["alpha_r"] if p.get("ics") is None else p["ics"]
+
+
+def model_class(path: Path, inputs, output: str, name: str | None = None,
+                hold: str | None = None, thesis_states=None) -> type:
+    """The model class of the netlist at ``path`` (registered under ``name``, default
+    ``netlist:<stem>``); ``hold`` is how its value inputs hold a sample (``"mean"``, the
+    default, ``"start"`` or ``"end"``: :meth:`NetlistModel.source_to_input`);
+    ``thesis_states`` the quantities a filter's Q and P0 are written in
+    (:attr:`NetlistModel.thesis_map`)."""
+    inputs = (inputs,) if isinstance(inputs, str) else tuple(inputs)
+    circuit = Circuit(read(path), tuple(i.lower() for i in inputs), output)
+    name = name or f"netlist:{path.stem}"
+    cls = build_model_class(circuit, name)
+    cls.name = name
+    cls.hold = hold or "mean"
+    cls.thesis_states = tuple(thesis_states) if thesis_states else None
+    cls.origin = (str(path), inputs, output, name, hold, cls.thesis_states)
+    registry.MODELS.register(name, cls)
+    return cls
+
+
+def rebuild(origin: tuple) -> type:
+    """The model class of ``origin`` (:attr:`NetlistModel.origin`): how a netlist model class
+    crosses to a worker process (pickled as the arguments of :func:`model_class`)."""
+    known = registry.MODELS.get(origin[3])
+    if known is not None and getattr(known, "origin", None) == origin:
+        return known
+    return model_class(Path(origin[0]), *origin[1:])
