@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from estim.cli.group import fail
+from estim.config.overrides import OVERRIDE_KEY, parse_override
+from estim.errors import UsageError
 from estim.run import runner
 
 
@@ -35,3 +39,33 @@ def metrics_help() -> str:
         title = titles.pop() if len(titles) == 1 else "(each analysis' own table of that name)"
         lines.append(f"  {metric:<11} {title} [{', '.join(sorted(specs))}]")
     return "\n".join(lines)
+
+
+def split_arguments(args) -> tuple[list[Path], dict]:
+    """Config paths and ``key.path=value`` overrides, in any order on a command line; an
+    argument that names an existing file is a path even if it holds '='. A malformed
+    override is a ``UsageError``."""
+    paths, overrides = [], {}
+    for arg in args:
+        text_ = str(arg)
+        key = text_.partition("=")[0]
+        if "=" in text_ and not _exists(text_) and OVERRIDE_KEY.fullmatch(key.strip()):
+            k, v = parse_override(text_)
+            if k in overrides:
+                raise UsageError(f"{text_!r}: {k} is already set on this command line "
+                                 f"(to {overrides[k]!r}); give it once")
+            overrides[k] = v
+        elif "=" in text_ and not _exists(text_):
+            raise UsageError(f"{text_!r}: expected a config file or key.path=value (list "
+                             "items by index)")
+        else:
+            paths.append(Path(text_))
+    return paths, overrides
+
+
+def _exists(text_: str) -> bool:
+    """Whether ``text_`` names an existing file (a name too long to be a path does not)."""
+    try:
+        return Path(text_).exists()
+    except OSError:
+        return False

@@ -107,7 +107,7 @@ def run(configs, out, runs, seed, update_baseline, quick, jobs, max_work, execut
     An overridden run writes into scratch/ and its manifest records the overrides.
     Every setting a config may give: ``estim settings``.
     """
-    paths, given = config.split_arguments(configs)
+    paths, given = arguments.split_arguments(configs)
     if not paths:
         fail("no config file given")
     overrides = arguments.overrides(given, runs, seed)
@@ -160,7 +160,7 @@ def merge(configs, sources, out, runs, seed, quick, jobs, max_work, quiet) -> No
     """Gather the cells of 'estim run --shard K/N' runs from the --from folders and write
     the tables, computing any cell no shard made. CONFIGS, overrides, --runs and --seed as
     given to run: the cells are found by the config they were computed for."""
-    paths, given = config.split_arguments(configs)
+    paths, given = arguments.split_arguments(configs)
     if not paths:
         fail("no config file given (merge takes the config the shards ran)")
     overrides = arguments.overrides(given, runs, seed)
@@ -249,7 +249,7 @@ def check(configs, results, jobs, max_work, everything) -> None:
     stored config is then not required to match.
     """
     where = project.locate()
-    paths, overrides = config.split_arguments(configs)
+    paths, overrides = arguments.split_arguments(configs)
     exps = config.load_files(paths or where.configs(everything), overrides, max_work=max_work)
     if overrides:
         click.echo("check: with overrides " + ", ".join(f"{k}={v!r}" for k, v in
@@ -383,7 +383,7 @@ def spice(config, executable, reltol, fmt) -> None:
 @_max_work
 def validate(configs, max_work) -> None:
     """Check CONFIGS without running them (overrides KEY.PATH=VALUE as for run)."""
-    paths, overrides = config.split_arguments(configs)
+    paths, overrides = arguments.split_arguments(configs)
     if not paths:
         fail("no config file given")
     for exp in config.load_files(paths, overrides, max_work=max_work):

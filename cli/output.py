@@ -12,8 +12,8 @@ from typing import TypeVar
 
 import click
 
+from estim.config.experiment import Experiment
 from estim.config.registry import ANALYSES
-from estim.config.schema import Experiment
 from estim.experiments.base import Result
 from estim.run import runner, scheduler
 from estim.util import lazy

@@ -20,8 +20,8 @@ from pathlib import Path
 from typing import Any
 
 from estim import store
+from estim.config.experiment import Experiment
 from estim.config.loading import MAX_WORK, load_data, load_file
-from estim.config.schema import Experiment
 from estim.errors import UsageError
 from estim.experiments.base import Result
 from estim.reference import view

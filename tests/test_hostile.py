@@ -21,7 +21,8 @@ from click.testing import CliRunner
 
 from estim import store
 from estim.cli.main import main
-from estim.config.loading import apply_overrides, parse_data
+from estim.config.loading import parse_data
+from estim.config.overrides import apply_overrides
 from estim.config.registry import ANALYSES
 from estim.errors import ConfigError, ConfigErrors
 from estim.store import folders

@@ -1,4 +1,5 @@
-"""YAML text -> common keys -> the analysis' own schema and checks -> a frozen Experiment.
+"""Loading a config: YAML text (:mod:`.yaml_reader`) and overrides (:mod:`.overrides`) ->
+common keys -> the analysis' own schema and checks -> a frozen Experiment.
 
 Every error is a :class:`estim.errors.ConfigError` naming the file, the key path and what was
 expected, raised before any work starts. The common keys are declared here; everything else
@@ -15,21 +16,15 @@ import stat
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from estim import reference
 from estim.config import registry
+from estim.config.builders import recording_models
+from estim.config.experiment import Experiment
+from estim.config.overrides import OVERRIDE_KEY, apply_overrides, key_path
 from estim.config.registry import ANALYSES
-from estim.config.schema import (
-    Experiment,
-    list_of,
-    mapping,
-    number,
-    recording_models,
-    text,
-    validate,
-)
+from estim.config.schema import list_of, mapping, number, text, validate
 from estim.config.settings import Settings, block, setting, settings_class
+from estim.config.yaml_reader import load_yaml
 from estim.errors import ConfigError, ConfigErrors, UsageError
 
 
@@ -90,102 +85,10 @@ MAX_WORK = 50_000_000
 """Default bound on an experiment's work (state-samples, ``work_size`` of its analysis);
 ``--max-work`` raises it."""
 
+
 QUICK_WORK = 2**62
 """The work bound of the whole config behind a ``--quick`` run (whose own profile is held
 to ``--max-work``): the grid it does not run may be large, not unbounded."""
-
-MAX_ALIASES = 64
-MAX_DEPTH = 32
-MAX_VALUES = 100_000
-"""Bounds on a YAML config: anchors/aliases, nesting depth, values after alias expansion."""
-
-
-class _ConfigLoader(yaml.SafeLoader):
-    """PyYAML's safe loader that refuses duplicate keys and bounds aliases and depth."""
-
-    def __init__(self, stream) -> None:
-        super().__init__(stream)
-        self._aliases = 0
-        self._depth = 0
-
-    def compose_node(self, parent, index):
-        if self.check_event(yaml.AliasEvent):
-            self._aliases += 1
-            if self._aliases > MAX_ALIASES:
-                raise _Refused(self.peek_event().start_mark,
-                               f"more than {MAX_ALIASES} YAML aliases")
-        self._depth += 1
-        try:
-            if self._depth > MAX_DEPTH:
-                raise _Refused(self.peek_event().start_mark,
-                               f"nested deeper than {MAX_DEPTH} levels")
-            return super().compose_node(parent, index)
-        finally:
-            self._depth -= 1
-
-    def construct_mapping(self, node, deep=False):
-        seen = set()
-        for key_node, _ in node.value:
-            if key_node.tag == "tag:yaml.org,2002:merge":      # `<<: *base`: merged below,
-                continue                                      # its keys yield to explicit ones
-            key = self.construct_object(key_node, deep=True)
-            try:
-                duplicate = key in seen
-            except TypeError:
-                raise _Refused(key_node.start_mark, "a key that is not a plain value") from None
-            if duplicate:
-                raise _Refused(key_node.start_mark, f"duplicate key {key!r}")
-            seen.add(key)
-        return super().construct_mapping(node, deep=deep)
-
-
-_ConfigLoader.add_implicit_resolver(                  # YAML 1.2 floats: 1e-6, 2E3 (1.1: text)
-    "tag:yaml.org,2002:float",
-    re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
-    list("-+.0123456789"))
-
-
-class _Refused(Exception):
-    def __init__(self, mark, message: str) -> None:
-        super().__init__(message)
-        self.mark, self.message = mark, message
-
-
-def _count_values(data: Any, source: str) -> None:
-    """Refuse a config that expands (through aliases) to more than ``MAX_VALUES`` values."""
-    stack, seen = [data], 0
-    while stack:
-        node = stack.pop()
-        seen += 1
-        if seen > MAX_VALUES:
-            raise ConfigError(source, "", f"the config expands to more than {MAX_VALUES} "
-                              "values (YAML aliases?)")
-        if isinstance(node, dict):
-            stack.extend(node.keys())
-            stack.extend(node.values())
-        elif isinstance(node, list):
-            stack.extend(node)
-
-
-def load_yaml(text_: str, source: str) -> dict:
-    """The mapping in YAML ``text_``; every problem a one-line :class:`ConfigError`."""
-    try:
-        data = yaml.load(text_, Loader=_ConfigLoader)  # noqa: S506 - a SafeLoader subclass
-    except _Refused as exc:
-        raise ConfigError(source, f"line {exc.mark.line + 1}", exc.message) from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f"line {mark.line + 1}" if mark else ""
-        problem = str(getattr(exc, "problem", None) or exc).splitlines()[0]
-        raise ConfigError(source, where, f"not valid YAML ({problem})") from None
-    except RecursionError:
-        raise ConfigError(source, "", f"nested deeper than {MAX_DEPTH} levels") from None
-    if data is None:
-        raise ConfigError(source, "", "the file is empty")
-    if not isinstance(data, dict):
-        raise ConfigError(source, "", f"expected a mapping, got {type(data).__name__}")
-    _count_values(data, source)
-    return data
 
 
 def parse(text_: str, source: str, default_name: str, max_work: int = MAX_WORK) -> Experiment:
@@ -309,6 +212,8 @@ def load_plugins(plugins: Any, source: str) -> list[str]:
 
 
 MAX_SWEEP_CELLS = 10_000
+
+
 MAX_CHECKED_CELLS = 1_000      # grids up to this size have every combination validated up front
 
 
@@ -400,86 +305,6 @@ def _check_tolerances(spec: dict, module, source: str) -> None:
                               "is the number of runs")
 
 
-OVERRIDE_KEY = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(?:\[\d+\]|\.[A-Za-z0-9_]+)*")
-"""A dotted key path, list items by index (``estimators.1.settings.Q`` or
-``estimators[1].settings.Q``)."""
-
-
-def parse_override(text_: str) -> tuple[str, Any]:
-    """``key.path=value`` -> ``(key.path, value)`` with the value read as YAML (``1e-6``,
-    ``[1, 2]``, ``{a: 1}``, ``true``, ``null``). Raises ``UsageError`` for a bad one."""
-    key, sep, value = text_.partition("=")
-    key = key.strip()
-    if not sep or not OVERRIDE_KEY.fullmatch(key):
-        raise UsageError(f"{text_!r}: expected key.path=value (list items by index)")
-    try:
-        parsed = yaml.load(value, Loader=_ConfigLoader) if value.strip() else ""  # noqa: S506
-    except (yaml.YAMLError, _Refused) as exc:
-        first = str(exc).strip().splitlines()[0]
-        raise UsageError(f"{text_!r}: the value is not YAML ({first})") from None
-    return key_path(key), parsed
-
-
-def key_path(key: str) -> str:
-    """A key path with list items by dot: ``estimators[0].label`` -> ``estimators.0.label``."""
-    return re.sub(r"\[(\d+)\]", r".\1", key)
-
-
-def _shown(keys: list[str]) -> str:
-    """A key path as validation messages write it: ``estimators[1].settings``."""
-    out = ""
-    for key in keys:
-        out += f"[{key}]" if key.isdigit() else (f".{key}" if out else key)
-    return out
-
-
-def _refuse_swept(data: dict, overrides: dict[str, Any], source: str) -> None:
-    sweep = overrides.get("sweep")                  # a sweep given on the command line too
-    if not isinstance(sweep, dict):
-        sweep = data.get("sweep") if isinstance(data, dict) else None
-    if not isinstance(sweep, dict):
-        return
-    for key in sweep:
-        swept = key_path(str(key))
-        for given in overrides:
-            if given == "sweep":
-                continue
-            if given == swept or swept.startswith(given + ".") or given.startswith(swept + "."):
-                where = "sweep=... given here" if "sweep" in overrides else \
-                    "the config's sweep block"
-                raise ConfigError(source, given, f"{where} sets {key} in every cell; give "
-                                  f"the whole block instead, e.g. 'sweep={{{key}: [...]}}'")
-
-
-def apply_overrides(data: dict, overrides: dict[str, Any], source: str = "") -> dict:
-    """``data`` with each dotted key path of ``overrides`` set (list items by index). A path
-    through a missing list item or a plain value raises ``ConfigError`` naming it; a new
-    mapping key is set, so validation names it if it is not a key. A key that ``data``'s
-    ``sweep:`` block sets in every cell is refused (the sweep would overwrite it)."""
-    _refuse_swept(data, overrides, source)
-    data = copy.deepcopy(data)
-    for path, value in overrides.items():
-        keys = path.split(".")
-        shown = _shown(keys)
-        node: Any = data
-        for depth, key in enumerate(keys):
-            where = _shown(keys[:depth]) or "the top level"
-            if isinstance(node, list):
-                if not key.isdigit() or int(key) >= len(node):
-                    raise ConfigError(source, shown, f"{where} is a list of {len(node)}: "
-                                      f"expected an index from 0 to {len(node) - 1}, got {key!r}")
-                key = int(key)
-            elif not isinstance(node, dict):
-                raise ConfigError(source, shown, f"{where} is a value ({node!r}), not a mapping")
-            if depth == len(keys) - 1:
-                node[key] = value
-            elif isinstance(node, list):
-                node = node[key]
-            else:
-                node = node.setdefault(key, {})
-    return data
-
-
 MAX_CONFIG_BYTES = 1 << 20
 """Largest config file read."""
 
@@ -538,33 +363,3 @@ def load_files(paths, overrides: dict | None = None, max_work: int = MAX_WORK,
     if dupes:
         raise UsageError(f"two configs share the name {dupes[0]!r}")
     return exps
-
-
-def split_arguments(args) -> tuple[list[Path], dict]:
-    """Config paths and ``key.path=value`` overrides, in any order on a command line; an
-    argument that names an existing file is a path even if it holds '='. A malformed
-    override is a ``UsageError``."""
-    paths, overrides = [], {}
-    for arg in args:
-        text_ = str(arg)
-        key = text_.partition("=")[0]
-        if "=" in text_ and not _exists(text_) and OVERRIDE_KEY.fullmatch(key.strip()):
-            k, v = parse_override(text_)
-            if k in overrides:
-                raise UsageError(f"{text_!r}: {k} is already set on this command line "
-                                 f"(to {overrides[k]!r}); give it once")
-            overrides[k] = v
-        elif "=" in text_ and not _exists(text_):
-            raise UsageError(f"{text_!r}: expected a config file or key.path=value (list "
-                             "items by index)")
-        else:
-            paths.append(Path(text_))
-    return paths, overrides
-
-
-def _exists(text_: str) -> bool:
-    """Whether ``text_`` names an existing file (a name too long to be a path does not)."""
-    try:
-        return Path(text_).exists()
-    except OSError:
-        return False

@@ -1,4 +1,5 @@
-"""Config validation: checks of single values, nested schemas, and the frozen Experiment.
+"""Config validation: checks of single values and nested schemas (the Experiment a config
+becomes is in :mod:`.experiment`, the models and estimators built from it in :mod:`.builders`).
 
 A schema is a mapping ``key -> (spec, default)`` where ``spec`` is a check function (returns
 ``None`` or what was expected), a nested schema, or :func:`list_of` an item spec; ``REQUIRED``
@@ -8,26 +9,21 @@ the key path. Each analysis module declares its own schema with these pieces.
 
 from __future__ import annotations
 
-import dataclasses
 import difflib
 import math
 import re
 import reprlib
-from collections.abc import Iterator
-from contextlib import contextmanager
-from contextvars import ContextVar
-from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
-
-from estim.errors import ConfigError, ConfigErrors, ParameterError
+from estim.errors import ConfigError, ConfigErrors
 
 REQUIRED = object()
+
 
 PARAM_RANGE = 1e6
 """A model parameter may be at most this many times its default in magnitude (a parameter
 with default 0 at most ``MAX_VOLTS``): beyond, no circuit the models describe exists."""
+
 
 MAX_VOLTS = 1e3
 """Bound on every voltage and noise level of a config: far above any circuit here, far below
@@ -62,7 +58,11 @@ def integer(minimum: int = 1, maximum: int = 10**9):
 
 
 _SHOWN = reprlib.Repr()
+
+
 _SHOWN.maxstring, _SHOWN.maxother, _SHOWN.maxlist, _SHOWN.maxdict = 80, 80, 8, 8
+
+
 _SHOWN.maxlevel = 3
 
 
@@ -211,129 +211,3 @@ def _check(value: Any, spec: Any, source: str, path: str, errors: list) -> Any:
     if problem:
         raise ConfigError(source, path, f"expected {problem}, got {shown(value)}")
     return value
-
-
-_BUILT: ContextVar[dict | None] = ContextVar("estim_models_built", default=None)
-
-
-@contextmanager
-def recording_models() -> Iterator[dict]:
-    """Collect every model :func:`build_model` makes inside: ``{key path: {"name", "variant",
-    "params"}}`` with every parameter resolved (defaults and the variant's values), for the
-    manifest."""
-    token = _BUILT.set({})
-    try:
-        yield _BUILT.get()
-    finally:
-        _BUILT.reset(token)
-
-
-def build_model(model_cls, variant, params: dict, source: str, path: str):
-    """``model_cls(variant, **params)``, with each bad parameter named at ``path``; recorded
-    with every resolved parameter where :func:`recording_models` listens."""
-    fields = {f.name: f for f in dataclasses.fields(model_cls.Params)}
-    for key, value in params.items():
-        if key not in fields:
-            where = (" (a netlist model's parameters are its .param names)"
-                     if getattr(model_cls, "from_netlist", False) else "")
-            raise ConfigError(source, f"{path}.{key}",
-                              f"unknown parameter of {model_cls.name}; expected one of "
-                              f"{sorted(fields)}{where}")
-        default = fields[key].default
-        expected = type(default)
-        if expected is float:
-            limit = PARAM_RANGE * abs(default) if default else MAX_VOLTS
-            problem = number(minimum=-limit, maximum=limit)(value)
-            if problem:
-                raise ConfigError(source, f"{path}.{key}", f"expected {problem} (at most "
-                                  f"{PARAM_RANGE:g} times the default {default:g}), "
-                                  f"got {shown(value)}")
-        if expected is str and not isinstance(value, str):
-            raise ConfigError(source, f"{path}.{key}", f"expected a string, got {shown(value)}")
-    try:
-        model = model_cls(variant, **params)
-    except (ParameterError, ValueError, TypeError) as exc:
-        raise ConfigError(source, path, str(exc)) from None
-    built = _BUILT.get()
-    if built is not None:
-        entry = {"name": model_cls.name, "variant": model.variant,
-                 "params": dataclasses.asdict(model.params)}
-        key, n = path, 1
-        while key in built and built[key] != entry:      # the same path, another model
-            n += 1
-            key = f"{path} ({n})"
-        built[key] = entry
-    return model
-
-
-def operating_point(model, bias, source: str, path: str):
-    """The DC operating point of ``model`` with its sources held at ``bias``; a model whose
-    parameters give none is a config error at ``path``."""
-    held = np.broadcast_to(np.asarray(bias, float), (1, 2, model.n_inputs))
-    try:
-        with np.errstate(all="ignore"):
-            x = model.operating_point(u=model.source_to_input(held, 1.0)[0, 0])
-    except (RuntimeError, ValueError, ArithmeticError) as exc:
-        message = str(exc).splitlines()[0]
-        if not message.startswith(f"{model.name}:"):
-            message = f"{model.name}: {message}"
-        raise ConfigError(source, path, message) from None
-    if not np.all(np.isfinite(x)):
-        raise ConfigError(source, path, f"{model.name}: no finite DC operating point")
-    return x
-
-
-def build_estimator(est_cls, settings: dict, model, source: str, path: str):
-    """``est_cls`` with ``settings`` checked against its declared settings
-    (:mod:`estim.config.settings`: every default filled in) and against ``model``; a problem is a
-    ``ConfigError`` at the setting's key path (``estimators[0].settings.Q``)."""
-    checked = validate(settings, est_cls.schema(), source, path)
-    try:
-        est = est_cls(**checked)
-        est.validate(model)
-    except (ValueError, TypeError, OverflowError) as exc:
-        message = str(exc)
-        key, sep, rest = message.partition(": ")
-        if sep and key in checked:                      # "Q: not symmetric" -> settings.Q
-            raise ConfigError(source, f"{path}.{key}", rest) from None
-        raise ConfigError(source, path, message) from None
-    return est
-
-
-def check_interval(values: list, source: str, path: str) -> None:
-    """A ``[low, high]`` pair with ``low < high``."""
-    if len(values) != 2 or not values[0] < values[1]:
-        raise ConfigError(source, path,
-                          f"expected [low, high] with low < high, got {shown(values)}")
-
-
-def check_input_vector(values: list, model_cls, source: str, path: str) -> None:
-    """One value per model input."""
-    if len(values) != len(model_cls.input_names):
-        raise ConfigError(source, path, f"expected {len(model_cls.input_names)} values, one per "
-                          f"model input {list(model_cls.input_names)}")
-
-
-@dataclass(frozen=True, eq=False)
-class Experiment:
-    """A validated experiment.
-
-    ``spec`` is the resolved config with every default filled (what the manifest records),
-    ``config`` the same as the analysis' typed settings; ``plan`` holds what the analysis built from
-    it once at parse time (models, estimators), so no work unit rebuilds or re-validates them.
-    """
-
-    name: str
-    source: str
-    spec: dict
-    plan: Any = None
-    models: dict = field(default_factory=dict)
-    """Every model the config builds, by key path, with every parameter resolved (the
-    manifest records them)."""
-    config: Any = None
-    """The analysis' typed settings (its ``Config``, :mod:`estim.config.settings`), built
-    once from ``spec``: what the analysis, the runner and the estimators read."""
-
-    @property
-    def analysis(self) -> str:
-        return self.spec["analysis"]

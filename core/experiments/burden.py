@@ -31,18 +31,9 @@ import numpy as np
 
 from estim import reference
 from estim.config import registry
-from estim.config.schema import (
-    REQUIRED,
-    Experiment,
-    build_estimator,
-    build_model,
-    file_name,
-    integer,
-    list_of,
-    mapping,
-    number,
-    text,
-)
+from estim.config.builders import build_estimator, build_model
+from estim.config.experiment import Experiment
+from estim.config.schema import REQUIRED, file_name, integer, list_of, mapping, number, text
 from estim.config.settings import Settings, block, setting, settings_class
 from estim.errors import ConfigError
 from estim.estimators.kronecker_ekf import KroneckerEKF

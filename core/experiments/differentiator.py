@@ -22,7 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estim.config.schema import Experiment, file_name, integer, list_of, number, text
+from estim.config.experiment import Experiment
+from estim.config.schema import file_name, integer, list_of, number, text
 from estim.config.settings import Settings, block, setting, settings_class
 from estim.experiments.base import Quote, Result
 from estim.experiments.shared import claims, plots

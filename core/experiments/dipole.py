@@ -34,7 +34,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estim.config.schema import REQUIRED, Experiment, check_interval, integer, list_of, number, text
+from estim.config.builders import check_interval
+from estim.config.experiment import Experiment
+from estim.config.schema import REQUIRED, integer, list_of, number, text
 from estim.config.settings import Settings, block, blocks, setting, settings_class
 from estim.errors import ConfigError
 from estim.estimators.base import as_matrix

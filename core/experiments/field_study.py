@@ -17,7 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estim.config.schema import REQUIRED, Experiment, list_of, number, text
+from estim.config.experiment import Experiment
+from estim.config.schema import REQUIRED, list_of, number, text
 from estim.config.settings import Settings, block, settings_class
 from estim.config.settings import setting as declare
 from estim.errors import ConfigError

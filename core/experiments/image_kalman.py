@@ -26,7 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estim.config.schema import REQUIRED, Experiment, file_name, integer, list_of, number, text
+from estim.config.experiment import Experiment
+from estim.config.schema import REQUIRED, file_name, integer, list_of, number, text
 from estim.config.settings import Settings, block, setting, settings_class
 from estim.experiments.base import Quote, Result
 from estim.experiments.shared import claims, plots

@@ -12,7 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estim.config.schema import REQUIRED, Experiment, file_name, number
+from estim.config.experiment import Experiment
+from estim.config.schema import REQUIRED, file_name, number
 from estim.config.settings import Settings, block, blocks, setting, settings_class
 from estim.errors import ConfigError
 from estim.estimators import kalman_differentiator as kd

@@ -32,19 +32,16 @@ from typing import Any
 import numpy as np
 
 from estim.config import registry
+from estim.config.builders import build_estimator, build_model, check_interval, operating_point
+from estim.config.experiment import Experiment
 from estim.config.schema import (
     REQUIRED,
-    Experiment,
     boolean,
-    build_estimator,
-    build_model,
-    check_interval,
     file_name,
     integer,
     list_of,
     mapping,
     number,
-    operating_point,
     text,
 )
 from estim.config.settings import Settings, block, blocks, setting, settings_class

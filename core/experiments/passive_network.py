@@ -14,7 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estim.config.schema import REQUIRED, Experiment, file_name, integer, number, text
+from estim.config.experiment import Experiment
+from estim.config.schema import REQUIRED, file_name, integer, number, text
 from estim.config.settings import Settings, block, blocks, setting, settings_class
 from estim.estimators import passive_network as pn
 from estim.experiments.base import Quote, Result

@@ -27,18 +27,16 @@ import numpy as np
 
 from estim import reference
 from estim.config import registry
+from estim.config.builders import build_model, check_input_vector, operating_point
+from estim.config.experiment import Experiment
 from estim.config.schema import (
     MAX_VOLTS,
     REQUIRED,
-    Experiment,
-    build_model,
-    check_input_vector,
     file_name,
     integer,
     list_of,
     mapping,
     number,
-    operating_point,
     text,
 )
 from estim.config.settings import Settings, block, blocks, setting, settings_class

@@ -9,8 +9,8 @@ from concurrent.futures import Executor
 from pathlib import Path
 
 from estim import reference, store
+from estim.config.experiment import Experiment
 from estim.config.registry import ANALYSES
-from estim.config.schema import Experiment
 from estim.errors import ReferenceJoinError, UsageError
 from estim.run import compare, runner
 from estim.store import read_manifest, read_table

@@ -10,9 +10,10 @@ from concurrent.futures import Executor
 from pathlib import Path
 
 from estim import store
-from estim.config.loading import apply_overrides, parse_data
+from estim.config.experiment import Experiment
+from estim.config.loading import parse_data
+from estim.config.overrides import apply_overrides
 from estim.config.registry import ANALYSES
-from estim.config.schema import Experiment
 from estim.experiments.base import Result
 from estim.reference import SWEEP_PREFIX
 from estim.run import cells

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from estim.config import loading as config
-from estim.config.schema import Experiment
+from estim.config.experiment import Experiment
 from estim.experiments import estimation
 from estim.numerics.simulate import simulate
 

@@ -54,7 +54,7 @@ import numpy as np
 import pandas as pd
 
 from estim.config import loading as config
-from estim.config.schema import Experiment
+from estim.config.experiment import Experiment
 from estim.experiments import perturbation
 
 COLUMNS = ("percent_distortion", "thd_percent", "gain_db")

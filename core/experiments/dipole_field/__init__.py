@@ -34,7 +34,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from estim.config.schema import Experiment, check_interval
+from estim.config.builders import check_interval
+from estim.config.experiment import Experiment
 from estim.errors import ConfigError
 from estim.experiments.base import Quote, Result
 from estim.experiments.dipole import TABLE_IDS

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from estim.config.schema import Experiment
+from estim.config.experiment import Experiment
 from estim.experiments.dipole_field.config import EULER, FIT, KF, PLAIN, SOURCE_ONLY
 from estim.experiments.dipole_field.scoring import EulerRun, amplitude_fit, analytic_cartesian
 from estim.fields import etkf

@@ -34,15 +34,9 @@ import numpy as np
 
 from estim import reference
 from estim.config import registry
-from estim.config.schema import (
-    Experiment,
-    build_estimator,
-    build_model,
-    check_input_vector,
-    file_name,
-    operating_point,
-    validate,
-)
+from estim.config.builders import build_estimator, build_model, check_input_vector, operating_point
+from estim.config.experiment import Experiment
+from estim.config.schema import file_name, validate
 from estim.errors import ConfigError, UsageError
 from estim.estimators import kalman_differentiator
 from estim.experiments.base import Quote, Result

@@ -3,7 +3,7 @@ the batches the analysis simulated (:mod:`estim.experiments.estimation` chooses 
 
 from __future__ import annotations
 
-from estim.config.schema import Experiment
+from estim.config.experiment import Experiment
 from estim.experiments.shared import plots
 from estim.numerics import metrics
 

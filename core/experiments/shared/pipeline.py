@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from estim import reference
-from estim.config.schema import Experiment
+from estim.config.experiment import Experiment
 from estim.experiments.shared import claims, health
 from estim.numerics import metrics
 from estim.util import lazy

@@ -1,0 +1,108 @@
+"""Config text read as YAML, safely and within bounds: YAML 1.2 floats (``1e-6``), no
+duplicate keys, merge keys, and limits on aliases, depth and the number of values."""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+import yaml
+
+from estim.errors import ConfigError
+
+MAX_ALIASES = 64
+
+
+MAX_DEPTH = 32
+
+
+MAX_VALUES = 100_000
+"""Bounds on a YAML config: anchors/aliases, nesting depth, values after alias expansion."""
+
+
+class ConfigLoader(yaml.SafeLoader):
+    """PyYAML's safe loader that refuses duplicate keys and bounds aliases and depth."""
+
+    def __init__(self, stream) -> None:
+        super().__init__(stream)
+        self._aliases = 0
+        self._depth = 0
+
+    def compose_node(self, parent, index):
+        if self.check_event(yaml.AliasEvent):
+            self._aliases += 1
+            if self._aliases > MAX_ALIASES:
+                raise Refused(self.peek_event().start_mark,
+                               f"more than {MAX_ALIASES} YAML aliases")
+        self._depth += 1
+        try:
+            if self._depth > MAX_DEPTH:
+                raise Refused(self.peek_event().start_mark,
+                               f"nested deeper than {MAX_DEPTH} levels")
+            return super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
+
+    def construct_mapping(self, node, deep=False):
+        seen = set()
+        for key_node, _ in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge":      # `<<: *base`: merged below,
+                continue                                      # its keys yield to explicit ones
+            key = self.construct_object(key_node, deep=True)
+            try:
+                duplicate = key in seen
+            except TypeError:
+                raise Refused(key_node.start_mark, "a key that is not a plain value") from None
+            if duplicate:
+                raise Refused(key_node.start_mark, f"duplicate key {key!r}")
+            seen.add(key)
+        return super().construct_mapping(node, deep=deep)
+
+
+ConfigLoader.add_implicit_resolver(                  # YAML 1.2 floats: 1e-6, 2E3 (1.1: text)
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
+    list("-+.0123456789"))
+
+
+class Refused(Exception):
+    def __init__(self, mark, message: str) -> None:
+        super().__init__(message)
+        self.mark, self.message = mark, message
+
+
+def _count_values(data: Any, source: str) -> None:
+    """Refuse a config that expands (through aliases) to more than ``MAX_VALUES`` values."""
+    stack, seen = [data], 0
+    while stack:
+        node = stack.pop()
+        seen += 1
+        if seen > MAX_VALUES:
+            raise ConfigError(source, "", f"the config expands to more than {MAX_VALUES} "
+                              "values (YAML aliases?)")
+        if isinstance(node, dict):
+            stack.extend(node.keys())
+            stack.extend(node.values())
+        elif isinstance(node, list):
+            stack.extend(node)
+
+
+def load_yaml(text_: str, source: str) -> dict:
+    """The mapping in YAML ``text_``; every problem a one-line :class:`ConfigError`."""
+    try:
+        data = yaml.load(text_, Loader=ConfigLoader)  # noqa: S506 - a SafeLoader subclass
+    except Refused as exc:
+        raise ConfigError(source, f"line {exc.mark.line + 1}", exc.message) from None
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"line {mark.line + 1}" if mark else ""
+        problem = str(getattr(exc, "problem", None) or exc).splitlines()[0]
+        raise ConfigError(source, where, f"not valid YAML ({problem})") from None
+    except RecursionError:
+        raise ConfigError(source, "", f"nested deeper than {MAX_DEPTH} levels") from None
+    if data is None:
+        raise ConfigError(source, "", "the file is empty")
+    if not isinstance(data, dict):
+        raise ConfigError(source, "", f"expected a mapping, got {type(data).__name__}")
+    _count_values(data, source)
+    return data
