@@ -109,7 +109,7 @@ def tables_verdict(new: Path, stored: Path, config: str) -> str:
         return "identical"
     from estim import api, store
     from estim.config.registry import ANALYSES
-    from estim.run import compare
+    from estim.engine import compare
 
     exp = api.experiment(ROOT / config)
     tol, specs = exp.spec["check"]["tolerances"], ANALYSES[exp.analysis].TABLES

@@ -6,8 +6,8 @@ from pathlib import Path
 
 from estim.cli.group import fail
 from estim.config.overrides import OVERRIDE_KEY, parse_override
+from estim.engine import runner
 from estim.errors import UsageError
-from estim.run import runner
 
 
 def overrides(given: dict, runs: int | None, seed: int | None) -> dict:

@@ -22,12 +22,12 @@ from estim.cli.output import on_shared_pool, progress_lines, run_and_report, run
 from estim.config import loading as config
 from estim.config.loading import MAX_WORK
 from estim.config.registry import ANALYSES
+from estim.engine import check as checking
+from estim.engine import runner
+from estim.engine.executors import executor as executor_for
 from estim.errors import UsageError
 from estim.experiments.shared import tuning
 from estim.report import tables
-from estim.run import check as checking
-from estim.run import runner
-from estim.run.executors import executor as executor_for
 
 
 @click.group(cls=Group, context_settings={"help_option_names": ["-h", "--help"]})
@@ -339,7 +339,7 @@ def spice(config, executable, reltol, fmt) -> None:
     report the largest relative differences (DC point, every state and the output over the
     run, AC gain), each against its bar: holds, undecided (above it while ngspice's own last
     two answers differ by more) or fails; exit 1 if any fails."""
-    from estim.run import ngspice_check as compare
+    from estim.engine import ngspice_check as compare
     from estim.spice.ngspice import NgspiceError
 
     if executable is not None and not executable.strip():

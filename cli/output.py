@@ -14,8 +14,8 @@ import click
 
 from estim.config.experiment import Experiment
 from estim.config.registry import ANALYSES
+from estim.engine import runner, scheduler
 from estim.experiments.base import Result
-from estim.run import runner, scheduler
 from estim.util import lazy
 
 T = TypeVar("T")
@@ -71,7 +71,7 @@ class Progress:
 def run_and_report(exp: Experiment, folder: Path, jobs: int, quiet: bool,
                    overrides: dict | None = None, executor=None, resume: bool = True,
                    figure_format: str = "png") -> None:
-    """:func:`estim.run.runner.run_to_folder` with progress, then where the results went and the
+    """:func:`estim.engine.runner.run_to_folder` with progress, then where the results went and the
     analysis' summary (unless quiet)."""
     shown = Progress(exp, quiet)
     try:
@@ -114,7 +114,7 @@ def runs_alone(exp: Experiment) -> bool:
 def on_shared_pool(exps: list[Experiment], jobs: int, recorded: Path,
                    work: Callable[[Experiment, Executor], T]) -> Iterator[tuple[Experiment, T]]:
     """``work(exp, pool)`` for every config of ``exps``, up to ``jobs`` at once, their work
-    units on one pool of ``jobs`` processes (:mod:`estim.run.scheduler`), longest first by the
+    units on one pool of ``jobs`` processes (:mod:`estim.engine.scheduler`), longest first by the
     manifests in ``recorded``; yields ``(exp, value)`` as each finishes. Every lazily
     registered module is imported first (:func:`estim.util.lazy.import_all_now`)."""
     lazy.import_all_now()

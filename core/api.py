@@ -76,7 +76,7 @@ def run(config: str | Path | dict, overrides: dict | None = None, *, jobs: int =
     ``runs=3``, ``seed=7`` set the Monte Carlo runs and seed; any other key path as a
     keyword with ``__`` for ``.`` (``simulation__rtol=1e-6``) or in ``overrides``
     (``{"estimators.0.settings.Q": [...]}``). ``quick``: the analysis' quick profile."""
-    from estim.run import runner
+    from estim.engine import runner
 
     for name, value, least in (("jobs", jobs, 1), ("max_work", max_work, 1)):
         if isinstance(value, bool) or not isinstance(value, int) or value < least:

@@ -8,10 +8,10 @@ import yaml
 from click.testing import CliRunner
 
 from estim.cli.main import main
-from estim.config.loading import parse_data
+from estim.config.loading import parse_data, quick_data
 from estim.config.registry import ANALYSES
+from estim.engine import compare
 from estim.experiments.shared import claims
-from estim.run import compare
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = (sorted((ROOT / "configs").glob("*.yaml"))
@@ -24,8 +24,8 @@ def shipped(analysis: str) -> list[Path]:
 
 
 def tiny_of(path: Path) -> dict:
-    spec = yaml.safe_load(path.read_text())
-    return ANALYSES[spec.get("analysis") or "estimation"].tiny(spec)
+    return quick_data(parse_data(yaml.safe_load(path.read_text()), str(path), path.stem,
+                                 plan=False))
 
 
 def write(tmp_path: Path, spec: dict, name: str) -> Path:

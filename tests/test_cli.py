@@ -9,7 +9,7 @@ import yaml
 from click.testing import CliRunner
 
 from estim.cli.main import main
-from estim.config.loading import parse_override
+from estim.config.overrides import parse_override
 from estim.config.registry import ANALYSES
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -722,7 +722,7 @@ def test_vector_figures_are_deterministic(tmp_path, fmt, magic):
 
 
 def test_table_help_lists_every_metric_with_its_analyses():
-    from estim.run import runner
+    from estim.engine import runner
 
     text = CliRunner().invoke(main, ["table", "--help"]).output
     for metric, specs in runner.table_specs().items():

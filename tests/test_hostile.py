@@ -21,9 +21,8 @@ from click.testing import CliRunner
 
 from estim import store
 from estim.cli.main import main
-from estim.config.loading import parse_data
+from estim.config.loading import parse_data, quick_data
 from estim.config.overrides import apply_overrides
-from estim.config.registry import ANALYSES
 from estim.errors import ConfigError, ConfigErrors
 from estim.store import folders
 
@@ -450,8 +449,7 @@ def test_accepted_mutants_run_or_fail_in_one_line_without_silent_nan(tmp_path):
     _, accepted = fuzz(300, seed=9)
     rng = random.Random(3)
     for i, (name, spec, what) in enumerate(rng.sample(accepted, 6)):
-        module = ANALYSES[spec.get("analysis") or "estimation"]
-        spec = module.tiny(copy.deepcopy(spec))
+        spec = quick_data(parse_data(copy.deepcopy(spec), "t.yaml", "t", plan=False))
         spec["name"] = f"m{i}"
         path = tmp_path / f"m{i}.yaml"
         path.write_text(yaml.safe_dump(spec))
@@ -474,7 +472,8 @@ def test_accepted_mutants_run_or_fail_in_one_line_without_silent_nan(tmp_path):
 # ----- faults: a result folder is all old or all new -----------------------------------------
 
 def tiny_spec(name="tiny", runs=3, periods=2) -> dict:
-    spec = ANALYSES["estimation"].tiny(copy.deepcopy(CONFIGS["mosfet_saturation"]))
+    spec = quick_data(parse_data(copy.deepcopy(CONFIGS["mosfet_saturation"]), "t.yaml", "t",
+                                 plan=False))
     spec["name"] = name
     spec["monte_carlo"]["runs"] = runs
     spec["input"]["periods"] = periods

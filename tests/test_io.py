@@ -2,7 +2,7 @@ import pandas as pd
 import pytest
 
 from estim import store
-from estim.run import compare
+from estim.engine import compare
 from estim.store import folders
 
 

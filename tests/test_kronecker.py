@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import yaml
 
-from estim.config.loading import parse_data
+from estim.config.loading import parse_data, quick_data
 from estim.estimators.kf import KalmanFilter
 from estim.estimators.kronecker_ekf import KroneckerEKF
 from estim.estimators.wavelet_lms import WaveletLMS, regressors
@@ -221,7 +221,7 @@ def test_counted_multiplications_grow_as_the_code_does():
 
 def _tiny_table(columns, area):
     spec = yaml.safe_load(open("configs/kronecker_table_4_2.yaml"))
-    spec = analysis.tiny(copy.deepcopy(spec))
+    spec = quick_data(parse_data(copy.deepcopy(spec), "t.yaml", "t", plan=False))
     spec["geometry"]["columns"] = columns
     spec["geometry"]["area_scaled_caps"] = area
     spec["estimators"] = spec["estimators"][:2]
@@ -243,7 +243,7 @@ def test_burden_counts_equal_the_closed_forms_of_what_the_code_does():
     from estim.experiments import burden
 
     spec = yaml.safe_load(open("configs/kronecker_burden.yaml"))
-    spec = burden.tiny(copy.deepcopy(spec))
+    spec = quick_data(parse_data(copy.deepcopy(spec), "t.yaml", "t", plan=False))
     result = burden.run(parse_data(spec, "b.yaml", "b"))
     for name in ("burden_ekf", "burden_wt"):
         df = result.tables[name]

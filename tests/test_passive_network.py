@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from estim.config.loading import parse_data
+from estim.config.loading import parse_data, quick_data
 from estim.estimators import passive_network as pn
 from estim.experiments import passive_network as analysis
 
@@ -28,7 +28,7 @@ def test_eq19_with_u_equal_q_is_the_kalman_bucy_filter():
 
 def test_the_table_is_deterministic_under_its_seed():
     spec = yaml.safe_load(open("configs/passive_network.yaml"))
-    spec = analysis.tiny(copy.deepcopy(spec))
+    spec = quick_data(parse_data(copy.deepcopy(spec), "t.yaml", "t", plan=False))
     first = analysis.run(parse_data(copy.deepcopy(spec), "a.yaml", "a")).tables["errors"]
     second = analysis.run(parse_data(copy.deepcopy(spec), "a.yaml", "a")).tables["errors"]
     pd.testing.assert_frame_equal(first, second)

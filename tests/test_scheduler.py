@@ -1,4 +1,4 @@
-"""issue 27: several configs at once on one shared pool (estim.run.scheduler), longest first, an
+"""issue 27: several configs at once on one shared pool (estim.engine.scheduler), longest first, an
 analysis that times itself alone, and the same tables as one config after another."""
 
 import json
@@ -16,7 +16,7 @@ from estim.cli.main import main
 from estim.cli.output import longest_first
 from estim.config.loading import load_file
 from estim.config.registry import ANALYSES
-from estim.run import scheduler
+from estim.engine import scheduler
 from estim.util.workunits import execution, map_tasks
 
 

@@ -553,7 +553,7 @@ def test_netlist_configs_remake_the_hand_written_tables(hand, netlist):
 
     from estim import store
     from estim.config.loading import load_file
-    from estim.run import compare
+    from estim.engine import compare
 
     tol = load_file(ROOT / "configs" / f"{hand}.yaml").spec["check"]["tolerances"]
     spec = yaml.safe_load((ROOT / "configs" / "netlist" / f"{hand}.yaml").read_text())
@@ -616,7 +616,7 @@ def test_the_netlist_estimation_configs_remake_chapter_3(hand, netlist, ukf_gap)
     deviations), and its twin holds them as they are, for every filter."""
     from estim import store
     from estim.config.loading import load_file
-    from estim.run import compare
+    from estim.engine import compare
 
     tol = load_file(ROOT / "configs" / f"{hand}.yaml").spec["check"]["tolerances"]
     paired = ("difference", "difference_low", "difference_high")
@@ -669,7 +669,7 @@ def test_a_difference_above_its_bar_fails_unless_ngspice_disagrees_with_itself(
     from click.testing import CliRunner
 
     from estim.cli.main import main
-    from estim.run import ngspice_check as compare
+    from estim.engine import ngspice_check as compare
 
     def fake(exp, executable=None, reltol=1e-7):
         table = pd.DataFrame({"case": ["c", "c"], "check": ["transient", "transient"],
@@ -733,7 +733,7 @@ def test_estim_spice_holds_on_the_new_circuit():
     """Every case of configs/netlist/ce_amp_distortion.yaml within its bars (CI runs estim
     spice on every shipped netlist config)."""
     from estim.config.loading import load_file
-    from estim.run.ngspice_check import compare
+    from estim.engine.ngspice_check import compare
 
     table = compare(load_file(ROOT / "configs" / "netlist" / "ce_amp_distortion.yaml"))
     assert set(table["check"]) == {"dc", "transient", "ac"}
@@ -746,7 +746,7 @@ def test_a_small_swing_node_shows_ngspice_tolerance_not_a_disagreement():
     ngspice by a large fraction of its own swing, and that fraction shrinks as ngspice's
     reltol is tightened; against the circuit's node scale it is within the bar."""
     from estim.config.loading import load_file
-    from estim.run import ngspice_check as compare
+    from estim.engine import ngspice_check as compare
 
     exp = load_file(ROOT / "configs" / "netlist" / "mosfet_distortion.yaml")
     label, model, source, dt, frequency = compare.cases(exp)[5]        # row 6, 10 kHz
@@ -808,7 +808,7 @@ def test_a_netlist_with_subcircuits_agrees_with_ngspice():
     """circuits/mosfet_darlington.cir, whose elements come out of a subcircuit (x1.cgx, ...:
     renamed for ngspice, which reads an element's kind from its first letter), against
     ngspice on a noisy 1 kHz sine: every bar of estim spice holds."""
-    from estim.run import ngspice_check as compare
+    from estim.engine import ngspice_check as compare
 
     model = model_class(ROOT / "circuits" / "mosfet_darlington.cir", "VIN", "v(d2)",
                         name="netlist:test_darlington_ngspice")()
@@ -846,7 +846,7 @@ def test_current_controlled_and_floating_sources_agree_with_ngspice():
     with a value, the output at a node that follows a state) against ngspice, which
     implements F and H with branch currents (modified nodal analysis): every bar of estim
     spice holds on a noisy 1 kHz sine."""
-    from estim.run import ngspice_check as compare
+    from estim.engine import ngspice_check as compare
 
     model = model_class(_write(EVERY_SOURCE), "VIN", "v(k)",
                         name="netlist:test_sources_ngspice")()
@@ -868,7 +868,7 @@ def test_the_nmos_laws_agree_with_ngspice(law):
     at the saturation config's bias: every bar of estim spice holds on a noisy 1 kHz sine.
     Eq 3.13's polynomial has no DC point in this circuit (the filters start from the actual
     device's)."""
-    from estim.run import ngspice_check as compare
+    from estim.engine import ngspice_check as compare
 
     model = model_class(MOSFET, "VIN", "v(d)", name="netlist:test_laws_ngspice")(
         law=float(law), vin_bias=0.35)

@@ -29,3 +29,24 @@ class Experiment:
     @property
     def analysis(self) -> str:
         return self.spec["analysis"]
+
+    @property
+    def sweep(self) -> dict | None:
+        """The config's ``sweep:`` block (key path -> values), or ``None``."""
+        return self.spec.get("sweep") or None
+
+    @property
+    def tolerances(self) -> dict:
+        """``check.tolerances``: column -> how ``estim check`` compares it."""
+        return self.spec["check"]["tolerances"]
+
+    @property
+    def model_block(self) -> dict:
+        """The config's ``model`` block as given (a netlist's file, inputs and output too),
+        or an empty mapping."""
+        return self.spec.get("model") or {}
+
+    @property
+    def title(self) -> str:
+        """The config's title (figures), or its name."""
+        return self.spec["title"] or self.name

@@ -23,7 +23,7 @@ def _table(rows: list[tuple[str, ...]], head: tuple[str, ...]) -> str:
 
 
 def _model_rows(cls: type) -> list[tuple[str, str, str, str]]:
-    return [(f.name, repr(plain(f.default)), f.metadata.get("unit", "-"),
+    return [(f.name, repr(plain(f.default)), f.metadata.get("unit") or "-",
              f.metadata.get("doc", "")) for f in fields(cls.Params)]
 
 

@@ -13,6 +13,7 @@ import itertools
 import math
 import re
 import stat
+import weakref
 from pathlib import Path
 from typing import Any
 
@@ -30,7 +31,7 @@ from estim.errors import ConfigError, ConfigErrors, UsageError
 
 @settings_class
 class Tolerance(Settings):
-    """How ``estim check`` compares one column (:func:`estim.run.compare.compare_tables`); a cell
+    """How ``estim check`` compares one column (:func:`estim.engine.compare.compare_tables`); a cell
     passes when any criterion holds."""
 
     rtol: float = setting(0.0, number(minimum=0.0, maximum=1.0), doc="relative tolerance")
@@ -134,7 +135,8 @@ def _parse_checked(data: dict, sweep: Any, source: str, default_name: str, max_w
                               f"expected one of {sorted(model_cls.variants)}, got {variant!r}")
     module = ANALYSES[analysis]
     _check_table_ids(spec, module, source)
-    work = module.work_size(spec)
+    config = module.Config.build(spec)
+    work = module.work_size(config)
     if work > max_work:
         limit = (": too much for any run (--quick too checks the whole config, whose profile "
                  "it cuts)" if max_work >= QUICK_WORK else
@@ -143,14 +145,14 @@ def _parse_checked(data: dict, sweep: Any, source: str, default_name: str, max_w
                           f"state-samples{limit}")
     if not plan:
         return Experiment(name=spec["name"], source=source, spec=spec, plan=None, models={},
-                          config=module.Config.build(spec))
+                          config=config)
     with recording_models() as models:
-        prepared = module.prepare(spec, source)
+        prepared = module.prepare(config, source)
     _check_tolerances(spec, module, source)
     if sweep is not None:
         spec["sweep"] = _check_sweep(sweep, data, source, default_name, max_work, work)
     return Experiment(name=spec["name"], source=source, spec=spec, plan=prepared,
-                      models=models, config=module.Config.build(spec))
+                      models=models, config=config)
 
 
 def _wrong_analysis(exc: ConfigErrors, data: dict, analysis: str,
@@ -246,7 +248,7 @@ def _check_sweep(sweep: Any, data: dict, source: str, default_name: str, max_wor
                 raise ConfigError(source, f"sweep.{key}[{i}]",
                                   f"{exc.path}: {exc.message}" if exc.path else exc.message
                                   ) from None
-            scale += ANALYSES[cell.analysis].work_size(cell.spec) / max(work, 1)
+            scale += ANALYSES[cell.analysis].work_size(cell.config) / max(work, 1)
         if path in out:
             raise ConfigError(source, f"sweep.{key}", "the same key path as another sweep key")
         out[path] = values
@@ -309,6 +311,30 @@ MAX_CONFIG_BYTES = 1 << 20
 """Largest config file read."""
 
 
+_CELLS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def sweep_cells(exp: Experiment) -> list[tuple[dict, Experiment]]:
+    """The experiments of a ``sweep:`` block, each with its values (the product of the lists
+    in the order given, the last key fastest); ``[({}, exp)]`` without one. Every cell keeps
+    the config's seed: the cells share their random numbers, so their differences are the
+    swept values' own. Expanded once per experiment."""
+    sweep = exp.sweep
+    if not sweep:
+        return [({}, exp)]
+    if exp in _CELLS:
+        return _CELLS[exp]
+    base = {k: v for k, v in exp.spec.items() if k != "sweep"}
+    keys = list(sweep)
+    cells = []
+    for combo in itertools.product(*(sweep[k] for k in keys)):
+        values = dict(zip(keys, combo, strict=True))
+        cells.append((values, parse_data(apply_overrides(base, values, exp.source), exp.source,
+                                         exp.name, max_work=2**62)))
+    _CELLS[exp] = cells
+    return cells
+
+
 def load_file(path: Path, overrides: dict | None = None, max_work: int = MAX_WORK,
               quick: bool = False, plan: bool = True) -> Experiment:
     """Read and validate one config file (a regular file of at most 1 MiB of UTF-8) with
@@ -343,14 +369,20 @@ def load_data(data: dict, source: str, default_name: str, overrides: dict | None
     if overrides:
         data = apply_overrides(data, overrides, source)
     exp = parse_data(data, source, default_name, QUICK_WORK if quick else max_work, plan)
-    if quick:                          # the first cell of a sweep, shrunk: the grid's size is moot
-        spec = copy.deepcopy(exp.spec)
-        sweep = spec.pop("sweep", None)
-        if sweep:
-            spec = apply_overrides(spec, {k: v[0] for k, v in sweep.items()}, source)
-        small = ANALYSES[exp.analysis].tiny(spec)
-        exp = parse_data(small, f"{source} (--quick)", default_name, max_work, plan)
+    if quick:
+        exp = parse_data(quick_data(exp), f"{source} (--quick)", default_name, max_work, plan)
     return exp
+
+
+def quick_data(exp: Experiment) -> dict:
+    """The config of ``exp``'s quick profile (``--quick``): the first cell of a sweep (the
+    grid's size is moot), shrunk by the overrides its analysis' ``tiny`` gives."""
+    spec = {k: v for k, v in exp.spec.items() if k != "sweep"}
+    config = exp.config
+    if exp.sweep:
+        spec = apply_overrides(spec, {k: v[0] for k, v in exp.sweep.items()}, exp.source)
+        config = parse_data(spec, exp.source, exp.name, max_work=2**62, plan=False).config
+    return apply_overrides(spec, ANALYSES[exp.analysis].tiny(config), exp.source)
 
 
 def load_files(paths, overrides: dict | None = None, max_work: int = MAX_WORK,

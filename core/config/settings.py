@@ -130,6 +130,11 @@ class Settings:
             out[f.name] = value
         return out
 
+    def items(self) -> list[tuple[str, Any]]:
+        """``(name, value)`` of every declared setting, in the order declared (a block whose
+        settings are alike, such as an analysis' ``tables``, read as pairs)."""
+        return [(f.name, getattr(self, f.name)) for f in _declared(type(self))]
+
     def __post_init__(self) -> None:
         """Settings made in code are checked as a config's would be (``ValueError`` naming
         the setting), and nested mappings become their blocks."""

@@ -8,17 +8,18 @@ An analysis is a module registered by one line in :data:`estim.config.registry.A
 ``TABLES``      ``{metric: TableSpec}``: every table it writes, its columns and the key that
                 joins a row to the reference (thesis or paper) table
 ``Config``      its settings (:mod:`estim.config.settings`); ``SCHEMA = Config.schema()``
-``prepare(spec, source) -> Plan``   cross-checks beyond the schema (raising ``ConfigError``
+``prepare(config, source) -> Plan`` cross-checks beyond the schema (raising ``ConfigError``
                 with the key path) and the objects built once per experiment (models,
                 estimators) as the analysis' own typed ``Plan``; stored as
                 ``Experiment.plan``
 ``work_units(exp) -> int``          for progress reports
-``work_size(spec) -> int``          state-samples the run computes, bounded by ``--max-work``
+``work_size(config) -> int``        state-samples the run computes, bounded by ``--max-work``
 ``run(exp, jobs, on_done) -> Result``  tables (one DataFrame per metric) and figures
 ``summary(result) -> str``          what ``estim run`` prints after a run
-``tiny(spec) -> spec``              the experiment shrunk to seconds (contract tests)
+``tiny(config) -> overrides``      the experiment shrunk to seconds (``--quick``, the
+                                    contract tests), as key path -> value
 ``RUNS_ALONE``  optional, True for an analysis whose tables are timings: run with no other
-                config's work beside it (:mod:`estim.run.scheduler`)
+                config's work beside it (:mod:`estim.engine.scheduler`)
 """
 
 from __future__ import annotations

@@ -180,43 +180,45 @@ class Plan:
     wavelet: WaveletLMS
 
 
-def prepare(spec: dict, source: str) -> Plan:
-    model_cls = registry.MODELS[spec["model"]["name"]]
+def prepare(config: Config, source: str) -> Plan:
+    model_cls = registry.MODELS[config.model.name]
     if "stages" not in model_cls.Params.__dataclass_fields__:
         raise ConfigError(source, "model.name", f"{model_cls.name} has no 'stages' parameter: "
                           "the burden is measured on chains of stages (mosfet_darlington)")
     models = {}
-    for i, k in enumerate(spec["stages"]):
-        models[k] = build_model(model_cls, spec["model"]["variant"],
-                                {**spec["model"]["params"], "stages": k}, source,
+    for i, k in enumerate(config.stages):
+        models[k] = build_model(model_cls, config.model.variant,
+                                {**config.model.params, "stages": k}, source,
                                 f"stages[{i}]")
-    first = models[spec["stages"][0]]
-    ekf = build_estimator(KroneckerEKF, spec["ekf"], first, source, "ekf")
-    wavelet = build_estimator(WaveletLMS, spec["wavelet"], first, source, "wavelet")
-    spec["ekf"], spec["wavelet"] = ekf.to_spec(), wavelet.to_spec()   # every default
+    first = models[config.stages[0]]
+    ekf = build_estimator(KroneckerEKF, config.ekf, first, source, "ekf")
+    wavelet = build_estimator(WaveletLMS, config.wavelet, first, source, "wavelet")
+    for given, built in ((config.ekf, ekf), (config.wavelet, wavelet)):
+        given.clear()                   # every default, in the resolved config's own mapping
+        given.update(built.to_spec())
     if wavelet.measures is not None:
         raise ConfigError(source, "wavelet.measures", "the burden is counted with every state "
                           "measured (eq 4.16, H = I); leave measures unset")
-    for metric, table_id in spec["tables"].items():
+    for metric, table_id in config.tables.items():
         if not reference.has_reference_table(table_id):
             raise ConfigError(source, f"tables.{metric}", f"no reference table {table_id!r}")
     return Plan(models, ekf, wavelet)
 
 
 def work_units(exp: Experiment) -> int:
-    return len(exp.spec["stages"])
+    return len(exp.config.stages)
 
 
-def work_size(spec: dict) -> int:
-    t = spec["timing"]
-    return int(sum(4 * k * (t["steps"] + t["block_samples"]) * t["repeats"]
-                   for k in spec["stages"]))
+def work_size(config: Config) -> int:
+    t = config.timing
+    return int(sum(4 * k * (t.steps + t.block_samples) * t.repeats
+                   for k in config.stages))
 
 
-def tiny(spec: dict) -> dict:
-    spec["stages"] = spec.get("stages", [1, 2])[:2]
-    spec["timing"] = {**(spec.get("timing") or {}), "steps": 10, "repeats": 1, "block_samples": 64}
-    return spec
+def tiny(config: Config) -> dict:
+    """Seconds of work: two chains, ten steps, one repeat."""
+    return {"stages": config.stages[:2], "timing.steps": 10, "timing.repeats": 1,
+            "timing.block_samples": 64}
 
 
 def _measure_ekf(est: KroneckerEKF, model, steps: int, repeats: int, dt: float,
@@ -264,26 +266,26 @@ def _measure_wavelet(est: WaveletLMS, model, samples: int, repeats: int, dt: flo
 RUNS_ALONE = True
 """Its tables are timings: ``estim reproduce``, ``estim check`` and ``estim run`` of several
 configs run it after every other config, with no other work on the machine's cores
-(:mod:`estim.run.scheduler`)."""
+(:mod:`estim.engine.scheduler`)."""
 
 
 def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = None) -> Result:
     """Counts and timings, one chain length after another in this process (timings are
     ratios within one process; parallel jobs would disturb them)."""
-    spec, plan = exp.spec, exp.plan
-    t = spec["timing"]
-    ref_ekf = reference.reference_table(spec["tables"]["burden_ekf"])
-    ref_wt = reference.reference_table(spec["tables"]["burden_wt"])
+    config, plan = exp.config, exp.plan
+    t = config.timing
+    ref_ekf = reference.reference_table(config.tables.burden_ekf)
+    ref_wt = reference.reference_table(config.tables.burden_wt)
     ekf_rows, wt_rows, timing = [], [], []
-    for k in spec["stages"]:
+    for k in config.stages:
         model = plan.models[k]
         n, d, p = model.n_states, model.n_outputs, model.n_inputs
-        tally, sec, sec_batch = _measure_ekf(plan.ekf, model, t["steps"], t["repeats"],
-                                             t["sample_time_s"], t["batch_runs"])
+        tally, sec, sec_batch = _measure_ekf(plan.ekf, model, t.steps, t.repeats,
+                                             t.sample_time_s, t.batch_runs)
         common = {"n_x": n, "d": d, "p": p}
         for _, row in ref_ekf.iterrows():
             labels, ours = EKF_ROWS[int(row["row_order"])]
-            ekf_rows.append({"table_id": spec["tables"]["burden_ekf"],
+            ekf_rows.append({"table_id": config.tables.burden_ekf,
                              "row_order": int(row["row_order"]),
                              "row_label_printed": row["row_label_printed"], **common,
                              "multiplications_printed": row["multiplications_printed"],
@@ -294,23 +296,23 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
                              "counted": sum(tally.get(lab, 0.0) for lab in labels),
                              "ours_formula": ours, "ours_value": evaluate(ours, n, d, p)})
         order, label, labels, ours = JACOBIAN_ROW
-        ekf_rows.append({"table_id": spec["tables"]["burden_ekf"], "row_order": order,
+        ekf_rows.append({"table_id": config.tables.burden_ekf, "row_order": order,
                          "row_label_printed": label, **common, "multiplications_printed": "-",
                          "printed": float("nan"), "as_written_formula": "-",
                          "as_written": float("nan"), "counted": tally.get("jacobian", 0.0),
                          "ours_formula": ours, "ours_value": evaluate(ours, n, d, p)})
-        wt_tally, kept, wt_sec = _measure_wavelet(plan.wavelet, model, t["block_samples"],
-                                                  t["repeats"], t["sample_time_s"],
-                                                  t["fundamental_hz"])
+        wt_tally, kept, wt_sec = _measure_wavelet(plan.wavelet, model, t.block_samples,
+                                                  t.repeats, t.sample_time_s,
+                                                  t.fundamental_hz)
         epochs = plan.wavelet.epochs
         ours_wt = {1: ("regressors", "N*q*(q+1)/2"),
                    2: ("LMS", "epochs*K*(2*q*D + 2*D)")}
-        size = {"N": t["block_samples"], "q": n, "D": n + n * (n + 1) // 2 + p + 1, "K": kept,
+        size = {"N": t.block_samples, "q": n, "D": n + n * (n + 1) // 2 + p + 1, "K": kept,
                 "epochs": epochs, "taps": pywt.Wavelet(plan.wavelet.wavelet).dec_len,
-                "C": dwt_coefficients(t["block_samples"], plan.wavelet.wavelet)}
+                "C": dwt_coefficients(t.block_samples, plan.wavelet.wavelet)}
         for _, row in ref_wt.iterrows():
             label, ours = ours_wt[int(row["row_order"])]
-            wt_rows.append({"table_id": spec["tables"]["burden_wt"],
+            wt_rows.append({"table_id": config.tables.burden_wt,
                             "row_order": int(row["row_order"]),
                             "row_label_printed": row["row_label_printed"], **common,
                             "multiplications_printed": row["multiplications_printed"],
@@ -318,7 +320,7 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
                             "counted": wt_tally.get(label, 0.0), "ours_formula": ours,
                             "ours_value": evaluate(ours, n, d, p, **size),
                             "kept_coefficients": kept})
-        wt_rows.append({"table_id": spec["tables"]["burden_wt"], "row_order": 3,
+        wt_rows.append({"table_id": config.tables.burden_wt, "row_order": 3,
                         "row_label_printed": "wavelet transform (not printed)", **common,
                         "multiplications_printed": "-", "printed": float("nan"),
                         "counted": wt_tally.get("wavelet transform", 0.0),
@@ -327,12 +329,12 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
                         "kept_coefficients": kept})
         timing.append({"estimator": "Kronecker EKF", "n_x": n, "seconds_per_step": sec,
                        "counted_per_step": tally["total"]})
-        timing.append({"estimator": f"Kronecker EKF, {t['batch_runs']} runs batched (per run)",
+        timing.append({"estimator": f"Kronecker EKF, {t.batch_runs} runs batched (per run)",
                        "n_x": n, "seconds_per_step": sec_batch,
                        "counted_per_step": tally["total"]})
         timing.append({"estimator": "wavelet LMS (per sample of a block)", "n_x": n,
                        "seconds_per_step": wt_sec,
-                       "counted_per_step": wt_tally["total"] / t["block_samples"]})
+                       "counted_per_step": wt_tally["total"] / t.block_samples})
         if on_done:
             on_done()
     out = Result(tables={
@@ -350,7 +352,7 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
             WAVELET: claims.Losses([float(at["wavelet LMS (per sample of a block)"])])}))
     out.tables["claims"] = claims.table(cells, CLAIMS, "multiplications per sample",
                                          exact=True)
-    out.figures[spec["figures"]["name"]] = plots.burden(out.tables["timing"],
+    out.figures[config.figures.name] = plots.burden(out.tables["timing"],
                                                         out.tables["slopes"])
     return out
 

@@ -98,22 +98,21 @@ class Plan:
     config: Config
 
 
-def prepare(spec: dict, source: str) -> Plan:
-    return Plan(Config.build(spec))
+def prepare(config: Config, source: str) -> Plan:
+    return Plan(config)
 
 
 def work_units(exp: Experiment) -> int:
     return 1
 
 
-def work_size(spec: dict) -> int:
-    return len(spec["bands"]) * len(spec["thresholds_db"]) * (spec["max_n"] + spec["max_taps"])
+def work_size(config: Config) -> int:
+    return len(config.bands) * len(config.thresholds_db) * (config.max_n + config.max_taps)
 
 
-def tiny(spec: dict) -> dict:
-    spec["bands"] = spec.get("bands", [0.95])[:1]
-    spec["thresholds_db"] = spec.get("thresholds_db", [-40.0])[:1]
-    return spec
+def tiny(config: Config) -> dict:
+    """Seconds of work: one band, one threshold."""
+    return {"bands": config.bands[:1], "thresholds_db": config.thresholds_db[:1]}
 
 
 def _re_minimax(taps: int, omega_p: float) -> float:
@@ -127,17 +126,17 @@ def _re_maximally_linear(order: int, omega_p: float) -> float:
 
 
 def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = None) -> Result:
-    spec = exp.spec
+    config = exp.config
     rows = []
-    for omega_p in spec["bands"]:
-        for threshold in spec["thresholds_db"]:
-            n2 = fd.order_maximally_linear(omega_p, threshold, spec["max_n"])
-            n1 = fd.order_minimax(omega_p, threshold, spec["max_taps"])
+    for omega_p in config.bands:
+        for threshold in config.thresholds_db:
+            n2 = fd.order_maximally_linear(omega_p, threshold, config.max_n)
+            n1 = fd.order_minimax(omega_p, threshold, config.max_taps)
             n3 = fd.order_minimax_band(omega_p, threshold)
-            rows.append({"table_id": spec["tables"]["orders"], "omega_p": omega_p,
+            rows.append({"table_id": config.tables.orders, "omega_p": omega_p,
                          "threshold_db": threshold,
                          "n1": float(n1) if n1 else float("inf"),
-                         "n1_re_db": _re_minimax(n1 or spec["max_taps"], omega_p),
+                         "n1_re_db": _re_minimax(n1 or config.max_taps, omega_p),
                          "n2": float(n2) if n2 else float("inf"),
                          "n2_re_db": _re_maximally_linear(n2, omega_p) if n2 else float("nan"),
                          "n_band_minimax": float(n3) if n3 else float("inf"),
@@ -145,7 +144,7 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
                                                   else float("nan"))})
     w = np.linspace(0.005, 1.0, 2000, endpoint=False) * np.pi
     curves = {n: 20 * np.log10(np.abs(fd.response(n, w) - w) / w) for n in
-              spec["figures"]["orders_n"]}
+              config.figures.orders_n}
     figure = plots.relative_error_curves(w / np.pi, curves)
     if on_done:
         on_done()
@@ -154,7 +153,7 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
                BAND: claims.Losses([row["n_band_minimax"]])}) for row in rows]
     return Result(tables={"orders": pd.DataFrame(rows)[TABLES["orders"].columns],
                           "claims": claims.table(cells, CLAIMS, "order", exact=True)},
-                  figures={spec["figures"]["name"]: figure})
+                  figures={config.figures.name: figure})
 
 
 def summary(result: Result) -> str:

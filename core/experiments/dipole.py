@@ -189,20 +189,20 @@ class Plan:
     dipole: Dipole
 
 
-def prepare(spec: dict, source: str) -> Plan:
+def prepare(config: Config, source: str) -> Plan:
     zones = []
-    for i, z in enumerate(spec["zones"]):
+    for i, z in enumerate(config.zones):
         for key in ("r", "theta_deg"):
-            check_interval(z[key], source, f"zones[{i}].{key}")
-        if z["name"] in [other.name for other in zones]:
-            raise ConfigError(source, f"zones[{i}].name", f"repeats {z['name']!r}")
-        zones.append(Zone(z["name"], np.linspace(*z["r"], z["points_r"]),
-                          np.radians(np.linspace(*z["theta_deg"], z["points_theta"]))))
-    s = spec["source"]
-    dipole = Dipole(I0=s["I0_dl"], dl=1.0, omega=2 * np.pi * s["frequency"], c=s["c"],
-                    mu0=s["mu0"])
+            check_interval(getattr(z, key), source, f"zones[{i}].{key}")
+        if z.name in [other.name for other in zones]:
+            raise ConfigError(source, f"zones[{i}].name", f"repeats {z.name!r}")
+        zones.append(Zone(z.name, np.linspace(*z.r, z.points_r),
+                          np.radians(np.linspace(*z.theta_deg, z.points_theta))))
+    s = config.source
+    dipole = Dipole(I0=s.I0_dl, dl=1.0, omega=2 * np.pi * s.frequency, c=s.c,
+                    mu0=s.mu0)
     for key in ("Q", "P0"):
-        if len(spec["kf"][key]) != 4:
+        if len(getattr(config.kf, key)) != 4:
             raise ConfigError(source, f"kf.{key}", "expected 4 diagonal entries for "
                               "[A, V, Phi, Psi] (eq 5.42)")
     return Plan(tuple(zones), dipole)
@@ -218,32 +218,31 @@ class Point:
 
 
 def sweep(exp: Experiment) -> list[Point]:
-    noise = exp.spec["noise"]
+    noise = exp.config.noise
     return [Point((z, r, i), z, reading, float(level), signals.noise_sigma(level, reading))
             for z in range(len(exp.plan.zones))
-            for r, reading in enumerate(noise["readings"])
-            for i, level in enumerate(noise["source_levels"])]
+            for r, reading in enumerate(noise.readings)
+            for i, level in enumerate(noise.source_levels)]
 
 
 def work_units(exp: Experiment) -> int:
     return len(sweep(exp))
 
 
-def work_size(spec: dict) -> int:
-    t = spec["time"]
-    points = sum(z.get("points_r", 5) * z.get("points_theta", 5) for z in spec["zones"])
-    return int(spec["monte_carlo"]["runs"] * points * 12 * t["samples_per_period"]
-               * t["periods"] * len(spec["noise"]["source_levels"])
-               * len(spec["noise"].get("readings") or ["sigma", "variance"]))
+def work_size(config: Config) -> int:
+    t = config.time
+    points = sum(z.points_r * z.points_theta for z in config.zones)
+    return int(config.monte_carlo.runs * points * 12 * t.samples_per_period
+               * t.periods * len(config.noise.source_levels)
+               * len(config.noise.readings or ["sigma", "variance"]))
 
 
-def tiny(spec: dict) -> dict:
-    spec["noise"].update(source_levels=spec["noise"]["source_levels"][:1],
-                         readings=(spec["noise"].get("readings") or ["sigma"])[:1])
-    spec["zones"] = spec["zones"][:1]
-    spec["time"] = {**(spec.get("time") or {}), "periods": 1}
-    spec["monte_carlo"]["runs"] = 3
-    return spec
+def tiny(config: Config) -> dict:
+    """Seconds of work: one noise level and reading, one zone, one period, 3 runs."""
+    return {"noise.source_levels": config.noise.source_levels[:1],
+            "noise.readings": (config.noise.readings or ["sigma"])[:1],
+            "zones": [z.to_spec() for z in config.zones[:1]], "time.periods": 1,
+            "monte_carlo.runs": 3}
 
 
 POTENTIALS = ("A_r", "A_theta", "Phi")
@@ -276,7 +275,7 @@ def fields(zone: Zone, mu0: float, A_r, A_theta, Phi, V_r, V_theta) -> dict[str,
             "H_phi": (d_rAth_dr - dAr_dth) / (mu0 * r)}
 
 
-def kf_per_point(truth: dict, z: np.ndarray, dt: float, spec: dict,
+def kf_per_point(truth: dict, z: np.ndarray, dt: float, config: Config,
                  measured: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """The per-point KF of eqs 5.45-5.47 on every series: ``z`` the measured potentials
     ``(series, steps, 3)``, ``truth`` the analytic potentials and rates ``(series, steps+1, 3)``
@@ -289,11 +288,11 @@ def kf_per_point(truth: dict, z: np.ndarray, dt: float, spec: dict,
     F = np.kron(np.eye(3), F1)
     x_all = np.stack([q, rate], axis=-1).reshape(series, steps + 1, 6)
     Z = x_all[:, 1:] - x_all[:, :-1] @ F.T           # the analytic solution fits exactly
-    Qd, P0d = spec["kf"]["Q"], spec["kf"]["P0"]
+    Qd, P0d = config.kf.Q, config.kf.P0
     Q = np.diag([Qd[0], Qd[1], Qd[0], Qd[1], Qd[2], Qd[3]])
     P0 = np.diag([P0d[0], P0d[1], P0d[0], P0d[1], P0d[2], P0d[3]])
     C = np.kron(np.eye(3), [[1.0, 0.0]])
-    kf = KalmanFilter(A=F, B=np.eye(6), C=C, Q=Q, R=as_matrix(spec["kf"]["R"], 3, "R"), P0=P0)
+    kf = KalmanFilter(A=F, B=np.eye(6), C=C, Q=Q, R=as_matrix(config.kf.R, 3, "R"), P0=P0)
     measured = np.ones(series, bool) if measured is None else np.asarray(measured, bool)
     x_hat = np.empty((series, steps, 6))
     if measured.any():
@@ -308,20 +307,21 @@ def kf_per_point(truth: dict, z: np.ndarray, dt: float, spec: dict,
     return {"q": x_hat[..., 0], "rate": x_hat[..., 1]}
 
 
-def sinusoid_rls(z: np.ndarray, t: np.ndarray, omega: float, settings: dict) -> np.ndarray:
+def sinusoid_rls(z: np.ndarray, t: np.ndarray, omega: float,
+                 settings: RLSSettings) -> np.ndarray:
     """The thesis-style RLS baseline of Chapter 5 (its formulation is not printed): the
     project's RLS with fixed forgetting on each series of ``z (series, steps, m)``, its
     regressor two taps of ``cos(omega t)`` (``t`` the ``steps`` sample times) and a bias: a
     sinusoid of the known frequency and an offset. Returns the smoothed series."""
-    rls = RecursiveLeastSquares(order=2, forgetting="fixed", lambda0=settings["lambda0"],
-                                delta=settings["delta"])
+    rls = RecursiveLeastSquares(order=2, forgetting="fixed", lambda0=settings.lambda0,
+                                delta=settings.delta)
     return rls.run(None, z, np.cos(omega * t)[:, None]).y_hat
 
 
 def rls_per_point(z: np.ndarray, t: np.ndarray, omega: float, dt: float,
-                  spec: dict) -> dict[str, np.ndarray]:
+                  config: Config) -> dict[str, np.ndarray]:
     """:func:`sinusoid_rls` on each measured potential; rates by a backward difference."""
-    smooth = sinusoid_rls(z, t[:-1], omega, spec["rls"])
+    smooth = sinusoid_rls(z, t[:-1], omega, config.rls)
     return {"q": smooth, "rate": _backward_rate(smooth, dt)}
 
 
@@ -335,11 +335,11 @@ def _backward_rate(q: np.ndarray, dt: float) -> np.ndarray:
 def run_point(exp: Experiment, point: Point) -> tuple[list[dict], list]:
     """Rows of one zone, noise reading and level: every estimator, component and part; and
     per component and part its cell's per-run losses for the claims."""
-    spec, plan = exp.spec, exp.plan
+    config, plan = exp.config, exp.plan
     zone, dipole = plan.zones[point.zone], plan.dipole
-    runs = spec["monte_carlo"]["runs"]
-    dt = 1.0 / (spec["source"]["frequency"] * spec["time"]["samples_per_period"])
-    steps = spec["time"]["samples_per_period"] * spec["time"]["periods"]
+    runs = config.monte_carlo.runs
+    dt = 1.0 / (config.source.frequency * config.time.samples_per_period)
+    steps = config.time.samples_per_period * config.time.periods
     t = np.arange(steps + 1) * dt
     rng = exp.config.monte_carlo.rng(*point.key)
     exact = analytic(dipole, zone, t)
@@ -351,23 +351,23 @@ def run_point(exp: Experiment, point: Point) -> tuple[list[dict], list]:
                      for p in POTENTIALS], -1)
     q, rate = (a.reshape(-1, steps + 1, 3) for a in (q, rate))
     # the source noise enters the rates (T c^2 w, eq 5.42's B^(3)) and accumulates
-    c2dt = spec["source"]["c"] ** 2 * dt
+    c2dt = config.source.c ** 2 * dt
     kick = c2dt * signals.gaussian(rng, point.sigma, (q.shape[0], steps, 3))
     drift_rate = np.zeros_like(rate)
     drift_rate[:, 1:] = np.cumsum(kick, axis=1)
     drift_q = np.zeros_like(q)
     drift_q[:, 1:] = dt * np.cumsum(drift_rate[:, :-1], axis=1)
     actual_q = q + drift_q
-    z = actual_q[:, 1:] + signals.gaussian(rng, spec["noise"]["measurement_sigma"],
+    z = actual_q[:, 1:] + signals.gaussian(rng, config.noise.measurement_sigma,
                                            actual_q[:, 1:].shape)
     estimates = {
-        KF: kf_per_point({"q": q, "rate": rate}, z, dt, spec),
-        RLS: rls_per_point(z, t, dipole.omega, dt, spec),
+        KF: kf_per_point({"q": q, "rate": rate}, z, dt, config),
+        RLS: rls_per_point(z, t, dipole.omega, dt, config),
         "measurement": {"q": z, "rate": _backward_rate(z, dt)},
         "exact potentials": {"q": q[:, 1:], "rate": rate[:, 1:]},
     }
     truth_fields = {c: exact[c][..., 1:] for c in COMPONENTS}
-    mu0 = spec["source"]["mu0"]
+    mu0 = config.source.mu0
     rows, losses = [], {}
     for label, est in estimates.items():
         grid = [a.reshape(runs, 2, nr, nth, steps, 3) for a in (est["q"], est["rate"])]
@@ -410,7 +410,7 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     points = sweep(exp)
     done = map_tasks(_run_point_args, [(exp, p) for p in points], jobs, on_done)
     df = pd.DataFrame([row for part, _ in done for row in part])
-    levels = [float(v) for v in exp.spec["noise"]["source_levels"]]
+    levels = [float(v) for v in exp.config.noise.source_levels]
     df.insert(1, "s_no", [_s_no(levels, v) for v in df["noise_param"]])
     df = df[TABLES["rmse"].columns].reset_index(drop=True)
     table = claims.table([c for _, cells in done for c in cells], CLAIMS, "RMSE")

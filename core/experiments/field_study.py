@@ -11,7 +11,7 @@ field, D59). A figure shows the relative RMSE of the real part against the value
 
 from __future__ import annotations
 
-import copy
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -77,56 +77,58 @@ class Plan:
     experiments: tuple
 
 
-def _with(spec: dict, path: str, value) -> dict:
-    out = copy.deepcopy(spec)
-    out.pop("study", None)
+def _with(config: Config, path: str, value) -> field.Config:
+    """The ``dipole_field`` config of one value of the study: ``config`` without its study
+    block, with the studied setting (``block.key``) set to ``value``."""
     head, key = path.split(".")
-    out[head][key] = SETTINGS[path](value)
-    return out
+    values = {f.name: getattr(config, f.name) for f in dataclasses.fields(field.Config)}
+    values[head] = dataclasses.replace(values[head], **{key: SETTINGS[path](value)})
+    return field.Config(**values)
 
 
-def prepare(spec: dict, source: str) -> Plan:
-    study = spec["study"]
-    if not study["values"]:
+def prepare(config: Config, source: str) -> Plan:
+    study = config.study
+    if not study.values:
         raise ConfigError(source, "study.values", "expected at least one value")
     exps = []
-    for i, value in enumerate(study["values"]):
-        kind = SETTINGS[study["setting"]]
+    for i, value in enumerate(study.values):
+        kind = SETTINGS[study.setting]
         if kind is int and value != int(value):
             raise ConfigError(source, f"study.values[{i}]", f"expected a whole number for "
-                              f"{study['setting']}")
-        one = _with(spec, study["setting"], value)
+                              f"{study.setting}")
         try:
+            one = _with(config, study.setting, value)
             plan = field.prepare(one, source)
         except ConfigError as e:
-            raise ConfigError(source, f"study.values[{i}]", f"{study['setting']} = {value:g}: "
+            raise ConfigError(source, f"study.values[{i}]", f"{study.setting} = {value:g}: "
                               f"{e.path}: {e.message}") from None
-        exps.append(Experiment(name=spec["name"], source=source, spec=one, plan=plan,
-                               config=field.Config.build(one)))
+        except ValueError as e:             # the setting's own check (Settings.__post_init__)
+            raise ConfigError(source, f"study.values[{i}]", f"{study.setting} = {value:g}: "
+                              f"{e}") from None
+        exps.append(Experiment(name=f"{study.setting}={value:g}", source=source,
+                               spec=one.to_spec(), plan=plan, config=one))
     return Plan(experiments=tuple(exps))
 
 
-def work_size(spec: dict) -> int:
-    return sum(field.work_size(_with(spec, spec["study"]["setting"], v))
-               for v in spec["study"]["values"])
+def work_size(config: Config) -> int:
+    return sum(field.work_size(_with(config, config.study.setting, v))
+               for v in config.study.values)
 
 
 def _tasks(exp: Experiment) -> list[tuple]:
     return [(v, s, r) for v in range(len(exp.plan.experiments))
-            for s in range(len(exp.spec["scenarios"]))
-            for r in range(exp.spec["monte_carlo"]["runs"])]
+            for s in range(len(exp.config.scenarios))
+            for r in range(exp.config.monte_carlo.runs)]
 
 
 def work_units(exp: Experiment) -> int:
     return len(_tasks(exp))
 
 
-def tiny(spec: dict) -> dict:
-    spec = field.tiny(spec)
-    setting_ = spec["study"]["setting"]
-    spec["study"]["values"] = {"grid.n": [8, 12], "sensors.fraction": [0.05, 0.1],
-                               "filter.members": [4, 6]}[setting_]
-    return spec
+def tiny(config: Config) -> dict:
+    """The field filter's quick profile, with two values of the studied setting."""
+    values = {"grid.n": [8, 12], "sensors.fraction": [0.05, 0.1], "filter.members": [4, 6]}
+    return {**field.tiny(config), "study.values": values[config.study.setting]}
 
 
 def _one(args) -> dict:
@@ -134,11 +136,11 @@ def _one(args) -> dict:
     error and the mean squared truth."""
     exp, v, s, run = args
     one = exp.plan.experiments[v]
-    su = field.setup(one.spec, one.plan)
-    scenario = one.spec["scenarios"][s]
+    su = field.setup(one.config, one.plan)
+    scenario = one.config.scenarios[s]
     rng = exp.config.monte_carlo.rng(v, s, run)
-    out = field.cycle(one, su, field.amplitude(scenario["nominal_amplitude"]), rng)
-    smooth = field.smoothed(out["measured"], out["times"], su.dipole.omega, one.spec["rls"])
+    out = field.cycle(one, su, field.amplitude(scenario.nominal_amplitude), rng)
+    smooth = field.smoothed(out["measured"], out["times"], su.dipole.omega, one.config.rls)
     return field.run_errors(one, one.plan.grid, out["phasors"], su.dipole, one.plan.sensors,
                          out["times"], out["traces"], out["measured"], smooth, su.quarter)
 
@@ -146,7 +148,7 @@ def _one(args) -> dict:
 def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = None) -> Result:
     tasks = _tasks(exp)
     done = map_tasks(_one, [(exp, *t) for t in tasks], jobs, on_done)
-    study = exp.spec["study"]
+    study = exp.config.study
     grouped: dict = {}
     for (v, s, _), errors in zip(tasks, done, strict=True):
         for (name, zone, comp, part), (mse, ref) in errors.items():
@@ -155,8 +157,8 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     rows, cells = [], []
     for (v, s, zone, comp, part), by_name in grouped.items():
         one = exp.plan.experiments[v]
-        value = study["values"][v]
-        scenario = exp.spec["scenarios"][s]["name"]
+        value = study.values[v]
+        scenario = exp.config.scenarios[s].name
         losses = {}
         for name, pairs in by_name.items():
             values = np.sqrt([p[0] for p in pairs])
@@ -167,19 +169,19 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
             if broke.any():
                 mean, se = float("inf"), float("nan")
             losses[name] = claims.Losses(values, broke)
-            rows.append({"study": study["setting"], "value": value, "scenario": scenario,
+            rows.append({"study": study.setting, "value": value, "scenario": scenario,
                          "zone": zone, "beta_r": one.plan.beta_r[zone], "estimator": name,
                          "field_component": comp, "part": part, "rmse": mean, "rmse_se": se,
                          "runs": len(values), "field_rms": np.sqrt(ref),
                          "relative": mean / np.sqrt(ref),
                          "sensors": int(one.plan.sensors.size),
-                         "members": int(one.spec["filter"]["members"])})
-        cells.append((claims.cell(study=study["setting"], value=f"{value:g}",
+                         "members": int(one.config.filter.members)})
+        cells.append((claims.cell(study=study.setting, value=f"{value:g}",
                                   scenario=scenario, zone=zone, field_component=comp,
                                   part=part), losses))
     df = pd.DataFrame(rows)[TABLES["rmse"].columns]
     table = claims.table(cells, CLAIMS, "RMSE")
-    figure = plots.field_study(df, study["setting"], (field.KF, field.FIT, field.PLAIN,
+    figure = plots.field_study(df, study.setting, (field.KF, field.FIT, field.PLAIN,
                                                       field.SOURCE_ONLY))
     return Result(tables={"rmse": df, "claims": table}, figures={"study": figure})
 

@@ -166,33 +166,33 @@ class Plan:
     config: Config
 
 
-def prepare(spec: dict, source: str) -> Plan:
+def prepare(config: Config, source: str) -> Plan:
     from estim.errors import ConfigError
 
-    if spec["figures"]["image"] not in spec["images"]:
+    if config.figures.image not in config.images:
         raise ConfigError(source, "figures.image", f"expected one of the images "
-                          f"{spec['images']}, got {spec['figures']['image']!r}")
-    for image in spec["images"]:
+                          f"{config.images}, got {config.figures.image!r}")
+    for image in config.images:
         full = _load(image).shape
-        if spec["crop"] is not None and spec["crop"] > min(full):
+        if config.crop is not None and config.crop > min(full):
             raise ConfigError(source, "crop", f"image {image!r} is {full[0]} x {full[1]} "
                               "pixels; give at most its smaller side")
-        rows, columns = (min(side, spec["crop"] or side) for side in full)
-        if spec["figures"]["row"] > rows:
+        rows, columns = (min(side, config.crop or side) for side in full)
+        if config.figures.row > rows:
             raise ConfigError(source, "figures.row", f"image {image!r} has {rows} rows")
-        if spec["figures"]["pixels"] > columns:
+        if config.figures.pixels > columns:
             raise ConfigError(source, "figures.pixels",
                               f"image {image!r} has {columns} columns")
-    return Plan(Config.build(spec))
+    return Plan(config)
 
 
 def work_units(exp: Experiment) -> int:
-    return len(exp.spec["images"]) * exp.spec["monte_carlo"]["runs"]
+    return len(exp.config.images) * exp.config.monte_carlo.runs
 
 
-def work_size(spec: dict) -> int:
-    side = min(512, spec["crop"] or 512)
-    return side * side * len(spec["images"]) * spec["monte_carlo"]["runs"] // 100
+def work_size(config: Config) -> int:
+    side = min(512, config.crop or 512)
+    return side * side * len(config.images) * config.monte_carlo.runs // 100
 
 
 QUICK_CROP = 256
@@ -200,14 +200,13 @@ QUICK_CROP = 256
 and the figures' default row (256) is still in it."""
 
 
-def tiny(spec: dict) -> dict:
-    spec["images"] = spec["images"][:1]
-    spec["figures"]["image"] = spec["images"][0]
-    spec["monte_carlo"]["runs"] = 1
-    spec["crop"] = min(QUICK_CROP, spec.get("crop") or QUICK_CROP)
-    spec["figures"]["row"] = min(spec["figures"]["row"], spec["crop"])
-    spec["figures"]["pixels"] = min(spec["figures"]["pixels"], spec["crop"])
-    return spec
+def tiny(config: Config) -> dict:
+    """Seconds of work: one image, cropped to :data:`QUICK_CROP`, one run."""
+    crop = min(QUICK_CROP, config.crop or QUICK_CROP)
+    return {"images": config.images[:1], "figures.image": config.images[0],
+            "monte_carlo.runs": 1, "crop": crop,
+            "figures.row": min(config.figures.row, crop),
+            "figures.pixels": min(config.figures.pixels, crop)}
 
 
 def _load(name: str, crop: int | None = None) -> np.ndarray:
@@ -238,29 +237,29 @@ def run_unit(exp: Experiment, image: str, run: int) -> dict:
     from scipy import signal
     from skimage.restoration import denoise_wavelet
 
-    spec = exp.spec
-    M = spec["nshp"]["order"]
-    clean = _load(image, spec["crop"])
-    index = spec["images"].index(image)
+    config = exp.config
+    M = config.nshp.order
+    clean = _load(image, config.crop)
+    index = config.images.index(image)
     rng = exp.config.monte_carlo.rng(index, run)
-    sigma_v2 = float(np.var(clean) / 10 ** (spec["input_snr_db"] / 10))
+    sigma_v2 = float(np.var(clean) / 10 ** (config.input_snr_db / 10))
     noisy = clean + np.sqrt(sigma_v2) * rng.standard_normal(clean.shape)
     y = noisy - noisy.mean()
     a, sigma_e2 = nshp.yule_walker(y, M, sigma_v2)
     A10, A01, _ = nshp.state_matrices(a, M)
-    figure_row = spec["figures"]["row"] - 1
+    figure_row = config.figures.row - 1
     plain = kalman2d.restore(y, A10, A01, sigma_e2, sigma_v2, M)
-    adaptive = kalman2d.restore_adaptive(y, a, sigma_e2, sigma_v2, M, spec["adaptive"],
+    adaptive = kalman2d.restore_adaptive(y, a, sigma_e2, sigma_v2, M, config.adaptive.to_spec(),
                                          trace_row=figure_row)
-    sc = spec["strip"]
-    unbiased = sc["covariance"] == "unbiased"
-    strips = strip.restore(y, sc["width"], sc["order"], sigma_v2, unbiased,
-                           sc["eigenvalue_floor"])
-    online = strip.restore(y, sc["width"], sc["order"], sigma_v2, unbiased,
-                           sc["eigenvalue_floor"], online=True)
-    oracle = strip.restore(y, sc["width"], sc["order"], sigma_v2, unbiased,
+    sc = config.strip
+    unbiased = sc.covariance == "unbiased"
+    strips = strip.restore(y, sc.width, sc.order, sigma_v2, unbiased,
+                           sc.eigenvalue_floor)
+    online = strip.restore(y, sc.width, sc.order, sigma_v2, unbiased,
+                           sc.eigenvalue_floor, online=True)
+    oracle = strip.restore(y, sc.width, sc.order, sigma_v2, unbiased,
                            model_from=clean - clean.mean())
-    size = (spec["baselines"]["wiener_size"],) * 2
+    size = (config.baselines.wiener_size,) * 2
     wiener = signal.wiener(noisy, size, noise=sigma_v2)
     wiener_estimated = signal.wiener(noisy, size)
     wavelet = denoise_wavelet(noisy, sigma=np.sqrt(sigma_v2), method="BayesShrink",
@@ -276,8 +275,8 @@ def run_unit(exp: Experiment, image: str, run: int) -> dict:
            "unstable": {STRIP: strips["unstable_strips"],
                         STRIP_ONLINE: online["unstable_strips"],
                         STRIP_ORACLE: oracle["unstable_strips"]}}
-    if run == 0 and image == spec["figures"]["image"]:
-        n = spec["figures"]["pixels"]
+    if run == 0 and image == config.figures.image:
+        n = config.figures.pixels
         out["figure"] = {
             "row": figure_row, "clean": clean, "restored": restored,
             "P_norm": {NON_ADAPTIVE: plain["P_norm"][figure_row, :n],
@@ -295,15 +294,15 @@ def _run_unit_args(args):
 
 
 def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = None) -> Result:
-    spec = exp.spec
-    runs = spec["monte_carlo"]["runs"]
-    tasks = [(exp, image, r) for image in spec["images"] for r in range(runs)]
+    config = exp.config
+    runs = config.monte_carlo.runs
+    tasks = [(exp, image, r) for image in config.images for r in range(runs)]
     done = map_tasks(_run_unit_args, tasks, jobs, on_done)
     rows, params, figures, cells = [], [], {}, []
-    names = nshp.names(spec["nshp"]["order"])
-    for i, image in enumerate(spec["images"]):
+    names = nshp.names(config.nshp.order)
+    for i, image in enumerate(config.images):
         units = done[i * runs:(i + 1) * runs]
-        cells.append((claims.cell(image=image, input_snr_db=spec["input_snr_db"]),
+        cells.append((claims.cell(image=image, input_snr_db=config.input_snr_db),
                       {est: claims.Losses(np.array([u["quality"][est]["mse"] for u in units]))
                        for est in RESTORATIONS}))
         snr_in = np.array([u["quality"][NOISY]["snr_db"] for u in units])
@@ -313,7 +312,7 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
             snr, snr_se = metrics.mean_and_se(np.array([x["snr_db"] for x in q])[ok])
             psnr, psnr_se = metrics.mean_and_se(np.array([x["psnr_db"] for x in q])[ok])
             ssim, ssim_se = metrics.mean_and_se(np.array([x["ssim"] for x in q])[ok])
-            rows.append({"image": image, "input_snr_db": spec["input_snr_db"],
+            rows.append({"image": image, "input_snr_db": config.input_snr_db,
                          "estimator": est, "snr_db": snr, "snr_db_se": snr_se,
                          "isnr_db": float(np.mean(np.array([x["snr_db"] for x in q])[ok]
                                                   - snr_in[ok])) if ok.any() else np.nan,
@@ -322,8 +321,8 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
                          "diverged": int((~ok).sum()),
                          "unstable_strips": float(np.mean([u["unstable"].get(est, np.nan)
                                                            for u in units])),
-                         "paper_snr_db": (spec["paper"]["adaptive_snr_db"] if est == ADAPTIVE
-                                          else spec["paper"]["input_snr_db"] if est == NOISY
+                         "paper_snr_db": (config.paper.adaptive_snr_db if est == ADAPTIVE
+                                          else config.paper.input_snr_db if est == NOISY
                                           else np.nan)})
         a = np.array([u["a"] for u in units])
         trace = units[0]["trace"]
@@ -333,21 +332,21 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
                            "global_se": se, "adaptive_row_mean": float(np.mean(trace[:, j])),
                            "adaptive_row_min": float(np.min(trace[:, j])),
                            "adaptive_row_max": float(np.max(trace[:, j]))})
-        side = spec["crop"]
+        side = config.crop
         shown = image if side is None else f"{image} ({side} x {side} corner)"
         figures[f"restored_{image}"] = plots.image_panels(
-            units[0]["panels"], f"{shown}, input SNR {spec['input_snr_db']:g} dB (run 1)")
+            units[0]["panels"], f"{shown}, input SNR {config.input_snr_db:g} dB (run 1)")
         if "figure" in units[0]:
             fig = units[0]["figure"]
-            fs = spec["figures"]
-            pixels = np.arange(1, fs["pixels"] + 1)
-            where = f"{shown}, row {fs['row']}, pixels 1-{fs['pixels']} (run 1)"
-            figures[fs["accuracy"]] = plots.pixel_series(pixels, fig["P_norm"], "||P_a||_F",
+            fs = config.figures
+            pixels = np.arange(1, fs.pixels + 1)
+            where = f"{shown}, row {fs.row}, pixels 1-{fs.pixels} (run 1)"
+            figures[fs.accuracy] = plots.pixel_series(pixels, fig["P_norm"], "||P_a||_F",
                                                          f"Accuracy: {where}")
-            figures[fs["gain"]] = plots.pixel_series(pixels, fig["K_norm"], "||K||",
+            figures[fs.gain] = plots.pixel_series(pixels, fig["K_norm"], "||K||",
                                                      f"Gain: {where}")
-            traces = {name: trace[:fs["pixels"], j] for j, name in enumerate(names)}
-            figures[fs["parameters"]] = plots.pixel_series(
+            traces = {name: trace[:fs.pixels, j] for j, name in enumerate(names)}
+            figures[fs.parameters] = plots.pixel_series(
                 pixels, traces, "parameter", f"Adaptive parameters: {where}")
     tables = {"snr": pd.DataFrame(rows)[TABLES["snr"].columns],
               "claims": claims.table(cells, CLAIMS, "MSE"),

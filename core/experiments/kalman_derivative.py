@@ -95,38 +95,36 @@ class Plan:
     config: Config
 
 
-def prepare(spec: dict, source: str) -> Plan:
-    for i, case in enumerate(spec["cases"]):
-        if int(round(spec["settle_s"] / case["dt"])) >= int(round(spec["record_s"] / case["dt"])):
+def prepare(config: Config, source: str) -> Plan:
+    for i, case in enumerate(config.cases):
+        if int(round(config.settle_s / case.dt)) >= int(round(config.record_s / case.dt)):
             raise ConfigError(source, "settle_s", f"expected less than record_s "
-                              f"({spec['record_s']:g} s): the error is averaged over the "
-                              f"samples after settle_s, and cases[{i}] (dt {case['dt']:g} s) "
+                              f"({config.record_s:g} s): the error is averaged over the "
+                              f"samples after settle_s, and cases[{i}] (dt {case.dt:g} s) "
                               "would have none")
-    return Plan(Config.build(spec))
+    return Plan(config)
 
 
 def work_units(exp: Experiment) -> int:
-    return len(exp.spec["cases"])
+    return len(exp.config.cases)
 
 
-def work_size(spec: dict) -> int:
-    return int(sum(2 * spec["record_s"] / c["dt"] for c in spec["cases"])
-               * spec["monte_carlo"]["runs"] / 100)
+def work_size(config: Config) -> int:
+    return int(sum(2 * config.record_s / c.dt for c in config.cases)
+               * config.monte_carlo.runs / 100)
 
 
-def tiny(spec: dict) -> dict:
-    spec["cases"] = spec["cases"][:1]
-    spec["monte_carlo"]["runs"] = 5
-    spec["record_s"] = 0.5
-    spec["settle_s"] = 0.1
-    return spec
+def tiny(config: Config) -> dict:
+    """Seconds of work: one case, 5 runs of half a second."""
+    return {"cases": [c.to_spec() for c in config.cases[:1]], "monte_carlo.runs": 5,
+            "record_s": 0.5, "settle_s": 0.1}
 
 
 def run_case(exp: Experiment, index: int) -> tuple[tuple, dict]:
     """One case's claims cell and its ``derivative.csv`` row."""
-    spec = exp.spec
-    case = spec["cases"][index]
-    q, r, dt = case["q"], case["r"], case["dt"]
+    config = exp.config
+    case = config.cases[index]
+    q, r, dt = case.q, case.r, case.dt
     G = np.array([[0.0], [np.sqrt(q)]])
     closed = kd.double_integrator(q, r)
     P, _ = kd.steady_state(F, G, H, r)
@@ -134,8 +132,8 @@ def run_case(exp: Experiment, index: int) -> tuple[tuple, dict]:
     Pd = linalg.solve_discrete_are(Phi.T, H, Qd, np.array([[r / dt]]))
     S = H.T @ Pd @ H + r / dt
     P_post = Pd - Pd @ H @ np.linalg.inv(S) @ H.T @ Pd
-    runs = spec["monte_carlo"]["runs"]
-    steps = int(round(spec["record_s"] / dt))
+    runs = config.monte_carlo.runs
+    steps = int(round(config.record_s / dt))
     rng = exp.config.monte_carlo.rng(index)
     L = np.linalg.cholesky(Qd)
     noise = rng.standard_normal((runs, steps, 2)) @ L.T
@@ -146,7 +144,7 @@ def run_case(exp: Experiment, index: int) -> tuple[tuple, dict]:
         xs[:, k] = x
     z = xs[..., :1] + np.sqrt(r / dt) * rng.standard_normal((runs, steps, 1))
     out = kd.differentiate(z, F, G, H, r, dt)
-    start = int(round(spec["settle_s"] / dt))
+    start = int(round(config.settle_s / dt))
     per_run = np.mean((out["derivative"][:, start:, 0] - xs[:, start:, 1]) ** 2, axis=1)
     raw = np.diff(z[..., 0], axis=1, prepend=0.0) / dt
     raw_per_run = np.mean((raw[:, start:] - xs[:, start:, 1]) ** 2, axis=1)
@@ -163,20 +161,20 @@ def _run_case_args(args):
 
 
 def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = None) -> Result:
-    done = map_tasks(_run_case_args, [(exp, i) for i in range(len(exp.spec["cases"]))],
+    done = map_tasks(_run_case_args, [(exp, i) for i in range(len(exp.config.cases))],
                      jobs, on_done)
     rows = [row for _, row in done]
-    f = np.linspace(0.05, exp.spec["figures"]["max_hz"], 400)
+    f = np.linspace(0.05, exp.config.figures.max_hz, 400)
     curves = {}
-    for case in exp.spec["cases"]:
-        G = np.array([[0.0], [np.sqrt(case["q"])]])
-        _, K = kd.steady_state(F, G, H, case["r"])
-        curves[f"q = {case['q']:g}, r = {case['r']:g}"] = kd.frequency_response(F, H, K, f)
+    for case in exp.config.cases:
+        G = np.array([[0.0], [np.sqrt(case.q)]])
+        _, K = kd.steady_state(F, G, H, case.r)
+        curves[f"q = {case.q:g}, r = {case.r:g}"] = kd.frequency_response(F, H, K, f)
     figure = plots.differentiator_response(f, curves)
     return Result(tables={"derivative": pd.DataFrame(rows)[TABLES["derivative"].columns],
                           "claims": claims.table([c for c, _ in done], CLAIMS,
                                                  "mean squared derivative error")},
-                  figures={exp.spec["figures"]["name"]: figure})
+                  figures={exp.config.figures.name: figure})
 
 
 def summary(result: Result) -> str:

@@ -202,15 +202,15 @@ class Column:
     filters: tuple      # (label, estimator, model, measured state indices or None)
 
 
-def _geometry(spec: dict, model_cls, column: dict) -> dict:
+def _geometry(config: Config, model_cls, column: dict) -> dict:
     """Parameter overrides a W/L column makes on a model that has them."""
     fields = set(model_cls.Params.__dataclass_fields__)
     out = {}
     if "W_L" in fields:
-        out["W_L"] = column["w_um"] / column["l_um"]
-    geometry = spec["geometry"]
-    if geometry["area_scaled_caps"]:
-        factor = column["w_um"] * column["l_um"] / geometry["reference_area_um2"]
+        out["W_L"] = column.w_um / column.l_um
+    geometry = config.geometry
+    if geometry.area_scaled_caps:
+        factor = column.w_um * column.l_um / geometry.reference_area_um2
         for name in CAPACITANCES:
             if name in fields:
                 out[name] = model_cls.Params.__dataclass_fields__[name].default * factor
@@ -224,57 +224,59 @@ class Plan:
     columns: tuple[Column, ...]
 
 
-def prepare(spec: dict, source: str) -> Plan:
+def prepare(config: Config, source: str) -> Plan:
     """Builds the actual circuit and every estimator's model per W/L column."""
-    model_cls = registry.MODELS[spec["model"]["name"]]
-    variant = spec["model"]["variant"]
-    columns = spec["geometry"]["columns"]
+    model_cls = registry.MODELS[config.model.name]
+    variant = config.model.variant
+    columns = config.geometry.columns
     for i, c in enumerate(columns):
         if c in columns[:i]:
             raise ConfigError(source, f"geometry.columns[{i}]", f"repeats {c}")
     for key in ("input.frequencies_hz", "noise.input_levels"):
         section, name = key.split(".")
-        values = spec[section][name]
+        values = getattr(getattr(config, section), name)
         for i, v in enumerate(values):
             if v in values[:i]:
                 raise ConfigError(source, f"{key}[{i}]", f"repeats {v!r}")
-    check_interval(spec["noise"]["adc_range_v"], source, "noise.adc_range_v")
+    check_interval(config.noise.adc_range_v, source, "noise.adc_range_v")
     labels = []
-    for i, est in enumerate(spec["estimators"]):
-        if est["label"] in labels or est["label"] == MEASUREMENT:
+    for i, est in enumerate(config.estimators):
+        if est.label in labels or est.label == MEASUREMENT:
             raise ConfigError(source, f"estimators[{i}].label",
-                              f"duplicate or reserved label {est['label']!r}")
-        labels.append(est["label"])
-    for i, claim in enumerate(spec["claims"]):
+                              f"duplicate or reserved label {est.label!r}")
+        labels.append(est.label)
+    for i, claim in enumerate(config.claims):
         for side in ("better", "worse"):
-            if claim[side] not in labels:
+            label = getattr(claim, side)
+            if label not in labels:
                 raise ConfigError(source, f"claims[{i}].{side}",
-                                  f"expected an estimator label {labels}, got {claim[side]!r}")
-        if claim["better"] == claim["worse"]:
+                                  f"expected an estimator label {labels}, got {label!r}")
+        if claim.better == claim.worse:
             raise ConfigError(source, f"claims[{i}].worse", "the same estimator as better: "
                               "a claim compares two")
-    for i, fig in enumerate(spec["figures"]["names"]):
-        if {"w_um": fig["w_um"], "l_um": fig["l_um"]} not in columns:
+    for i, fig in enumerate(config.figures.names):
+        if {"w_um": fig.w_um, "l_um": fig.l_um} not in columns:
             raise ConfigError(source, f"figures.names[{i}]",
-                              f"no geometry column W = {fig['w_um']:g}, L = {fig['l_um']:g} um")
+                              f"no geometry column W = {fig.w_um:g}, L = {fig.l_um:g} um")
     built = []
     for c in columns:
-        geo = _geometry(spec, model_cls, c)
-        truth_params = {**spec["model"]["params"], **geo, **spec["truth"]["params"]}
+        geo = _geometry(config, model_cls, c)
+        truth_params = {**config.model.params, **geo, **config.truth.params}
         truth = build_model(model_cls, variant, truth_params, source, "truth.params")
         x0 = operating_point(truth, [0.0] * truth.n_inputs, source, "model.params")
         filters = []
-        for i, est in enumerate(spec["estimators"]):
+        for i, est in enumerate(config.estimators):
             path = f"estimators[{i}]"
-            cls = registry.MODELS[est["model"]] if est["model"] else model_cls
-            params = dict(est["model_params"]) if est["model"] else {
-                **spec["model"]["params"], **est["model_params"]}
-            params = {**_geometry(spec, cls, c), **params}
-            model = build_model(cls, None if est["model"] else variant, params, source,
+            cls = registry.MODELS[est.model] if est.model else model_cls
+            params = dict(est.model_params) if est.model else {
+                **config.model.params, **est.model_params}
+            params = {**_geometry(config, cls, c), **params}
+            model = build_model(cls, None if est.model else variant, params, source,
                                 f"{path}.model_params")
-            estimator = build_estimator(registry.ESTIMATORS[est["type"]], est["settings"],
+            estimator = build_estimator(registry.ESTIMATORS[est.type], est.settings,
                                         model, source, f"{path}.settings")
-            est["settings"] = estimator.to_spec()      # the manifest records every default
+            est.settings.clear()      # the manifest records every default
+            est.settings.update(estimator.to_spec())
             if model.n_outputs != truth.n_outputs:
                 raise ConfigError(source, f"{path}.model", f"{model.name} has "
                                   f"{model.n_outputs} outputs, the circuit {truth.n_outputs}")
@@ -283,8 +285,8 @@ def prepare(spec: dict, source: str) -> Plan:
             if seen is not None and model.n_states != truth.n_states:
                 raise ConfigError(source, f"{path}.model", "an estimator that measures states "
                                   "needs a model with the circuit's states")
-            filters.append((est["label"], estimator, model, seen))
-        built.append(Column(c["w_um"], c["l_um"], truth, x0, tuple(filters)))
+            filters.append((est.label, estimator, model, seen))
+        built.append(Column(c.w_um, c.l_um, truth, x0, tuple(filters)))
     return Plan(tuple(built))
 
 
@@ -298,63 +300,64 @@ class SweepPoint:
 
 
 def sweep(exp: Experiment) -> list[SweepPoint]:
-    noise, inp = exp.spec["noise"], exp.spec["input"]
+    noise, inp = exp.config.noise, exp.config.input
     return [SweepPoint((r, i, j), reading, float(level), signals.noise_sigma(level, reading),
                        float(f))
-            for r, reading in enumerate(noise["readings"])
-            for i, level in enumerate(noise["input_levels"])
-            for j, f in enumerate(inp["frequencies_hz"])]
+            for r, reading in enumerate(noise.readings)
+            for i, level in enumerate(noise.input_levels)
+            for j, f in enumerate(inp.frequencies_hz)]
 
 
 def work_units(exp: Experiment) -> int:
     return len(sweep(exp)) * len(exp.plan.columns)
 
 
-def work_size(spec: dict) -> int:
-    n = len(registry.MODELS[spec["model"]["name"]].state_names)
-    inp = spec["input"]
-    steps = inp["samples_per_period"] * inp["periods"]
-    points = (len(spec["noise"]["readings"]) * len(spec["noise"]["input_levels"])
-              * len(inp["frequencies_hz"]))
-    stages = spec["model"]["params"].get("stages", 1)
+def work_size(config: Config) -> int:
+    n = len(registry.MODELS[config.model.name].state_names)
+    inp = config.input
+    steps = inp.samples_per_period * inp.periods
+    points = (len(config.noise.readings) * len(config.noise.input_levels)
+              * len(inp.frequencies_hz))
+    stages = config.model.params.get("stages", 1)
     stages = stages if isinstance(stages, int) else 1
-    return int(spec["monte_carlo"]["runs"] * n * stages * steps * points
-               * len(spec["geometry"]["columns"]))
+    return int(config.monte_carlo.runs * n * stages * steps * points
+               * len(config.geometry.columns))
 
 
-def tiny(spec: dict) -> dict:
-    spec["input"].update(frequencies_hz=spec["input"]["frequencies_hz"][:1], periods=2)
-    spec["noise"].update(input_levels=spec["noise"]["input_levels"][:1],
-                         readings=(spec["noise"].get("readings") or ["variance"])[:1])
-    spec["geometry"]["columns"] = spec["geometry"]["columns"][:1]
-    spec["monte_carlo"]["runs"] = 3
-    spec["figures"] = {}
-    for est in spec["estimators"]:
-        if est["type"] == "wavelet_lms":
-            est["settings"]["epochs"] = 2
-    return spec
+def tiny(config: Config) -> dict:
+    """Seconds of work: one frequency, noise level and reading, one geometry column, two
+    periods, 3 runs, two LMS passes."""
+    out = {"input.frequencies_hz": config.input.frequencies_hz[:1], "input.periods": 2,
+           "noise.input_levels": config.noise.input_levels[:1],
+           "noise.readings": (config.noise.readings or ["variance"])[:1],
+           "geometry.columns": [c.to_spec() for c in config.geometry.columns[:1]],
+           "monte_carlo.runs": 3, "figures": {}}
+    for i, est in enumerate(config.estimators):
+        if est.type == "wavelet_lms":
+            out[f"estimators.{i}.settings.epochs"] = 2
+    return out
 
 
 def simulate_point(exp: Experiment, column: Column, point: SweepPoint, runs: int) -> dict:
     """Actual trajectories and measurements of every state for one column and point."""
-    inp, noise = exp.spec["input"], exp.spec["noise"]
+    inp, noise = exp.config.input, exp.config.noise
     rng = exp.config.monte_carlo.rng(*point.key)
     f = point.frequency_hz
-    dt = 1.0 / (inp["samples_per_period"] * f)
-    steps = inp["samples_per_period"] * inp["periods"]
+    dt = 1.0 / (inp.samples_per_period * f)
+    steps = inp.samples_per_period * inp.periods
     t = np.arange(steps + 1) * dt
-    clean = signals.sine(inp["amplitude_v"], f, t)
-    ou = signals.ornstein_uhlenbeck(rng, point.sigma, noise["gamma"], dt, (runs, steps))
+    clean = signals.sine(inp.amplitude_v, f, t)
+    ou = signals.ornstein_uhlenbeck(rng, point.sigma, noise.gamma, dt, (runs, steps))
     source = clean[None] + ou[..., None]
-    sim = exp.spec["simulation"]
+    sim = exp.config.simulation
     truth = column.truth
-    states = SOLVERS[sim["solver"]](truth, column.x0, truth.source_to_input(source, dt), dt,
-                                    rtol=sim["rtol"], atol=sim["atol"])
-    measured = states + signals.gaussian(rng, noise["measurement_sigma"], states.shape)
-    if noise["adc_bits"] is not None:
-        lo, hi = noise["adc_range_v"]
-        lsb = (hi - lo) / 2 ** noise["adc_bits"]
-        codes = np.clip(np.round((measured - lo) / lsb), 0, 2 ** noise["adc_bits"] - 1)
+    states = SOLVERS[sim.solver](truth, column.x0, truth.source_to_input(source, dt), dt,
+                                    rtol=sim.rtol, atol=sim.atol)
+    measured = states + signals.gaussian(rng, noise.measurement_sigma, states.shape)
+    if noise.adc_bits is not None:
+        lo, hi = noise.adc_range_v
+        lsb = (hi - lo) / 2 ** noise.adc_bits
+        codes = np.clip(np.round((measured - lo) / lsb), 0, 2 ** noise.adc_bits - 1)
         measured = lo + lsb * codes
     out = int(np.argmax(np.abs(np.asarray(truth.h_jacobian(column.x0)).reshape(-1))))
     return {"t": t[1:], "dt": dt, "x0": column.x0, "source": source, "clean": clean,
@@ -367,11 +370,11 @@ def run_point(exp: Experiment, index: int, point: SweepPoint,
     """Rows (measurement baseline, then each estimator) for one column and sweep point, the
     per-run losses for the claims, and with ``traces`` the figure's traces of run 1."""
     column = exp.plan.columns[index]
-    data = simulate_point(exp, column, point, exp.spec["monte_carlo"]["runs"])
-    common = {"data_source": exp.spec["truth"]["data_source"], "noise_reading": point.reading,
+    data = simulate_point(exp, column, point, exp.config.monte_carlo.runs)
+    common = {"data_source": exp.config.truth.data_source, "noise_reading": point.reading,
               "noise_param": point.level, "noise_sigma": point.sigma,
               "frequency_hz": point.frequency_hz, "w_um": column.w_um, "l_um": column.l_um,
-              "area_scaled_caps": bool(exp.spec["geometry"]["area_scaled_caps"]),
+              "area_scaled_caps": bool(exp.config.geometry.area_scaled_caps),
               "kept_fraction": float("nan"), "lms_ls_gap": float("nan")}
     out_name = column.truth.state_names[int(np.argmax(np.abs(np.asarray(
         column.truth.h_jacobian(column.x0)).reshape(-1))))]
@@ -402,10 +405,10 @@ def _run_point_args(args):
 
 
 def _figure_point(exp: Experiment, points: list[SweepPoint]) -> SweepPoint:
-    fig = exp.spec["figures"]
-    f = fig["frequency_hz"] or exp.spec["input"]["frequencies_hz"][0]
-    level = fig["noise_level"] or exp.spec["noise"]["input_levels"][0]
-    reading = fig["reading"] or exp.spec["noise"]["readings"][0]
+    fig = exp.config.figures
+    f = fig.frequency_hz or exp.config.input.frequencies_hz[0]
+    level = fig.noise_level or exp.config.noise.input_levels[0]
+    reading = fig.reading or exp.config.noise.readings[0]
     hit = [p for p in points if p.reading == reading and np.isclose(p.level, level)
            and np.isclose(p.frequency_hz, f)]
     return hit[0] if hit else points[0]
@@ -414,12 +417,12 @@ def _figure_point(exp: Experiment, points: list[SweepPoint]) -> SweepPoint:
 def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = None) -> Result:
     points = sweep(exp)
     shown = _figure_point(exp, points)
-    named = {(f["w_um"], f["l_um"]): f["name"] for f in exp.spec["figures"]["names"]}
+    named = {(f.w_um, f.l_um): f.name for f in exp.config.figures.names}
     tasks = [(exp, i, p, p == shown and (c.w_um, c.l_um) in named)
              for i, c in enumerate(exp.plan.columns) for p in points]
     done = map_tasks(_run_point_args, tasks, jobs, on_done)
     rows = [row for part, _, _ in done for row in part]
-    table_id = exp.spec["tables"]["rmse"]
+    table_id = exp.config.tables.rmse
     df = pd.DataFrame(rows)
     df["inconsistent"] = pd.array(df["inconsistent"], dtype="Float64").astype("Int64")
     df.insert(0, "table_id", table_id or "")
@@ -428,7 +431,7 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     filters = df[df["estimator"] != MEASUREMENT]
     out.tables["health"] = filters[TABLES["health"].columns].reset_index(drop=True)
     out.tables["claims"] = pipeline.claims_table(
-        exp.spec, out.tables["rmse"], [losses for _, losses, _ in done],
+        exp.config, out.tables["rmse"], [losses for _, losses, _ in done],
         ("s_no", "noise_reading", "noise_param", "frequency_hz", "w_um", "l_um"))
     for (_, i, p, wanted), (_, _, trace) in zip(tasks, done, strict=True):
         if wanted:

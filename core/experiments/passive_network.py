@@ -112,72 +112,72 @@ class Plan:
     config: Config
 
 
-def prepare(spec: dict, source: str) -> Plan:
+def prepare(config: Config, source: str) -> Plan:
     from estim.errors import ConfigError
 
-    names = [r["name"] for r in spec["readings"]]
+    names = [r.name for r in config.readings]
     for i, name in enumerate(names):
         if name in names[:i]:
             raise ConfigError(source, f"readings[{i}].name", f"repeats {name!r}")
-    amplitudes = [sig["A"] for sig in spec["signals"]]
+    amplitudes = [sig.A for sig in config.signals]
     files: list[str] = []
-    for i, fig in enumerate(spec["figures"]):
-        if fig["A"] not in amplitudes:
+    for i, fig in enumerate(config.figures):
+        if fig.A not in amplitudes:
             raise ConfigError(source, f"figures[{i}].A", f"expected the A of a signal "
-                              f"{amplitudes}, got {fig['A']!r}")
+                              f"{amplitudes}, got {fig.A!r}")
         for kind in ("signal", "errors"):
-            if fig[kind] is None:
+            if getattr(fig, kind) is None:
                 continue
-            if fig[kind] in files:
-                raise ConfigError(source, f"figures[{i}].{kind}", f"repeats {fig[kind]!r}")
-            files.append(fig[kind])
-    return Plan(Config.build(spec))
+            if getattr(fig, kind) in files:
+                raise ConfigError(source, f"figures[{i}].{kind}", f"repeats {getattr(fig, kind)!r}")
+            files.append(getattr(fig, kind))
+    return Plan(config)
 
 
 def work_units(exp: Experiment) -> int:
     return 1
 
 
-def work_size(spec: dict) -> int:
-    return (spec["monte_carlo"]["runs"] * spec["samples"] * len(spec["signals"])
-            * len(spec["readings"]) * 3)
+def work_size(config: Config) -> int:
+    return (config.monte_carlo.runs * config.samples * len(config.signals)
+            * len(config.readings) * 3)
 
 
-def tiny(spec: dict) -> dict:
-    spec["monte_carlo"]["runs"] = 3
-    return spec
+def tiny(config: Config) -> dict:
+    """Seconds of work: 3 runs."""
+    return {"monte_carlo.runs": 3}
 
 
-def _estimates(spec: dict, reading: dict, signal: np.ndarray, dt: float) -> dict:
-    z = signal / 2 if reading["feed"] == "z" else signal
-    sign = -1 if reading["coupling"] == "printed" else 1
+def _estimates(config: Config, reading: dict, signal: np.ndarray, dt: float) -> dict:
+    z = signal / 2 if reading.feed == "z" else signal
+    sign = -1 if reading.coupling == "printed" else 1
     return {
-        "eq 19": pn.estimator(z, dt, reading["u"], reading["x0"], reading["V0"], "eq19"),
-        "eq 22": pn.estimator(z, dt, reading["u"], reading["x0"], reading["V0"], "eq22", sign),
-        "Kalman filter": pn.kalman(signal / 2, dt, reading["x0"], spec["kalman_p0"]),
+        "eq 19": pn.estimator(z, dt, reading.u, reading.x0, reading.V0, "eq19"),
+        "eq 22": pn.estimator(z, dt, reading.u, reading.x0, reading.V0, "eq22", sign),
+        "Kalman filter": pn.kalman(signal / 2, dt, reading.x0, config.kalman_p0),
     }
 
 
-def times(spec: dict, reading: dict) -> np.ndarray:
+def times(config: Config, reading: dict) -> np.ndarray:
     """Sample times of the record: ``T, 2T, ..., N T`` (``start: one_sample``, the default)
     or ``0, T, ..., (N - 1) T`` (``start: zero``); the paper says only "the first 500 points
     with a sampling time of 0.01"."""
-    first = 1 if reading["start"] == "one_sample" else 0
-    return spec["sample_time"] * np.arange(first, spec["samples"] + first)
+    first = 1 if reading.start == "one_sample" else 0
+    return config.sample_time * np.arange(first, config.samples + first)
 
 
 def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = None) -> Result:
-    spec = exp.spec
-    dt, steps, runs = spec["sample_time"], spec["samples"], spec["monte_carlo"]["runs"]
+    config = exp.config
+    dt, steps, runs = config.sample_time, config.samples, config.monte_carlo.runs
     rows, cells, figure_data = [], [], {}
-    for s_idx, sig in enumerate(spec["signals"]):
+    for s_idx, sig in enumerate(config.signals):
         rng = exp.config.monte_carlo.rng(s_idx)
-        noise = sig["sigma"] * rng.standard_normal((runs, steps))
-        for reading in spec["readings"]:
-            t = times(spec, reading)
-            clean = sig["A"] * np.exp(-t)
+        noise = sig.sigma * rng.standard_normal((runs, steps))
+        for reading in config.readings:
+            t = times(config, reading)
+            clean = sig.A * np.exp(-t)
             noisy = clean + noise
-            est = {**_estimates(spec, reading, noisy, dt), MEASUREMENT: noisy}
+            est = {**_estimates(config, reading, noisy, dt), MEASUREMENT: noisy}
             losses = {}
             for name, values in est.items():
                 with np.errstate(invalid="ignore", over="ignore"):
@@ -188,30 +188,30 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
                 with np.errstate(invalid="ignore"):     # a diverged run is inf: SE nan
                     m, m_se = metrics.mean_and_se(mean_err)
                     x, x_se = metrics.mean_and_se(max_err)
-                rows.append({"reading": reading["name"], "A": sig["A"], "sigma": sig["sigma"],
+                rows.append({"reading": reading.name, "A": sig.A, "sigma": sig.sigma,
                              "estimator": name, "mean_abs_error": m, "mean_abs_error_se": m_se,
                              "max_abs_error": x, "max_abs_error_se": x_se, "runs": runs,
                              "diverged": int(np.isinf(mean_err).sum())})
-            cells.append((claims.cell(reading=reading["name"], A=float(sig["A"]),
-                                      sigma=float(sig["sigma"])), losses))
-            if reading is spec["readings"][0]:
-                figure_data[sig["A"]] = {"t": t, "clean": clean, "noisy": noisy[0],
-                                         "sigma": sig["sigma"], "errors": {}}
-            if reading["start"] == spec["readings"][0]["start"]:    # one time axis a figure
-                figure_data[sig["A"]]["errors"][reading["name"]] = {
+            cells.append((claims.cell(reading=reading.name, A=float(sig.A),
+                                      sigma=float(sig.sigma)), losses))
+            if reading is config.readings[0]:
+                figure_data[sig.A] = {"t": t, "clean": clean, "noisy": noisy[0],
+                                         "sigma": sig.sigma, "errors": {}}
+            if reading.start == config.readings[0].start:    # one time axis a figure
+                figure_data[sig.A]["errors"][reading.name] = {
                     n: np.abs(v[0] - clean) for n, v in est.items() if n != MEASUREMENT}
     df = pd.DataFrame(rows)[TABLES["errors"].columns]
     table = claims.table(cells, CLAIMS, "mean |error|")
     figures = {}
-    for fig in spec["figures"]:
-        data = figure_data[fig["A"]]
-        if fig["signal"] is not None:
-            figures[fig["signal"]] = plots.noisy_signal(
+    for fig in config.figures:
+        data = figure_data[fig.A]
+        if fig.signal is not None:
+            figures[fig.signal] = plots.noisy_signal(
                 data["t"], data["clean"], data["noisy"],
-                f"x = A e^-t + N, A = {fig['A']:g}, sigma = {data['sigma']:g} (run 1)")
-        if fig["errors"] is not None:
-            figures[fig["errors"]] = plots.absolute_errors(data["t"], data["errors"],
-                                                           f"A = {fig['A']:g}")
+                f"x = A e^-t + N, A = {fig.A:g}, sigma = {data['sigma']:g} (run 1)")
+        if fig.errors is not None:
+            figures[fig.errors] = plots.absolute_errors(data["t"], data["errors"],
+                                                           f"A = {fig.A:g}")
     if on_done:
         on_done()
     return Result(tables={"errors": df, "claims": table}, figures=figures)

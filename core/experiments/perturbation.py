@@ -147,35 +147,35 @@ class Plan:
     models: dict
 
 
-def prepare(spec: dict, source: str) -> Plan:
+def prepare(config: Config, source: str) -> Plan:
     """Cross-checks beyond the schema; the model of every row, built once (by ``s_no``)."""
-    model_cls = registry.MODELS[spec["model"]["name"]]
-    variant = spec["model"]["variant"]
-    build_model(model_cls, variant, spec["model"]["params"], source, "model.params")
-    exc = spec["excitation"]
+    model_cls = registry.MODELS[config.model.name]
+    variant = config.model.variant
+    build_model(model_cls, variant, config.model.params, source, "model.params")
+    exc = config.excitation
     for key in ("bias_v", "mix"):
-        check_input_vector(exc[key], model_cls, source, f"excitation.{key}")
-    if not any(exc["mix"]):
+        check_input_vector(getattr(exc, key), model_cls, source, f"excitation.{key}")
+    if not any(exc.mix):
         raise ConfigError(source, "excitation.mix", "expected at least one non-zero entry")
-    needed, unused = ("frequency_hz", "duration_s") if exc["waveform"] == "sine" else (
+    needed, unused = ("frequency_hz", "duration_s") if exc.waveform == "sine" else (
         "duration_s", "frequency_hz")
     models = {}
-    for i, row in enumerate(spec["rows"]):
+    for i, row in enumerate(config.rows):
         path = f"rows[{i}]"
-        if row[needed] is None:
+        if getattr(row, needed) is None:
             raise ConfigError(source, f"{path}.{needed}",
-                              f"missing required key (excitation.waveform is {exc['waveform']})")
-        if row[unused] is not None:
+                              f"missing required key (excitation.waveform is {exc.waveform})")
+        if getattr(row, unused) is not None:
             raise ConfigError(source, f"{path}.{unused}",
-                              f"not used with excitation.waveform {exc['waveform']}; remove it")
-        if row["s_no"] in models:
-            raise ConfigError(source, f"{path}.s_no", f"duplicate row number {row['s_no']}")
-        models[row["s_no"]] = build_model(model_cls, variant,
-                                          {**spec["model"]["params"], **row["params"]},
+                              f"not used with excitation.waveform {exc.waveform}; remove it")
+        if row.s_no in models:
+            raise ConfigError(source, f"{path}.s_no", f"duplicate row number {row.s_no}")
+        models[row.s_no] = build_model(model_cls, variant,
+                                          {**config.model.params, **row.params},
                                           source, f"{path}.params")
-        _check_expansion(models[row["s_no"]], exc["bias_v"], source,
-                         f"{path}.params" if row["params"] else "model.params")
-    row = spec["figures"]["row"]
+        _check_expansion(models[row.s_no], exc.bias_v, source,
+                         f"{path}.params" if row.params else "model.params")
+    row = config.figures.row
     if row is not None and row not in models:
         raise ConfigError(source, "figures.row",
                           f"expected the s_no of a row ({sorted(models)}), got {row}")
@@ -197,63 +197,61 @@ def _check_expansion(model, bias: list, source: str, path: str) -> None:
         raise ConfigError(source, path, str(exc)) from None
 
 
-def tiny(spec: dict) -> dict:
+def tiny(config: Config) -> dict:
     """Seconds of work: the first row only, at 32 samples a period (or 64 after a step)."""
-    spec["rows"] = spec["rows"][:1]
-    spec["excitation"].update(samples_per_period=32, samples=64)
-    spec["figures"] = {"name": (spec.get("figures") or {}).get("name", "perturbation")}
-    return spec
+    return {"rows": [config.rows[0].to_spec()], "excitation.samples_per_period": 32,
+            "excitation.samples": 64, "figures": {"name": config.figures.name}}
 
 
-def work_size(spec: dict) -> int:
+def work_size(config: Config) -> int:
     """State-samples of the three responses at two amplitudes, every row (shooting repeats
     a period a few times: counted as four)."""
-    n = len(registry.MODELS[spec["model"]["name"]].state_names)
-    exc = spec["excitation"]
-    steps = exc["samples_per_period"] * 4 if exc["waveform"] == "sine" else exc["samples"]
-    return int(len(spec["rows"]) * 2 * 3 * n * steps)
+    n = len(registry.MODELS[config.model.name].state_names)
+    exc = config.excitation
+    steps = exc.samples_per_period * 4 if exc.waveform == "sine" else exc.samples
+    return int(len(config.rows) * 2 * 3 * n * steps)
 
 
 def work_units(exp: Experiment) -> int:
-    return len(exp.spec["rows"]) + 1
+    return len(exp.config.rows) + 1
 
 
-def source(exp: Experiment, row: dict, amplitudes: np.ndarray) -> tuple[np.ndarray, float]:
+def source(exp: Experiment, row: Row, amplitudes: np.ndarray) -> tuple[np.ndarray, float]:
     """Sampled sources ``(len(amplitudes), steps + 1, p)`` of one row, and the sample time."""
-    exc = exp.spec["excitation"]
-    bias, mix = np.asarray(exc["bias_v"], float), np.asarray(exc["mix"], float)
-    if exc["waveform"] == "sine":
-        steps = exc["samples_per_period"]
-        dt = 1.0 / (row["frequency_hz"] * steps)
-        shape = signals.sine(1.0, row["frequency_hz"], np.arange(steps + 1) * dt)[:, 0]
+    exc = exp.config.excitation
+    bias, mix = np.asarray(exc.bias_v, float), np.asarray(exc.mix, float)
+    if exc.waveform == "sine":
+        steps = exc.samples_per_period
+        dt = 1.0 / (row.frequency_hz * steps)
+        shape = signals.sine(1.0, row.frequency_hz, np.arange(steps + 1) * dt)[:, 0]
     else:
-        steps = exc["samples"]
-        dt = row["duration_s"] / steps
+        steps = exc.samples
+        dt = row.duration_s / steps
         shape = np.ones(steps + 1)
         shape[0] = 0.0
     wave = amplitudes[:, None, None] * shape[None, :, None] * mix
     return bias + wave, dt
 
 
-def respond_row(exp: Experiment, row: dict) -> tuple[Response, np.ndarray]:
+def respond_row(exp: Experiment, row: Row) -> tuple[Response, np.ndarray]:
     """Responses at the row's amplitude and at half of it."""
-    amplitudes = np.array([row["amplitude_v"], row["amplitude_v"] / 2])
+    amplitudes = np.array([row.amplitude_v, row.amplitude_v / 2])
     src, dt = source(exp, row, amplitudes)
-    sim = exp.spec["simulation"]
-    response = respond(exp.plan.models[row["s_no"]], src,
-                       np.asarray(exp.spec["excitation"]["bias_v"]), dt,
-                       periodic=exp.spec["excitation"]["waveform"] == "sine",
-                       solver=sim["solver"], rtol=sim["rtol"], atol=sim["atol"])
+    sim = exp.config.simulation
+    response = respond(exp.plan.models[row.s_no], src,
+                       np.asarray(exp.config.excitation.bias_v), dt,
+                       periodic=exp.config.excitation.waveform == "sine",
+                       solver=sim.solver, rtol=sim.rtol, atol=sim.atol)
     return response, amplitudes
 
 
-def row_params(row: dict) -> str:
-    return ", ".join(f"{k}={v:g}" for k, v in row["params"].items())
+def row_params(row: Row) -> str:
+    return ", ".join(f"{k}={v:g}" for k, v in row.params.items())
 
 
-def summarize(exp: Experiment, row: dict, r: Response, amplitudes: np.ndarray) -> dict:
+def summarize(exp: Experiment, row: Row, r: Response, amplitudes: np.ndarray) -> dict:
     """The ``distortion.csv`` row of the responses ``r`` at ``amplitudes`` (A, A/2)."""
-    periodic = exp.spec["excitation"]["waveform"] == "sine"
+    periodic = exp.config.excitation.waveform == "sine"
     # one period of samples t_0..t_{N-1} (t_N repeats t_0); the whole window after a step
     window = slice(0, -1) if periodic else slice(1, None)
     y0, y1, y = r.y0[:, window], r.y1[:, window], r.y_full[:, window]
@@ -261,8 +259,8 @@ def summarize(exp: Experiment, row: dict, r: Response, amplitudes: np.ndarray) -
     err_first = metrics.rms(y - y0 - y1)
     nan = float("nan")
     return {
-        "s_no": row["s_no"], "amplitude_v": row["amplitude_v"],
-        "frequency_hz": row["frequency_hz"] if periodic else nan,
+        "s_no": row.s_no, "amplitude_v": row.amplitude_v,
+        "frequency_hz": row.frequency_hz if periodic else nan,
         "row_params": row_params(row),
         "percent_distortion": float(metrics.percent_distortion(y0[0], y1[0])),
         "thd_percent": float(metrics.thd_percent(y[0])) if periodic else nan,
@@ -284,9 +282,9 @@ def _evaluate(args: tuple[Experiment, dict]) -> tuple[dict, Response]:
 def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = None) -> Result:
     """``distortion.csv`` (rows in thesis order whatever the number of jobs) and the figure
     of one row (deterministic: no seed)."""
-    results = map_tasks(_evaluate, [(exp, row) for row in exp.spec["rows"]], jobs, on_done)
+    results = map_tasks(_evaluate, [(exp, row) for row in exp.config.rows], jobs, on_done)
     df = pd.DataFrame([summary_row for summary_row, _ in results])
-    table_id = exp.spec["tables"]["distortion"]
+    table_id = exp.config.tables.distortion
     df.insert(0, "table_id", "" if table_id == reference.OWN_TABLE else table_id)
     cells = [(claims.cell(s_no=int(row["s_no"]), amplitude_v=row["amplitude_v"],
                           frequency_hz=row["frequency_hz"], params=row["row_params"] or None),
@@ -297,13 +295,13 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
                                                 "circuit", exact=True)})
     data = figure_data(exp, {s["s_no"]: r for s, r in results})
     row = data["row"]
-    what = f"amplitude {row['amplitude_v']:g} V"
-    if row["frequency_hz"] is not None:
-        what += f", {row['frequency_hz']:g} Hz"
-    if row["params"]:
-        what += "\n" + ", ".join(plots.with_unit(k, v) for k, v in row["params"].items())
-    out.figures[exp.spec["figures"]["name"]] = plots.perturbation(
-        data, f"{exp.spec['title'] or exp.name}; {what}")
+    what = f"amplitude {row.amplitude_v:g} V"
+    if row.frequency_hz is not None:
+        what += f", {row.frequency_hz:g} Hz"
+    if row.params:
+        what += "\n" + ", ".join(plots.with_unit(k, v) for k, v in row.params.items())
+    out.figures[exp.config.figures.name] = plots.perturbation(
+        data, f"{exp.title}; {what}")
     if on_done:
         on_done()
     return out
@@ -321,14 +319,14 @@ def figure_data(exp: Experiment, responses: dict[int, Response]) -> dict:
     """Traces of the figure row (``figures.row``, default the first) from the rows'
     ``responses`` by ``s_no``: two periods of the steady state for a sine, the whole window
     after a step."""
-    wanted = exp.spec["figures"]["row"]
-    row = next((r for r in exp.spec["rows"] if r["s_no"] == wanted), exp.spec["rows"][0])
-    r = responses[row["s_no"]]
-    src, _ = source(exp, row, np.array([row["amplitude_v"]]))
-    mix = np.asarray(exp.spec["excitation"]["mix"], float)
-    drive = (src[0] - np.asarray(exp.spec["excitation"]["bias_v"], float)) @ mix / (mix @ mix)
+    wanted = exp.config.figures.row
+    row = next((r for r in exp.config.rows if r.s_no == wanted), exp.config.rows[0])
+    r = responses[row.s_no]
+    src, _ = source(exp, row, np.array([row.amplitude_v]))
+    mix = np.asarray(exp.config.excitation.mix, float)
+    drive = (src[0] - np.asarray(exp.config.excitation.bias_v, float)) @ mix / (mix @ mix)
     traces = {"t": r.t, "input": drive, "y0": r.y0[0], "y1": r.y1[0], "y_full": r.y_full[0]}
-    if exp.spec["excitation"]["waveform"] == "sine":
+    if exp.config.excitation.waveform == "sine":
         period = r.t[-1]
         traces = {k: np.concatenate([v[:-1], v]) for k, v in traces.items() if k != "t"} | {
             "t": np.concatenate([r.t[:-1], r.t + period])}

@@ -23,11 +23,6 @@ from estim.util import lazy
 optimize = lazy.load("scipy.optimize")
 
 
-def param(default: Any, unit: str = "-", doc: str = "") -> Any:
-    """A dataclass field carrying a unit and a one-line description."""
-    return dataclasses.field(default=default, metadata={"unit": unit, "doc": doc})
-
-
 def check_params(params: Any, positive: tuple[str, ...] = (),
                  unit_interval: tuple[str, ...] = ()) -> None:
     """Raise ``ValueError`` naming the first parameter that is not positive, or not in
@@ -42,7 +37,8 @@ def check_params(params: Any, positive: tuple[str, ...] = (),
 
 class Model:
     """Base class: a subclass names its states, inputs and outputs, holds its parameters in
-    a frozen dataclass ``Params`` (each a :func:`param`: default, unit, doc), and implements
+    a frozen dataclass ``Params`` (each a :func:`estim.config.settings.setting`: default,
+    unit, doc), and implements
     ``f_and_jacobian`` and ``h`` (and ``h_jacobian``). It registers itself by the class
     keyword ``name``: ``class DiodeRC(Model, name="diode_rc")`` (:mod:`estim.config.registry`).
     The constructor takes a variant and keyword overrides of ``Params``.

@@ -32,7 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estim.models.base import Model, check_params, param
+from estim.config.settings import setting
+from estim.models.base import Model, check_params
 from estim.models.devices import ebers_moll
 
 NODES = ("C1", "C2", "B1", "B2", "E1", "E2")
@@ -40,20 +41,21 @@ NODES = ("C1", "C2", "B1", "B2", "E1", "E2")
 
 @dataclass(frozen=True)
 class CCOParams:
-    V_BB: float = param(1.5, "V", "base bias source")
-    R_B: float = param(10.0e3, "Ohm", "base bias resistors")
-    R_E: float = param(1.0e3, "Ohm", "emitter resistors (degeneration)")
-    R_P: float = param(1.0e3, "Ohm", "tank loss resistance across each inductor")
-    L_1: float = param(6.0e-6, "H", "collector inductor of Q1")
-    L_4: float = param(7.0e-6, "H", "collector inductor of Q2")
-    C_2: float = param(1.0e-9, "F", "coupling capacitor, collector Q1 -> base Q2")
-    C_3: float = param(5.0e-12, "F", "coupling capacitor, collector Q2 -> base Q1 ('C_4')")
-    C_o: float = param(1.0e-12, "F", "output capacitance between the collectors")
-    C_par: float = param(0.1e-12, "F", "parasitic capacitance of every node to ground")
-    V_T: float = param(0.025852, "V", "thermal voltage (300 K)")
-    I_ES: float = param(1.0e-14, "A", "emitter-junction saturation current (both)")
-    alpha_F: float = param(0.99, "-", "forward common-base current gain (both)")
-    alpha_R: float = param(0.5, "-", "reverse common-base current gain (both)")
+    V_BB: float = setting(1.5, unit="V", doc="base bias source")
+    R_B: float = setting(10.0e3, unit="Ohm", doc="base bias resistors")
+    R_E: float = setting(1.0e3, unit="Ohm", doc="emitter resistors (degeneration)")
+    R_P: float = setting(1.0e3, unit="Ohm", doc="tank loss resistance across each inductor")
+    L_1: float = setting(6.0e-6, unit="H", doc="collector inductor of Q1")
+    L_4: float = setting(7.0e-6, unit="H", doc="collector inductor of Q2")
+    C_2: float = setting(1.0e-9, unit="F", doc="coupling capacitor, collector Q1 -> base Q2")
+    C_3: float = setting(5.0e-12, unit="F",
+                         doc="coupling capacitor, collector Q2 -> base Q1 ('C_4')")
+    C_o: float = setting(1.0e-12, unit="F", doc="output capacitance between the collectors")
+    C_par: float = setting(0.1e-12, unit="F", doc="parasitic capacitance of every node to ground")
+    V_T: float = setting(0.025852, unit="V", doc="thermal voltage (300 K)")
+    I_ES: float = setting(1.0e-14, unit="A", doc="emitter-junction saturation current (both)")
+    alpha_F: float = setting(0.99, unit="-", doc="forward common-base current gain (both)")
+    alpha_R: float = setting(0.5, unit="-", doc="reverse common-base current gain (both)")
 
     def __post_init__(self) -> None:
         check_params(self, positive=("R_B", "R_E", "R_P", "L_1", "L_4", "C_2", "C_3", "C_o",

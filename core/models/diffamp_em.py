@@ -31,7 +31,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estim.models.base import Model, check_params, param
+from estim.config.settings import setting
+from estim.models.base import Model, check_params
 from estim.models.devices import ebers_moll
 from estim.util import lazy
 
@@ -42,15 +43,15 @@ kernels = lazy.load("estim.numerics.kernels")
 class DiffAmpCircuit:
     """Circuit elements shared by the Ebers-Moll and the plain-exponential amplifier."""
 
-    V_CC: float = param(12.0, "V", "collector supply")
-    V_EE: float = param(-12.0, "V", "emitter supply (signed)")
-    R_C1: float = param(8.0e3, "Ohm", "collector resistor of Q1")
-    R_C2: float = param(8.0e3, "Ohm", "collector resistor of Q2")
-    R_E: float = param(48.3e3, "Ohm", "tail resistor")
-    R_L: float = param(10.0e3, "Ohm", "load resistor between the collectors")
-    C_L: float = param(10.0e-6, "F", "load capacitor in series with R_L")
-    C_par: float = param(1.0e-12, "F", "parasitic capacitance of nodes E, C1, C2")
-    V_T: float = param(0.025852, "V", "thermal voltage (300 K)")
+    V_CC: float = setting(12.0, unit="V", doc="collector supply")
+    V_EE: float = setting(-12.0, unit="V", doc="emitter supply (signed)")
+    R_C1: float = setting(8.0e3, unit="Ohm", doc="collector resistor of Q1")
+    R_C2: float = setting(8.0e3, unit="Ohm", doc="collector resistor of Q2")
+    R_E: float = setting(48.3e3, unit="Ohm", doc="tail resistor")
+    R_L: float = setting(10.0e3, unit="Ohm", doc="load resistor between the collectors")
+    C_L: float = setting(10.0e-6, unit="F", doc="load capacitor in series with R_L")
+    C_par: float = setting(1.0e-12, unit="F", doc="parasitic capacitance of nodes E, C1, C2")
+    V_T: float = setting(0.025852, unit="V", doc="thermal voltage (300 K)")
 
     def _check(self, positive: tuple[str, ...], unit_interval: tuple[str, ...]) -> None:
         check_params(self, ("R_C1", "R_C2", "R_E", "R_L", "C_L", "C_par", "V_T", *positive),
@@ -59,9 +60,9 @@ class DiffAmpCircuit:
 
 @dataclass(frozen=True)
 class DiffAmpParams(DiffAmpCircuit):
-    I_ES: float = param(1.0e-14, "A", "emitter-junction saturation current (both)")
-    alpha_F: float = param(0.99, "-", "forward common-base current gain (both)")
-    alpha_R: float = param(0.5, "-", "reverse common-base current gain (both)")
+    I_ES: float = setting(1.0e-14, unit="A", doc="emitter-junction saturation current (both)")
+    alpha_F: float = setting(0.99, unit="-", doc="forward common-base current gain (both)")
+    alpha_R: float = setting(0.5, unit="-", doc="reverse common-base current gain (both)")
 
     def __post_init__(self) -> None:
         self._check(("I_ES",), ("alpha_F", "alpha_R"))

@@ -19,14 +19,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estim.models.base import param
+from estim.config.settings import setting
 from estim.models.diffamp_em import DiffAmpCircuit, DiffAmpEbersMoll
 
 
 @dataclass(frozen=True)
 class DiffAmpExpParams(DiffAmpCircuit):
-    I_0: float = param(1.0e-16, "A", "saturation current of eqs 2.48-2.51 (both)")
-    alpha: float = param(0.99, "-", "common-base current gain (both)")
+    I_0: float = setting(1.0e-16, unit="A", doc="saturation current of eqs 2.48-2.51 (both)")
+    alpha: float = setting(0.99, unit="-", doc="common-base current gain (both)")
 
     def __post_init__(self) -> None:
         self._check(("I_0",), ("alpha",))

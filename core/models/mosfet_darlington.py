@@ -18,7 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estim.models.base import Model, param
+from estim.config.settings import setting
+from estim.models.base import Model
 from estim.models.mosfet_ekv import MosfetEKV, MosfetParams
 
 
@@ -27,10 +28,10 @@ class ChainParams(MosfetParams):
     """The stage's parameters (:class:`estim.models.mosfet_ekv.MosfetParams`) with the
     Chapter 4 defaults, and the number of stages."""
 
-    W_L: float = param(1.0, "-", "aspect ratio W/L of every stage")
-    V_IN: float = param(0.5, "V", "DC gate bias of every stage")
-    R_D: float = param(1.0e9, "Ohm", "drain load of every stage")
-    stages: int = param(2, "-", "number of stages (2: the Darlington pair of Fig 4.2)")
+    W_L: float = setting(1.0, unit="-", doc="aspect ratio W/L of every stage")
+    V_IN: float = setting(0.5, unit="V", doc="DC gate bias of every stage")
+    R_D: float = setting(1.0e9, unit="Ohm", doc="drain load of every stage")
+    stages: int = setting(2, unit="-", doc="number of stages (2: the Darlington pair of Fig 4.2)")
 
     def __post_init__(self) -> None:
         super().__post_init__()

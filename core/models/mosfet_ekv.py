@@ -34,7 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estim.models.base import Model, check_params, param
+from estim.config.settings import setting
+from estim.models.base import Model, check_params
 from estim.util import lazy
 
 kernels = lazy.load("estim.numerics.kernels")
@@ -56,28 +57,29 @@ class DeviceParams:
     """The EKV transistor and its capacitor network (eqs 3.1-3.4, 4.1-4.4): the values
     every MOSFET model here shares; each model adds its circuit around it."""
 
-    U_T: float = param(0.0256, "V", "thermal voltage")
-    V_T0: float = param(0.5, "V", "equilibrium threshold voltage")
-    eta: float = param(1.0, "-", "subthreshold slope factor")
-    I_0: float = param(1.0e-9, "A", "unary specific current")
-    W_L: float = param(1.0e5, "-", "aspect ratio W/L")
-    R_in: float = param(3.0e3, "Ohm", "gate bias resistor")
-    C_GX: float = param(1.0e-5, "F", "input coupling capacitor")
-    C_S: float = param(1.5e-10, "F", "gate-source capacitance")
-    C_D: float = param(1.5e-10, "F", "gate-drain capacitance")
-    C_B: float = param(4.0e-10, "F", "gate-bulk capacitance")
-    C_BS: float = param(0.99e-11, "F", "bulk-source capacitance")
-    C_BD: float = param(1.0e-11, "F", "bulk-drain capacitance")
+    U_T: float = setting(0.0256, unit="V", doc="thermal voltage")
+    V_T0: float = setting(0.5, unit="V", doc="equilibrium threshold voltage")
+    eta: float = setting(1.0, unit="-", doc="subthreshold slope factor")
+    I_0: float = setting(1.0e-9, unit="A", doc="unary specific current")
+    W_L: float = setting(1.0e5, unit="-", doc="aspect ratio W/L")
+    R_in: float = setting(3.0e3, unit="Ohm", doc="gate bias resistor")
+    C_GX: float = setting(1.0e-5, unit="F", doc="input coupling capacitor")
+    C_S: float = setting(1.5e-10, unit="F", doc="gate-source capacitance")
+    C_D: float = setting(1.5e-10, unit="F", doc="gate-drain capacitance")
+    C_B: float = setting(4.0e-10, unit="F", doc="gate-bulk capacitance")
+    C_BS: float = setting(0.99e-11, unit="F", doc="bulk-source capacitance")
+    C_BD: float = setting(1.0e-11, unit="F", doc="bulk-drain capacitance")
 
 
 @dataclass(frozen=True)
 class MosfetParams(DeviceParams):
-    V_IN: float = param(0.435, "V", "DC gate bias")
-    V_DD: float = param(1.0, "V", "drain supply")
-    R_D: float = param(1.0e5, "Ohm", "drain load (inf: none)")
-    R_S: float = param(1.0e3, "Ohm", "source to ground (inf: none)")
-    R_B: float = param(1.0e5, "Ohm", "bulk to ground (inf: none)")
-    drain_current: str = param("ekv", "-", "drain-current law, one of DRAIN_CURRENT_LAWS")
+    V_IN: float = setting(0.435, unit="V", doc="DC gate bias")
+    V_DD: float = setting(1.0, unit="V", doc="drain supply")
+    R_D: float = setting(1.0e5, unit="Ohm", doc="drain load (inf: none)")
+    R_S: float = setting(1.0e3, unit="Ohm", doc="source to ground (inf: none)")
+    R_B: float = setting(1.0e5, unit="Ohm", doc="bulk to ground (inf: none)")
+    drain_current: str = setting("ekv", unit="-",
+                                 doc="drain-current law, one of DRAIN_CURRENT_LAWS")
 
     def __post_init__(self) -> None:
         if self.drain_current not in DRAIN_CURRENT_LAWS:

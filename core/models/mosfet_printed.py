@@ -18,7 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estim.models.base import Model, check_params, param
+from estim.config.settings import setting
+from estim.models.base import Model, check_params
 from estim.models.mosfet_ekv import DeviceParams
 from estim.numerics.kronecker_form import printed_matrices, printed_s
 
@@ -28,10 +29,10 @@ class PrintedParams(DeviceParams):
     """The shared device values (:class:`estim.models.mosfet_ekv.DeviceParams`) with
     Chapter 4's printed ``W/L`` and ``C_GX``, and the O.U. input's decay rate."""
 
-    W_L: float = param(1.0, "-", "aspect ratio W/L")
-    C_GX: float = param(1.0e-11, "F", "input coupling capacitor (as printed, l. 2325)")
-    gamma: float = param(1.0, "1/s", "O.U. decay rate of the input (eq 4.8)")
-    V_IN: float = param(0.5, "V", "DC gate bias u2 (not printed)")
+    W_L: float = setting(1.0, unit="-", doc="aspect ratio W/L")
+    C_GX: float = setting(1.0e-11, unit="F", doc="input coupling capacitor (as printed, l. 2325)")
+    gamma: float = setting(1.0, unit="1/s", doc="O.U. decay rate of the input (eq 4.8)")
+    V_IN: float = setting(0.5, unit="V", doc="DC gate bias u2 (not printed)")
 
     def __post_init__(self) -> None:
         check_params(self, positive=("U_T", "eta", "I_0", "W_L", "R_in", "C_GX", "C_S", "C_D",

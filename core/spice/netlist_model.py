@@ -14,7 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from estim.config import registry
-from estim.models.base import Model, param
+from estim.config.settings import setting
+from estim.models.base import Model
 from estim.models.devices import ebers_moll
 from estim.spice.circuit import Circuit
 from estim.spice.devices import DEFAULTS, DIODE_VT, diode, nmos
@@ -30,7 +31,8 @@ def build_model_class(circuit: Circuit, name: str) -> type:
     values (overridable in a config's ``model.params``), re-evaluated into element values
     when they change."""
     net = circuit.netlist
-    fields = [(k, float, param(float(v), "-", "netlist .param")) for k, v in net.params.items()]
+    fields = [(k, float, setting(float(v), unit="-", doc="netlist .param"))
+              for k, v in net.params.items()]
     Params = dataclasses.make_dataclass(f"{name}_params", fields, frozen=True)
     inputs = tuple(f"d({i})/dt" for i in circuit.inputs) if circuit.slope \
         else tuple(circuit.inputs)

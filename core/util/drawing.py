@@ -6,5 +6,5 @@ import threading
 
 DRAWING = threading.RLock()
 """Held while a figure is built or rendered: matplotlib is not thread-safe (its mathtext
-parser is one shared object), and :mod:`estim.run.scheduler` runs several configs' drivers in
+parser is one shared object), and :mod:`estim.engine.scheduler` runs several configs' drivers in
 threads. :func:`estim.store.io.write_figure` renders under it too."""

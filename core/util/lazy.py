@@ -39,7 +39,7 @@ def import_all_now() -> None:
     Python's lazy modules are not thread-safe before 3.12.3 (cpython gh-114763): two threads
     reading a lazy module's first attribute together can each see it half-imported
     (``ImportError: cannot import name 'scoreatpercentile' from 'scipy.stats'`` with two
-    configs at once). So :mod:`estim.run.scheduler`'s callers import them in their own thread
+    configs at once). So :mod:`estim.engine.scheduler`'s callers import them in their own thread
     before any driver thread starts. A module that cannot be imported is left to fail where
     it is used, as it would have."""
     global _eager

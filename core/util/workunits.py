@@ -1,7 +1,7 @@
 """The work-unit engine every analysis maps its tasks with (:func:`map_tasks`): in this
 process, in ``jobs`` worker processes, on a shared pool or an executor set by the runner
 (:func:`execution`), each finished unit kept in a cell store and a resumed run taking the
-stored ones back. It knows nothing of analyses: the runner (:mod:`estim.run.runner`) sets
+stored ones back. It knows nothing of analyses: the runner (:mod:`estim.engine.runner`) sets
 the execution, the analyses call :func:`map_tasks`.
 """
 
@@ -27,13 +27,13 @@ from estim.util.processes import ignore_interrupts, stop
 class Execution:
     """How :func:`map_tasks` runs inside :func:`execution`: ``executor`` (``None``: this
     machine, ``jobs`` processes) is a callable ``executor(fn, tasks) -> iterator of (index,
-    result)`` in any order (:func:`estim.run.executors.dask_executor`); ``store`` keeps finished
+    result)`` in any order (:func:`estim.engine.executors.dask_executor`); ``store`` keeps finished
     cells, ``store.get(key) -> (found, value)`` and ``store.put(key, value)``
-    (:class:`estim.run.cells.CellStore`), keyed by the sweep cell, the map call's number within it
-    and the task's index. ``offsets`` counts the tasks of each map call number over the
+    (:class:`estim.engine.cells.CellStore`), keyed by the sweep cell, the map call's number within
+    it and the task's index. ``offsets`` counts the tasks of each map call number over the
     sweep cells so far (empty: the analysis made no map call, so a shard cannot share it
     out); ``computed`` counts the cells computed here. ``pool`` is a process pool shared
-    with other configs' drivers (:mod:`estim.run.scheduler`): the tasks go there, whatever
+    with other configs' drivers (:mod:`estim.engine.scheduler`): the tasks go there, whatever
     ``jobs`` says."""
 
     executor: Callable | None = None

@@ -27,7 +27,7 @@ import pandas as pd
 
 from estim import api, store
 from estim.config.registry import ANALYSES
-from estim.run import compare
+from estim.engine import compare
 
 
 def avx512_targets() -> str:

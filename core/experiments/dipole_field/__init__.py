@@ -119,46 +119,46 @@ against the raw sensor."""
 QUOTES = (Quote("relative RMSE (RMSE / field RMS)", "rmse", "relative", by="estimator"),)
 
 
-def prepare(spec: dict, source: str) -> Plan:
-    g = spec["grid"]
-    if g["n"] % 2:
+def prepare(config: Config, source: str) -> Plan:
+    g = config.grid
+    if g.n % 2:
         raise ConfigError(source, "grid.n", "expected an even number (no grid point on the "
                           "source's centre, where the analytic field is infinite)")
-    grid = grids.Grid(g["n"], g["length"] / g["n"])
-    half = g["length"] / 2
-    for i, z in enumerate(spec["zones"]):
-        check_interval(z["r"], source, f"zones[{i}].r")
-        check_interval(z["theta_deg"], source, f"zones[{i}].theta_deg")
-        if z["r"][1] > half - grid.spacing:
+    grid = grids.Grid(g.n, g.length / g.n)
+    half = g.length / 2
+    for i, z in enumerate(config.zones):
+        check_interval(z.r, source, f"zones[{i}].r")
+        check_interval(z.theta_deg, source, f"zones[{i}].theta_deg")
+        if z.r[1] > half - grid.spacing:
             raise ConfigError(source, f"zones[{i}].r", f"reaches the box's faces at "
                               f"{half:g}: keep it below {half - grid.spacing:g}")
-    check_interval(spec["sensors"]["r"], source, "sensors.r")
-    names = [s["name"] for s in spec["scenarios"]]
-    for i, s in enumerate(spec["scenarios"]):
-        if len(s["nominal_amplitude"]) != 2:
+    check_interval(config.sensors.r, source, "sensors.r")
+    names = [s.name for s in config.scenarios]
+    for i, s in enumerate(config.scenarios):
+        if len(s.nominal_amplitude) != 2:
             raise ConfigError(source, f"scenarios[{i}].nominal_amplitude",
                               "expected [magnitude, phase in degrees]")
-        if s["name"] in names[:i]:
-            raise ConfigError(source, f"scenarios[{i}].name", f"repeats {s['name']!r}")
-    rng = np.random.default_rng(spec["sensors"]["seed"])
-    lo, hi = spec["sensors"]["r"]
+        if s.name in names[:i]:
+            raise ConfigError(source, f"scenarios[{i}].name", f"repeats {s.name!r}")
+    rng = np.random.default_rng(config.sensors.seed)
+    lo, hi = config.sensors.r
     candidates = np.flatnonzero((grid.r >= lo) & (grid.r <= hi))
-    count = max(1, int(round(spec["sensors"]["fraction"] * grid.size)))
+    count = max(1, int(round(config.sensors.fraction * grid.size)))
     if count > candidates.size:
         raise ConfigError(source, "sensors.fraction", f"asks for {count} sensors; only "
                           f"{candidates.size} grid points lie between the sensor radii")
     sensors = np.sort(rng.choice(candidates, count, replace=False))
     zones = {}
-    for z in spec["zones"]:
+    for z in config.zones:
         th = np.degrees(grid.theta)
-        zones[z["name"]] = np.flatnonzero((grid.r >= z["r"][0]) & (grid.r <= z["r"][1])
-                                          & (th >= z["theta_deg"][0])
-                                          & (th <= z["theta_deg"][1]))
-    if g["n"] % spec["filter"]["block"]:
-        raise ConfigError(source, "filter.block", f"expected a divisor of grid.n = {g['n']}")
-    wavelength = spec["source"]["c"] / spec["source"]["frequency"]
-    beta_r = {z["name"]: "{:.2f}-{:.2f}".format(*(2 * np.pi * np.array(z["r"]) / wavelength))
-              for z in spec["zones"]}
+        zones[z.name] = np.flatnonzero((grid.r >= z.r[0]) & (grid.r <= z.r[1])
+                                          & (th >= z.theta_deg[0])
+                                          & (th <= z.theta_deg[1]))
+    if g.n % config.filter.block:
+        raise ConfigError(source, "filter.block", f"expected a divisor of grid.n = {g.n}")
+    wavelength = config.source.c / config.source.frequency
+    beta_r = {z.name: "{:.2f}-{:.2f}".format(*(2 * np.pi * np.array(z.r) / wavelength))
+              for z in config.zones}
     return Plan(grid=grid, sensors=sensors, zones=zones,
                 sensor_ops=sensor_operators(grid, sensors), beta_r=beta_r)
 
@@ -171,16 +171,16 @@ members x 96 steps) took 21 s, where ``mosfet_saturation``'s 4.3e5 state-samples
 20 s, a ratio near 1500. Grid-point updates are divided by this (rounded-down) ratio."""
 
 
-def work_size(spec: dict) -> int:
+def work_size(config: Config) -> int:
     """Grid-point updates (``4 n^3`` per member and step; two ensembles, the field filter's
     and the source-only one, and three free runs: the plain simulation and the fit's basis)
     over every scenario, noise row and run, over :data:`FIELD_COST_RATIO`."""
-    g, t = spec["grid"], spec["time"]
-    per_period = round(g["n"] / (g["courant"] * g["length"]))
-    steps = (t["spinup_periods"] + t["periods"]) * per_period
-    points = len(spec["noise"]["source_levels"]) * len(spec["noise"].get("readings") or [1])
-    updates = (4 * g["n"] ** 3 * (2 * spec["filter"]["members"] + 3) * steps * points
-               * len(spec["scenarios"]) * spec["monte_carlo"]["runs"])
+    g, t = config.grid, config.time
+    per_period = round(g.n / (g.courant * g.length))
+    steps = (t.spinup_periods + t.periods) * per_period
+    points = len(config.noise.source_levels) * len(config.noise.readings or [1])
+    updates = (4 * g.n ** 3 * (2 * config.filter.members + 3) * steps * points
+               * len(config.scenarios) * config.monte_carlo.runs)
     return int(updates / FIELD_COST_RATIO)
 
 
@@ -188,48 +188,47 @@ def work_units(exp: Experiment) -> int:
     return len(_points(exp))
 
 
-def tiny(spec: dict) -> dict:
-    spec["grid"] = {**(spec.get("grid") or {}), "n": 12}
-    spec["zones"] = [{"name": "far", "r": [0.9, 1.5]}]
-    spec["sensors"] = {**(spec.get("sensors") or {}), "r": [0.2, 1.5], "fraction": 0.05}
-    spec["scenarios"] = spec["scenarios"][:1]
-    spec["noise"].update(source_levels=spec["noise"]["source_levels"][:1],
-                         readings=(spec["noise"].get("readings") or ["sigma"])[:1])
-    spec["filter"] = {**(spec.get("filter") or {}), "members": 5}
-    spec["time"] = {"spinup_periods": 1, "periods": 1}
-    spec["monte_carlo"]["runs"] = 1
-    return spec
+def tiny(config: Config) -> dict:
+    """Seconds of work: a 12-point grid, one zone and scenario, 5 members, one period after
+    one of spin-up, one run."""
+    return {"grid.n": 12, "zones": [{"name": "far", "r": [0.9, 1.5]}],
+            "sensors.r": [0.2, 1.5], "sensors.fraction": 0.05,
+            "scenarios": [s.to_spec() for s in config.scenarios[:1]],
+            "noise.source_levels": config.noise.source_levels[:1],
+            "noise.readings": (config.noise.readings or ["sigma"])[:1],
+            "filter.members": 5, "time": {"spinup_periods": 1, "periods": 1},
+            "monte_carlo.runs": 1}
 
 
 def _points(exp: Experiment) -> list[tuple]:
-    noise = exp.spec["noise"]
-    return [(s, r, i) for s in range(len(exp.spec["scenarios"]))
-            for r in range(len(noise["readings"])) for i in range(len(noise["source_levels"]))]
+    noise = exp.config.noise
+    return [(s, r, i) for s in range(len(exp.config.scenarios))
+            for r in range(len(noise.readings)) for i in range(len(noise.source_levels))]
 
 
 def run_point(exp: Experiment, key: tuple) -> tuple[list[dict], list, dict, list[dict]]:
     """Rows of one scenario and noise row over every run; for the first noise row of a
     scenario, the figure's slices from run 1 at the last recorded step; and the filters'
     health over time (effective rank, NIS)."""
-    spec, plan = exp.spec, exp.plan
+    config, plan = exp.config, exp.plan
     grid, sensors = plan.grid, plan.sensors
     s_idx, r_idx, l_idx = key
-    scenario = spec["scenarios"][s_idx]
-    reading = spec["noise"]["readings"][r_idx]
-    level = float(spec["noise"]["source_levels"][l_idx])
-    su = setup(spec, plan)
-    nominal = amplitude(scenario["nominal_amplitude"])
+    scenario = config.scenarios[s_idx]
+    reading = config.noise.readings[r_idx]
+    level = float(config.noise.source_levels[l_idx])
+    su = setup(config, plan)
+    nominal = amplitude(scenario.nominal_amplitude)
     per_run, health = {}, []
-    for run in range(spec["monte_carlo"]["runs"]):
+    for run in range(config.monte_carlo.runs):
         rng = exp.config.monte_carlo.rng(*key, run)
         out = cycle(exp, su, nominal, rng, euler=run == 0)
         health += [{**h, "run": run} for h in out["health"]]
-        smooth = smoothed(out["measured"], out["times"], su.dipole.omega, spec["rls"])
+        smooth = smoothed(out["measured"], out["times"], su.dipole.omega, config.rls)
         per_run[run] = run_errors(exp, grid, out["phasors"], su.dipole, sensors, out["times"],
                                out["traces"], out["measured"], smooth, su.quarter)
         if run == 0 and r_idx == 0 and l_idx == 0:
             slices = figure_slices(grid, out["phasors"], su.dipole, out["times"], out["traces"])
-    figure = {"scenario": scenario["name"], **slices} if r_idx == 0 and l_idx == 0 else {}
+    figure = {"scenario": scenario.name, **slices} if r_idx == 0 and l_idx == 0 else {}
     rows, cells = _rows(exp, key, reading, level, per_run)
     return rows, cells, figure, _health_rows(exp, key, reading, level, health)
 
@@ -242,7 +241,7 @@ def _health_rows(exp, key, reading, level, health) -> list[dict]:
     df = pd.DataFrame(health)
     out = []
     for (name, step), g in df.groupby(["estimator", "step"], sort=False):
-        out.append({"scenario": exp.spec["scenarios"][key[0]]["name"],
+        out.append({"scenario": exp.config.scenarios[key[0]].name,
                     "noise_reading": reading, "noise_param": level, "estimator": name,
                     "step": int(step), "time": float(g["time"].iloc[0]),
                     "effective_rank_min": int(g["effective_rank"].min()),
@@ -255,8 +254,8 @@ def _rows(exp, key, reading, level, per_run) -> tuple[list[dict], list]:
     """The rows of one scenario and noise row, and per zone, component and part the cell's
     per-run losses (RMSE) for the claims; an RMSE above :data:`DIVERGED_RATIO` times the
     field's RMS is a diverged run (reported ``inf``)."""
-    spec = exp.spec
-    scenario = spec["scenarios"][key[0]]["name"]
+    config = exp.config
+    scenario = config.scenarios[key[0]].name
     s_no = key[2] + 1
     rows, losses = [], {}
     for cell in per_run[0]:

@@ -11,7 +11,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from estim.config.experiment import Experiment
-from estim.experiments.dipole_field.config import EULER, FIT, KF, PLAIN, SOURCE_ONLY
+from estim.experiments.dipole_field.config import EULER, FIT, KF, PLAIN, SOURCE_ONLY, Config
 from estim.experiments.dipole_field.scoring import EulerRun, amplitude_fit, analytic_cartesian
 from estim.fields import etkf
 from estim.fields.dipole import Dipole
@@ -104,42 +104,42 @@ class Setup:
     R_source: np.ndarray
 
 
-def setup(spec: dict, plan: Plan) -> Setup:
-    grid, src = plan.grid, spec["source"]
-    dipole = Dipole(I0=1.0, dl=grid.spacing, omega=2 * np.pi * src["frequency"], c=src["c"],
-                    mu0=src["mu0"])
-    dt = spec["grid"]["courant"] * grid.spacing / src["c"]
-    per = int(round(1 / (src["frequency"] * dt)))
-    dt = 1 / (src["frequency"] * per)                  # whole steps per period
-    sim = fdtd.Simulation(grid, dipole, dt, dl=grid.spacing, width=spec["grid"]["source_width"],
-                     boundary=spec["grid"]["boundary"])
+def setup(config: Config, plan: Plan) -> Setup:
+    grid, src = plan.grid, config.source
+    dipole = Dipole(I0=1.0, dl=grid.spacing, omega=2 * np.pi * src.frequency, c=src.c,
+                    mu0=src.mu0)
+    dt = config.grid.courant * grid.spacing / src.c
+    per = int(round(1 / (src.frequency * dt)))
+    dt = 1 / (src.frequency * per)                  # whole steps per period
+    sim = fdtd.Simulation(grid, dipole, dt, dl=grid.spacing, width=config.grid.source_width,
+                     boundary=config.grid.boundary)
     quarter = max(1, per // 4)
-    f, so = spec["filter"], spec["source_only"]
-    wavelength = src["c"] / src["frequency"]
+    f, so = config.filter, config.source_only
+    wavelength = src.c / src.frequency
     where = grid.xyz[plan.sensors]
-    local = letkf.localisation(grid.n, grid.xyz, where, f["block"],
-                               f["localisation"] * wavelength)
-    sigma2 = spec["sensors"]["measurement_sigma"] ** 2
+    local = letkf.localisation(grid.n, grid.xyz, where, f.block,
+                               f.localisation * wavelength)
+    sigma2 = config.sensors.measurement_sigma ** 2
     shape = (plan.sensors.size, 6)
     distances = np.linalg.norm(where, axis=1)
-    scale = np.full((2, grid.size), f["field_error"])
-    if f["field_error_profile"] == "truncation":
+    scale = np.full((2, grid.size), f.field_error)
+    if f.field_error_profile == "truncation":
         ph = dipole.phasors(grid.r, grid.theta)
         A_z = ph["A_r"] * np.cos(grid.theta) - ph["A_theta"] * np.sin(grid.theta)
         bins = np.arange(0.0, grid.r.max() + grid.spacing, grid.spacing)
         profile = model_error.truncation_profile(sim, (A_z, ph["Phi"]), bins)
-        scale = np.clip(profile, f["field_error"], ERROR_CAP)
-    amplitude_half_width = f["amplitude_localisation"] * wavelength
+        scale = np.clip(profile, f.field_error, ERROR_CAP)
+    amplitude_half_width = f.amplitude_localisation * wavelength
     return Setup(sim=sim, dipole=dipole, dt=dt, per=per, quarter=quarter,
-                  spin=spec["time"]["spinup_periods"] * per - quarter,
-                  record=spec["time"]["periods"] * per + quarter, local=local,
-                  local_half_width=f["localisation"] * wavelength,
+                  spin=config.time.spinup_periods * per - quarter,
+                  record=config.time.periods * per + quarter, local=local,
+                  local_half_width=f.localisation * wavelength,
                   amplitude_taper=letkf.gaspari_cohn(distances, amplitude_half_width),
                   amplitude_half_width=amplitude_half_width, source_distances=distances,
-                  smoother=model_error.gaussian_smoother(grid.n, f["field_error_length"]),
+                  smoother=model_error.gaussian_smoother(grid.n, f.field_error_length),
                   error_scale=scale,
-                  R_field=np.full(shape, sigma2 + f["representation_error"] ** 2),
-                  R_source=np.full(shape, sigma2 + so["representation_error"] ** 2))
+                  R_field=np.full(shape, sigma2 + f.representation_error ** 2),
+                  R_source=np.full(shape, sigma2 + so.representation_error ** 2))
 
 
 ERROR_CAP = 0.1
@@ -267,17 +267,17 @@ def cycle(exp: Experiment, su: Setup, nominal: complex, rng: np.random.Generator
 def cycle_steps(exp: Experiment, su: Setup, nominal: complex, rng: np.random.Generator,
            euler: bool) -> dict:
     reuse_freed_memory()
-    spec, plan = exp.spec, exp.plan
+    config, plan = exp.config, exp.plan
     grid = plan.grid
     sim, dipole, dt = su.sim, su.dipole, su.dt
-    fcfg = spec["filter"]
-    m, infl = fcfg["members"], fcfg["inflation"]
-    sigma_obs = spec["sensors"]["measurement_sigma"]
+    fcfg = config.filter
+    m, infl = fcfg.members, fcfg.inflation
+    sigma_obs = config.sensors.measurement_sigma
     free_amps = np.array([nominal, 1.0, 1.0j])          # plain simulation, the fit's basis
     phasors = dipole.phasors(grid.r, grid.theta)
     omega_dt = dipole.omega * dt
     draws = rng.standard_normal(m) + 1j * rng.standard_normal(m)
-    amps = nominal + fcfg["amplitude_spread"] * draws / np.sqrt(2)
+    amps = nominal + fcfg.amplitude_spread * draws / np.sqrt(2)
     free = np.zeros((3, 2, 2, grid.size))
     t = 0.0
     for _ in range(su.spin):

@@ -103,73 +103,75 @@ class Plan:
     """Per estimator: its ``(input_derivative, derivative_bandwidth)``."""
 
 
-def prepare(spec: dict, source: str) -> Plan:
+def prepare(config: Config, source: str) -> Plan:
     """Cross-checks beyond the schema; builds the models and estimators once."""
-    model_cls = registry.MODELS[spec["model"]["name"]]
-    variant = spec["model"]["variant"]
-    inp, noise = spec["input"], spec["noise"]
-    if (inp["periods"] is None) == (inp["duration_s"] is None):
+    model_cls = registry.MODELS[config.model.name]
+    variant = config.model.variant
+    inp, noise = config.input, config.noise
+    if (inp.periods is None) == (inp.duration_s is None):
         raise ConfigError(source, "input.periods",
                           "give exactly one of input.periods and input.duration_s")
     for key in ("bias_v", "mix"):
-        check_input_vector(inp[key], model_cls, source, f"input.{key}")
-    if noise["pairs"]:
-        if len(noise["input_levels"]) != len(inp["frequencies_hz"]):
+        check_input_vector(getattr(inp, key), model_cls, source, f"input.{key}")
+    if noise.pairs:
+        if len(noise.input_levels) != len(inp.frequencies_hz):
             raise ConfigError(source, "noise.pairs", "with pairs: true, noise.input_levels and "
                               "input.frequencies_hz must have the same length")
-        cells = list(zip(noise["input_levels"], inp["frequencies_hz"], strict=True))
+        cells = list(zip(noise.input_levels, inp.frequencies_hz, strict=True))
         for i, cell in enumerate(cells):
             if cell in cells[:i]:
                 raise ConfigError(source, f"input.frequencies_hz[{i}]",
                                   f"repeats the (noise level, frequency) pair {cell}")
     else:
-        for key, values in (("noise.input_levels", noise["input_levels"]),
-                            ("input.frequencies_hz", inp["frequencies_hz"])):
+        for key, values in (("noise.input_levels", noise.input_levels),
+                            ("input.frequencies_hz", inp.frequencies_hz)):
             for i, v in enumerate(values):
                 if v in values[:i]:
                     raise ConfigError(source, f"{key}[{i}]", f"repeats {v!r}")
-    if noise["input_sensor_sigma"] > 0 and noise["filters_see"] != "noisy":
+    if noise.input_sensor_sigma > 0 and noise.filters_see != "noisy":
         raise ConfigError(source, "noise.input_sensor_sigma", "applies only when the filters "
                           "see the noisy source (noise.filters_see: noisy)")
-    truth = build_model(model_cls, variant, spec["model"]["params"], source, "model.params")
-    x0 = operating_point(truth, inp["bias_v"], source, "model.params")
+    truth = build_model(model_cls, variant, config.model.params, source, "model.params")
+    x0 = operating_point(truth, inp.bias_v, source, "model.params")
     filters, labels = [], []
-    for i, est in enumerate(spec["estimators"]):
+    for i, est in enumerate(config.estimators):
         path = f"estimators[{i}]"
-        if est["label"] in labels:
-            raise ConfigError(source, f"{path}.label", f"duplicate label {est['label']!r}")
-        if est["label"] == pipeline.MEASUREMENT:
+        if est.label in labels:
+            raise ConfigError(source, f"{path}.label", f"duplicate label {est.label!r}")
+        if est.label == pipeline.MEASUREMENT:
             raise ConfigError(source, f"{path}.label", f"{pipeline.MEASUREMENT!r} is the label "
                               "of the raw-measurement baseline row; choose another")
-        labels.append(est["label"])
-        model = build_model(model_cls, variant, {**spec["model"]["params"], **est["model_params"]},
+        labels.append(est.label)
+        model = build_model(model_cls, variant, {**config.model.params, **est.model_params},
                             source, f"{path}.model_params")
-        estimator = build_estimator(registry.ESTIMATORS[est["type"]], est["settings"], model,
+        estimator = build_estimator(registry.ESTIMATORS[est.type], est.settings, model,
                                     source, f"{path}.settings")
-        est["settings"] = estimator.to_spec()          # the manifest records every default
-        filters.append((est["label"], estimator, model))
-        if est["input_derivative"] != "difference" and not model_cls.input_is_source_slope:
+        est.settings.clear()      # the manifest records every default
+        est.settings.update(estimator.to_spec())
+        filters.append((est.label, estimator, model))
+        if est.input_derivative != "difference" and not model_cls.input_is_source_slope:
             raise ConfigError(source, f"{path}.input_derivative",
-                              f"model {spec['model']['name']}'s input is not the derivative of "
+                              f"model {config.model.name}'s input is not the derivative of "
                               "its source; only 'difference' (the model's own mapping) applies")
-    regime = spec["regime"]
+    regime = config.regime
     if regime is not None and regime not in truth.regimes:
         raise ConfigError(source, "regime", f"expected one of {list(truth.regimes)} for "
-                          f"model {spec['model']['name']}, got {regime!r}")
-    if not any(spec["tables"].values()):
+                          f"model {config.model.name}, got {regime!r}")
+    if not any(table_id for _, table_id in config.tables.items()):
         raise ConfigError(source, "tables", "expected at least one of tables.rmse and "
                           "tables.residual")
-    for i, claim in enumerate(spec["claims"]):
+    for i, claim in enumerate(config.claims):
         for side in ("better", "worse"):
-            if claim[side] not in labels:
+            label = getattr(claim, side)
+            if label not in labels:
                 raise ConfigError(source, f"claims[{i}].{side}",
-                                  f"expected an estimator label {labels}, got {claim[side]!r}")
-        if claim["better"] == claim["worse"]:
+                                  f"expected an estimator label {labels}, got {label!r}")
+        if claim.better == claim.worse:
             raise ConfigError(source, f"claims[{i}].worse", "the same estimator as better: "
                               "a claim compares two")
-        if spec["tables"]["rmse"] is None:
+        if config.tables.rmse is None:
             raise ConfigError(source, "claims", "claims compare RMSEs: set tables.rmse")
-    names = spec["figures"]["names"]
+    names = config.figures.names
     for kind, name in names.items():
         if kind not in FIGURE_KINDS:
             raise ConfigError(source, f"figures.names.{kind}",
@@ -178,52 +180,51 @@ def prepare(spec: dict, source: str) -> Plan:
     used = {names.get(kind, kind): f"figures.names.{kind}" for kind in FIGURE_KINDS}
     if len(used) < len(FIGURE_KINDS):
         raise ConfigError(source, "figures.names", "two figure kinds share one file name")
-    for i, extra in enumerate(spec["figures"]["extra_noisy"]):
-        if extra["name"] in used:
+    for i, extra in enumerate(config.figures.extra_noisy):
+        if extra.name in used:
             raise ConfigError(source, f"figures.extra_noisy[{i}].name",
-                              f"{extra['name']!r} is already the file of {used[extra['name']]}")
-        used[extra["name"]] = f"figures.extra_noisy[{i}].name"
-    dt = inp["sample_time_s"]
-    if dt is not None and dt * max(inp["frequencies_hz"]) > 10:
+                              f"{extra.name!r} is already the file of {used[extra.name]}")
+        used[extra.name] = f"figures.extra_noisy[{i}].name"
+    dt = inp.sample_time_s
+    if dt is not None and dt * max(inp.frequencies_hz) > 10:
         raise ConfigError(source, "input.sample_time_s",
                           f"{dt:g} s samples the highest input frequency "
-                          f"{max(inp['frequencies_hz']):g} Hz fewer than once in ten periods")
-    inputs = tuple((e["input_derivative"], e["derivative_bandwidth"])
-                   for e in spec["estimators"])
+                          f"{max(inp.frequencies_hz):g} Hz fewer than once in ten periods")
+    inputs = tuple((e.input_derivative, e.derivative_bandwidth)
+                   for e in config.estimators)
     return Plan(truth=truth, filters=tuple(filters), x0=x0, inputs=inputs)
 
 
-def work_size(spec: dict) -> int:
+def work_size(config: Config) -> int:
     """State-samples of the actual signal over every sweep point and figure batch."""
-    n = len(registry.MODELS[spec["model"]["name"]].state_names)
-    inp, mc = spec["input"], spec["monte_carlo"]
+    n = len(registry.MODELS[config.model.name].state_names)
+    inp, mc = config.input, config.monte_carlo
     per_freq = 0
-    for f in inp["frequencies_hz"]:
-        dt = inp["sample_time_s"] or 1.0 / (inp["samples_per_period"] * f)
-        span = inp["duration_s"] if inp["duration_s"] is not None else (
-            (inp["periods"] or 1) / f)
+    for f in inp.frequencies_hz:
+        dt = inp.sample_time_s or 1.0 / (inp.samples_per_period * f)
+        span = inp.duration_s if inp.duration_s is not None else (
+            (inp.periods or 1) / f)
         per_freq += span / dt
-    batches = len(spec["noise"]["readings"]) * len(spec["noise"]["input_levels"])
-    if spec["noise"]["pairs"]:
-        batches = len(spec["noise"]["readings"])
-    batches *= len(spec["noise"]["measurement"])
-    figures = 2 + len(spec["figures"]["extra_noisy"])
-    return int(mc["runs"] * n * (per_freq * batches + figures * per_freq))
+    batches = len(config.noise.readings) * len(config.noise.input_levels)
+    if config.noise.pairs:
+        batches = len(config.noise.readings)
+    batches *= len(config.noise.measurement)
+    figures = 2 + len(config.figures.extra_noisy)
+    return int(mc.runs * n * (per_freq * batches + figures * per_freq))
 
 
-def tiny(spec: dict) -> dict:
+def tiny(config: Config) -> dict:
     """Seconds of work: one frequency, one noise level and reading, two periods, 3 runs."""
-    spec["input"].update(frequencies_hz=spec["input"]["frequencies_hz"][:1])
-    if spec["input"].get("periods") is not None:
-        spec["input"]["periods"] = 2
+    inp, noise = config.input, config.noise
+    out = {"input.frequencies_hz": inp.frequencies_hz[:1]}
+    if inp.periods is not None:
+        out["input.periods"] = 2
     else:
-        spec["input"]["duration_s"] = 2.0 / spec["input"]["frequencies_hz"][0]
-    spec["noise"].update(input_levels=spec["noise"]["input_levels"][:1],
-                         readings=(spec["noise"].get("readings") or ["sigma"])[:1],
-                         measurement=(spec["noise"].get("measurement") or ["noisy"])[:1])
-    spec["monte_carlo"]["runs"] = 3
-    spec["figures"] = {"names": (spec.get("figures") or {}).get("names", {})}
-    return spec
+        out["input.duration_s"] = 2.0 / inp.frequencies_hz[0]
+    return {**out, "noise.input_levels": noise.input_levels[:1],
+            "noise.readings": (noise.readings or ["sigma"])[:1],
+            "noise.measurement": (noise.measurement or ["noisy"])[:1],
+            "monte_carlo.runs": 3, "figures": {"names": config.figures.names}}
 
 
 @dataclass(frozen=True)
@@ -242,14 +243,14 @@ def sweep(exp: Experiment) -> list[SweepPoint]:
     ``noise.pairs``). ``noise.measurement``: ``noisy``, the measured output plus white noise
     of ``measurement_sigma``; ``noise_free``, the actual output itself (the filters keep
     their ``R``)."""
-    noise, inp = exp.spec["noise"], exp.spec["input"]
-    if noise["pairs"]:
-        cells = list(zip(noise["input_levels"], inp["frequencies_hz"], strict=True))
+    noise, inp = exp.config.noise, exp.config.input
+    if noise.pairs:
+        cells = list(zip(noise.input_levels, inp.frequencies_hz, strict=True))
     else:
-        cells = [(level, f) for level in noise["input_levels"] for f in inp["frequencies_hz"]]
+        cells = [(level, f) for level in noise.input_levels for f in inp.frequencies_hz]
     points = []
-    for measurement in noise["measurement"]:
-        for reading in noise["readings"]:
+    for measurement in noise.measurement:
+        for reading in noise.readings:
             for level, f in cells:
                 points.append(SweepPoint(len(points), measurement, reading, float(level),
                                          signals.noise_sigma(level, reading), float(f)))
@@ -262,36 +263,36 @@ def work_units(exp: Experiment) -> int:
 
 def sampling(exp: Experiment, frequency_hz: float) -> tuple[float, int]:
     """Sample time and number of samples after ``t_0`` for one input frequency."""
-    inp = exp.spec["input"]
-    dt = inp["sample_time_s"] or 1.0 / (inp["samples_per_period"] * frequency_hz)
-    if inp["duration_s"] is not None:
-        return dt, max(1, round(inp["duration_s"] / dt))
-    return dt, max(1, round(inp["periods"] / (frequency_hz * dt)))
+    inp = exp.config.input
+    dt = inp.sample_time_s or 1.0 / (inp.samples_per_period * frequency_hz)
+    if inp.duration_s is not None:
+        return dt, max(1, round(inp.duration_s / dt))
+    return dt, max(1, round(inp.periods / (frequency_hz * dt)))
 
 
 def simulate_point(exp: Experiment, frequency_hz: float, sigma: float, runs: int,
                    rng: np.random.Generator, measurement: str = "noisy") -> dict:
     """Actual trajectories and measurements for one frequency and input-noise level."""
-    inp, noise = exp.spec["input"], exp.spec["noise"]
+    inp, noise = exp.config.input, exp.config.noise
     truth = exp.plan.truth
     dt, steps = sampling(exp, frequency_hz)
     t = np.arange(steps + 1) * dt
-    mix, bias = np.asarray(inp["mix"], float), np.asarray(inp["bias_v"], float)
-    clean = bias + signals.sine(inp["amplitude_v"], frequency_hz, t) * mix
+    mix, bias = np.asarray(inp.mix, float), np.asarray(inp.bias_v, float)
+    clean = bias + signals.sine(inp.amplitude_v, frequency_hz, t) * mix
     input_noise = signals.gaussian(rng, sigma, (runs, steps + 1, 1)) * mix
     input_noise[:, 0] = 0.0    # the circuit starts at its operating point with v_in(t_0) known
     source = clean[None] + input_noise
     x0 = exp.plan.x0           # the DC point with the source held at its value at t_0
-    sim = exp.spec["simulation"]
-    states = SOLVERS[sim["solver"]](truth, x0, truth.source_to_input(source, dt), dt,
-                                    rtol=sim["rtol"], atol=sim["atol"])
+    sim = exp.config.simulation
+    states = SOLVERS[sim.solver](truth, x0, truth.source_to_input(source, dt), dt,
+                                    rtol=sim.rtol, atol=sim.atol)
     actual = truth.h(states)
-    z = actual + signals.gaussian(rng, noise["measurement_sigma"], actual.shape)
+    z = actual + signals.gaussian(rng, noise.measurement_sigma, actual.shape)
     if measurement == "noise_free":
         z = actual.copy()
-    seen = clean[None] if noise["filters_see"] == "nominal" else source
-    if noise["input_sensor_sigma"] > 0:        # the filters measure the source imperfectly
-        seen = seen + signals.gaussian(rng, noise["input_sensor_sigma"], source.shape) * mix
+    seen = clean[None] if noise.filters_see == "nominal" else source
+    if noise.input_sensor_sigma > 0:        # the filters measure the source imperfectly
+        seen = seen + signals.gaussian(rng, noise.input_sensor_sigma, source.shape) * mix
         seen[:, 0] = source[:, 0]               # v_in(t_0) is known, as for the circuit
     return {"t": t[1:], "dt": dt, "x0": x0, "source": source, "clean": clean, "seen": seen,
             "frequency_hz": frequency_hz, "states": states, "actual": actual, "z": z,
@@ -302,12 +303,12 @@ def filter_input(exp: Experiment, data: dict, method: str, bandwidth: float) -> 
     """The input a filter is given on each sample interval (:data:`DERIVATIVE_METHODS`)."""
     if method == "difference":
         return data["u"]
-    inp, f, dt = exp.spec["input"], data["frequency_hz"], data["dt"]
-    mix = np.asarray(inp["mix"], float)
+    inp, f, dt = exp.config.input, data["frequency_hz"], data["dt"]
+    mix = np.asarray(inp.mix, float)
     if method == "analytic":
         w = 2 * np.pi * f
         middle = data["t"] - dt / 2
-        return (inp["amplitude_v"] * w * np.cos(w * middle))[None, :, None] * mix
+        return (inp.amplitude_v * w * np.cos(w * middle))[None, :, None] * mix
     slopes = kalman_differentiator.with_bandwidth(data["seen"], dt, bandwidth * f)
     return 0.5 * (slopes[:, 1:] + slopes[:, :-1])
 
@@ -324,12 +325,12 @@ def run_point(exp: Experiment, point: SweepPoint, traces: bool = False) -> tuple
     """Table rows (the measurement baseline, then one per estimator) for one sweep point,
     the per-run losses for the claims, and with ``traces`` the figure traces of its first
     run (the figures show the runs the table averages)."""
-    mc = exp.spec["monte_carlo"]
+    mc = exp.config.monte_carlo
     rng = exp.config.monte_carlo.rng(point.index)
-    data = simulate_point(exp, point.frequency_hz, point.sigma, mc["runs"], rng,
+    data = simulate_point(exp, point.frequency_hz, point.sigma, mc.runs, rng,
                           point.measurement)
     estimates = estimate_point(exp, data)
-    regime = exp.spec["regime"]
+    regime = exp.config.regime
     fraction = float("nan") if regime is None else float(np.mean(exp.plan.truth.in_regime(
         regime, data["states"], data["source"][:, 1:])))
     common = {"measurement": point.measurement, "noise_reading": point.reading,
@@ -354,13 +355,13 @@ key space no sweep point reaches."""
 def figure_cases(exp: Experiment) -> list[tuple[str, float, float, str]]:
     """``(key, frequency, noise level, reading)`` of every noisy figure batch: the figure's
     point and each ``figures.extra_noisy`` case."""
-    fig = exp.spec["figures"]
-    f = fig["frequency_hz"] or exp.spec["input"]["frequencies_hz"][0]
-    level = fig["noise_level"] or exp.spec["noise"]["input_levels"][0]
-    reading = fig["reading"] or exp.spec["noise"]["readings"][0]
+    fig = exp.config.figures
+    f = fig.frequency_hz or exp.config.input.frequencies_hz[0]
+    level = fig.noise_level or exp.config.noise.input_levels[0]
+    reading = fig.reading or exp.config.noise.readings[0]
     cases = [("noisy", f, level, reading)]
     cases += [(extra["name"], f, extra["noise_level"], extra["reading"])
-              for extra in fig["extra_noisy"]]
+              for extra in fig.extra_noisy]
     return cases
 
 
@@ -391,14 +392,15 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     known = {key: done[index][2] for index, keys in wanted.items() for key in keys}
     out = Result(tables={})
     filters_only = [row for row in rows if row["estimator"] != pipeline.MEASUREMENT]
-    table_id = exp.spec["tables"]["rmse"] or exp.spec["tables"]["residual"]
+    table_id = exp.config.tables.rmse or exp.config.tables.residual
     rmse = result_table(rows, "rmse", table_id)
-    for metric, table_id_ in exp.spec["tables"].items():
+    for metric, table_id_ in exp.config.tables.items():
         if table_id_ is not None:
             out.tables[metric] = (result_table(rows, metric, table_id_) if metric == "rmse"
                                   else result_table(filters_only, metric, table_id_))
     out.tables["health"] = result_table(filters_only, "health", table_id)
-    out.tables["claims"] = pipeline.claims_table(exp.spec, rmse, [losses for _, losses, _ in done],
+    out.tables["claims"] = pipeline.claims_table(exp.config, rmse,
+                                                 [losses for _, losses, _ in done],
                                         ("s_no", "measurement", "noise_reading", "noise_param",
                                          "frequency_hz"))
     out.figures = figures(exp, known)
@@ -410,18 +412,18 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
 def figure_traces(exp: Experiment, known: dict) -> dict:
     """Traces of every figure: the noiseless run (one run, its own seed) and the noisy
     cases, taken from ``known`` (traces of sweep points) or simulated with their own seed."""
-    mc = exp.spec["monte_carlo"]
+    mc = exp.config.monte_carlo
     cases = figure_cases(exp)
     f = cases[0][1]
     batches = [("noiseless", 0.0, 1)] + [
-        (key, signals.noise_sigma(level, reading), mc["runs"]) for key, _, level, reading in cases]
+        (key, signals.noise_sigma(level, reading), mc.runs) for key, _, level, reading in cases]
     out = {}
     for i, (key, sigma, runs) in enumerate(batches):
         if key in known:
             out[key] = known[key]
             continue
         rng = exp.config.monte_carlo.rng(FIGURE_SEED_KEY, i)
-        data = simulate_point(exp, f, sigma, runs, rng, exp.spec["noise"]["measurement"][0])
+        data = simulate_point(exp, f, sigma, runs, rng, exp.config.noise.measurement[0])
         estimates = estimate_point(exp, data)
         verdicts = [pipeline.judge(exp, data, est, model)["diverged"]
                     for (_, _, model), est in zip(exp.plan.filters, estimates, strict=True)]

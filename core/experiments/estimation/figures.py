@@ -30,8 +30,8 @@ def figures(exp: Experiment, data: dict, f: float, level: float, reading: str) -
     """Figs 3.2-3.7, 3.9-3.11 from the traces ``data`` (:func:`traces` of each figure batch,
     by key): estimates without and with input noise, running RMSE and residuals, under the
     names of ``figures.names``; ``f``, ``level`` and ``reading`` are the noisy batch's."""
-    names = exp.spec["figures"]["names"]
-    what = exp.spec["title"] or exp.name
+    names = exp.config.figures.names
+    what = exp.title
     period = 1.0 / f
 
     def noise(level: float, reading: str) -> str:
@@ -47,7 +47,7 @@ def figures(exp: Experiment, data: dict, f: float, level: float, reading: str) -
         "residual": lambda: plots.residuals(data["noisy"], f"Residual (run 1): {what}; {where}"),
     }
     out = {names.get(kind, kind): makers[kind]() for kind in FIGURE_KINDS}
-    for extra in exp.spec["figures"]["extra_noisy"]:
-        title = f"{what}; {f:g} Hz, {noise(extra['noise_level'], extra['reading'])}"
-        out[extra["name"]] = plots.estimates(data[extra["name"]], title, period)
+    for extra in exp.config.figures.extra_noisy:
+        title = f"{what}; {f:g} Hz, {noise(extra.noise_level, extra.reading)}"
+        out[extra.name] = plots.estimates(data[extra.name], title, period)
     return out

@@ -31,28 +31,28 @@ def judge(exp: Experiment, data: dict, est, model) -> dict:
     """One estimator's health on one batch (:mod:`estim.experiments.shared.health`): per run
     ``diverged`` (the estimate broke or ran away), ``broken`` and ``inconsistent`` (NIS or NEES
     outside its band; NaN-free only for filters with a noise model), and the batch summaries."""
-    cfg = exp.spec["health"]
+    cfg = exp.config.health
     nis = None if est.S is None else health.nis(est.innovation, est.S)
     nees = None
     if est.x_hat is not None and est.P is not None and est.x_hat.shape == data["states"].shape:
         nees = health.nees(data["states"], est.x_hat, est.P)
     out = {"diverged": health.diverged(est, data["actual"], model.output_range(),
-                                       cfg["consecutive"], cfg["growth"]),
+                                       cfg.consecutive, cfg.growth),
            "broken": np.asarray(est.broken, bool),
            "inconsistent": health.inconsistent(nis, est.innovation.shape[-1], nees,
                                                0 if est.x_hat is None else est.x_hat.shape[-1],
-                                               cfg["band"])}
+                                               cfg.band)}
     nan = float("nan")
     out["nees_mean"] = out["nees_in_band"] = out["nis_mean"] = out["nis_in_band"] = nan
     if nees is not None:
         out["nees_mean"], out["nees_in_band"] = health.averaged_in_band(
-            nees, est.x_hat.shape[-1], cfg["band"])
+            nees, est.x_hat.shape[-1], cfg.band)
     if nis is not None:
         out["nis_mean"], out["nis_in_band"] = health.averaged_in_band(
-            nis, est.innovation.shape[-1], cfg["band"])
+            nis, est.innovation.shape[-1], cfg.band)
     out["white_fraction"] = float(np.mean(health.white(
-        est.innovation, cfg["whiteness_lag"], cfg["whiteness_level"])))
-    out["whiteness_lag"] = health.effective_lag(est.innovation.shape[1], cfg["whiteness_lag"])
+        est.innovation, cfg.whiteness_lag, cfg.whiteness_level)))
+    out["whiteness_lag"] = health.effective_lag(est.innovation.shape[1], cfg.whiteness_lag)
     for key in ("regressor_rank", "regressor_size", "lambda_at_floor", "p_max_eig"):
         values = np.asarray(est.diagnostics.get(key, []), float)
         finite = values[np.isfinite(values)]
@@ -128,16 +128,16 @@ def thesis_row_numbers(rows: pd.DataFrame, table_id: str | None) -> pd.Series:
     return pd.Series(s_no, dtype="Int64")
 
 
-def claim_pairs(spec: dict) -> list[tuple[str, str]]:
+def claim_pairs(config) -> list[tuple[str, str]]:
     """The claims an estimation table judges: the config's ``claims`` (the thesis' headline),
     then every filter against the raw measurement."""
-    pairs = [(c["better"], c["worse"]) for c in spec["claims"]]
-    pairs += [(e["label"], MEASUREMENT) for e in spec["estimators"]
-              if (e["label"], MEASUREMENT) not in pairs]
+    pairs = [(c.better, c.worse) for c in config.claims]
+    pairs += [(e.label, MEASUREMENT) for e in config.estimators
+              if (e.label, MEASUREMENT) not in pairs]
     return pairs
 
 
-def claims_table(spec: dict, rmse: pd.DataFrame, losses: list[dict],
+def claims_table(config, rmse: pd.DataFrame, losses: list[dict],
                  keys: tuple[str, ...]) -> pd.DataFrame:
     """The claims of :func:`claim_pairs` judged by :mod:`estim.experiments.shared.claims` in every
     cell; a cell is named by the ``keys`` of its rows in ``rmse`` (its first row per cell, in
@@ -145,6 +145,6 @@ def claims_table(spec: dict, rmse: pd.DataFrame, losses: list[dict],
     firsts = rmse[rmse["estimator"] == MEASUREMENT]
     cells = [(claims.cell(**{k: row[k] for k in keys}), cell_losses)
              for (_, row), cell_losses in zip(firsts.iterrows(), losses, strict=True)]
-    return claims.table(cells, claim_pairs(spec), "RMSE")
+    return claims.table(cells, claim_pairs(config), "RMSE")
 
 

@@ -31,7 +31,7 @@ def subplots(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float],
              **grid) -> tuple[Figure, object]:
     """A new figure and its grid of axes (``pyplot.subplots`` without pyplot): the figure is
     nobody's but the caller's (pyplot's registry of open figures is shared by every thread,
-    and two configs may draw at once, :mod:`estim.run.scheduler`), rendered by Agg when saved.
+    and two configs may draw at once, :mod:`estim.engine.scheduler`), rendered by Agg when saved.
     matplotlib is imported at the first figure: a command that draws nothing (``estim
     validate``, ``estim table``) does not pay for it."""
     from matplotlib.figure import Figure

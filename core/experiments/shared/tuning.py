@@ -23,7 +23,6 @@ error and an arbitrary value.
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -171,13 +170,13 @@ def check_tunable(exp, label: str) -> None:
     ``R`` of ``label`` (the fit is of diagonals; the off-diagonal entries would be lost)."""
     from estim.errors import UsageError
 
-    if exp.spec.get("sweep"):
+    if exp.sweep:
         raise UsageError(f"{exp.source}: estim tune fits one config, and this one sweeps "
-                         f"{', '.join(exp.spec['sweep'])}; tune one cell (its values as "
+                         f"{', '.join(exp.sweep)}; tune one cell (its values as "
                          "overrides of a copy without the sweep block)")
-    entry = next((e for e in exp.spec.get("estimators") or () if e["label"] == label), {})
+    entry = next((e for e in getattr(exp.config, "estimators", ()) if e.label == label), None)
     for key in ("Q", "R"):
-        M = np.asarray((entry.get("settings") or {}).get(key, 0.0), dtype=float)
+        M = np.asarray((entry.settings if entry else {}).get(key, 0.0), dtype=float)
         if M.ndim == 2 and np.any(M - np.diag(np.diag(M))):
             raise UsageError(f"{exp.source}: estim tune fits diagonal covariances; the {key} "
                              f"of {label!r} is a full matrix (its off-diagonal entries would "
@@ -214,7 +213,7 @@ def tune(exp, training: Callable, label: str, runs: int,
         return total
 
     result = fit(evaluate, q0, r0, fit_r=fit_r)
-    entry = copy.deepcopy(exp.spec["estimators"][index])
+    entry = exp.config.estimators[index].to_spec()
     entry["settings"]["Q"] = [float(f"{v:.6g}") for v in result.q]
     if fit_r:
         entry["settings"]["R"] = [float(f"{v:.6g}") for v in result.r]

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import hashlib
-import itertools
 import time
 from collections.abc import Callable
 from concurrent.futures import Executor
@@ -11,34 +10,15 @@ from pathlib import Path
 
 from estim import store
 from estim.config.experiment import Experiment
-from estim.config.loading import parse_data
-from estim.config.overrides import apply_overrides
+from estim.config.loading import sweep_cells
 from estim.config.registry import ANALYSES
+from estim.engine import cells
 from estim.experiments.base import Result
 from estim.reference import SWEEP_PREFIX
-from estim.run import cells
 from estim.util import lazy
 from estim.util.workunits import ShardDone, execution, sweep_cell
 
 pd = lazy.load("pandas")
-
-
-def sweep_cells(exp: Experiment) -> list[tuple[dict, Experiment]]:
-    """The experiments of a ``sweep:`` block, each with its values (the product of the lists
-    in the order given, the last key fastest); ``[({}, exp)]`` without one. Every cell keeps
-    the config's seed: the cells share their random numbers, so their differences are the
-    swept values' own."""
-    sweep = exp.spec.get("sweep")
-    if not sweep:
-        return [({}, exp)]
-    base = {k: v for k, v in exp.spec.items() if k != "sweep"}
-    keys = list(sweep)
-    cells = []
-    for combo in itertools.product(*(sweep[k] for k in keys)):
-        values = dict(zip(keys, combo, strict=True))
-        cells.append((values, parse_data(apply_overrides(base, values, exp.source), exp.source,
-                                         exp.name, max_work=2**62)))
-    return cells
 
 
 def work_units(exp: Experiment) -> int:
@@ -90,7 +70,7 @@ def execute(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None =
 
 
 def summary(exp: Experiment, result: Result) -> str:
-    if exp.spec.get("sweep"):
+    if exp.sweep:
         return "\n".join(f"{metric}: {len(df)} rows over {len(sweep_cells(exp))} sweep cells"
                          for metric, df in result.tables.items())
     return ANALYSES[exp.analysis].summary(result)
@@ -126,8 +106,8 @@ def run_to_folder(exp: Experiment, out: Path, jobs: int = 1,
     Each finished work unit is kept in ``out/.<name>.cells-<hash>/`` (of the config and of
     estim's source) until the run is written, so a run stopped by a crash or Ctrl-C resumes
     with the cells it has (unless not ``resume``); ``executor`` runs the units elsewhere
-    (:mod:`estim.run.executors`) or on a process ``pool`` shared with other configs
-    (:mod:`estim.run.scheduler`); ``on_start`` is called once the folder is open (its space and
+    (:mod:`estim.engine.executors`) or on a process ``pool`` shared with other configs
+    (:mod:`estim.engine.scheduler`); ``on_start`` is called once the folder is open (its space and
     lock checked), ``on_done`` once per finished work unit."""
     start = time.perf_counter()
     done = cell_store(exp, out)
@@ -156,7 +136,7 @@ def run_to_folder(exp: Experiment, out: Path, jobs: int = 1,
 def recorded_seconds(folder: Path) -> float:
     """The wall time the manifest in ``folder`` records (how long the config's last run
     took), or infinity when there is none: the longest-first order of
-    :mod:`estim.run.scheduler`, which starts a config it knows nothing of early."""
+    :mod:`estim.engine.scheduler`, which starts a config it knows nothing of early."""
     manifest = store.read_manifest(folder) or {}
     seconds = manifest.get("wall_time_s")
     return float(seconds) if isinstance(seconds, int | float) and seconds >= 0 else float("inf")

@@ -11,8 +11,8 @@ from pathlib import Path
 from estim import reference, store
 from estim.config.experiment import Experiment
 from estim.config.registry import ANALYSES
+from estim.engine import compare, runner
 from estim.errors import ReferenceJoinError, UsageError
-from estim.run import compare, runner
 from estim.store import read_manifest, read_table
 
 
@@ -35,7 +35,8 @@ def check(exp: Experiment, stored_dir: Path, tmp: Path, jobs: int, say: Callable
     """Re-run ``exp`` into ``tmp`` and compare it with the stored results in ``stored_dir``:
     the number of differences, each reported through ``say`` (one line each; ``note`` gets
     progress, e.g. the run's time). With ``same_config`` the stored manifest must record
-    this config. ``pool``: a process pool shared with other configs (:mod:`estim.run.scheduler`)."""
+    this config. ``pool``: a process pool shared with other configs
+    (:mod:`estim.engine.scheduler`)."""
     note = note or (lambda _text: None)
     if not stored_dir.is_dir():
         say(f"{exp.name}: no stored results in {stored_dir}")
@@ -56,7 +57,7 @@ def check(exp: Experiment, stored_dir: Path, tmp: Path, jobs: int, say: Callable
     start = time.perf_counter()
     result, _ = runner.run_to_folder(exp, tmp, jobs, on_done=on_done, pool=pool)
     note(f"{exp.name}: ran in {time.perf_counter() - start:.0f} s")
-    tol = exp.spec["check"]["tolerances"]
+    tol = exp.tolerances
     for column in sorted(c for c, t in tol.items() if t.get("skip")):
         say(f"{exp.name}: column {column} not compared ({tol[column]['skip']})")
     analysis = ANALYSES[exp.analysis]

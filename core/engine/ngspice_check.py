@@ -49,34 +49,33 @@ def cases(exp) -> list[tuple[str, object, np.ndarray, float, float | None]]:
     ``exp`` (the frequency of its sine, where the AC gain is compared)."""
     from estim.numerics import signals
 
-    spec = exp.spec
+    config = exp.config
     out = []
     if exp.analysis == "perturbation":
         from estim.experiments import perturbation
 
         seen = set()
-        for row in spec["rows"]:
-            key = (row["amplitude_v"], row.get("frequency_hz"), repr(row.get("params")))
+        for row in config.rows:
+            key = (row.amplitude_v, row.frequency_hz, repr(row.params))
             if key in seen:
                 continue
             seen.add(key)
-            src, dt = perturbation.source(exp, row, np.array([row["amplitude_v"]]))
-            label = f"row {row['s_no']}: {row['amplitude_v']:g} V"
-            if row.get("frequency_hz") is not None:
-                label += f", {row['frequency_hz']:g} Hz"
-            out.append((label, exp.plan.models[row["s_no"]], src[0], dt,
-                        row.get("frequency_hz")))
+            src, dt = perturbation.source(exp, row, np.array([row.amplitude_v]))
+            label = f"row {row.s_no}: {row.amplitude_v:g} V"
+            if row.frequency_hz is not None:
+                label += f", {row.frequency_hz:g} Hz"
+            out.append((label, exp.plan.models[row.s_no], src[0], dt, row.frequency_hz))
     elif exp.analysis == "estimation":
         from estim.experiments import estimation
 
-        inp, noise = spec["input"], spec["noise"]
-        mix, bias = np.asarray(inp["mix"], float), np.asarray(inp["bias_v"], float)
-        level = max(noise["input_levels"])
+        inp, noise = config.input, config.noise
+        mix, bias = np.asarray(inp.mix, float), np.asarray(inp.bias_v, float)
+        level = max(noise.input_levels)
         rng = exp.config.monte_carlo.rng()
-        for f in sorted(set(inp["frequencies_hz"])):
+        for f in sorted(set(inp.frequencies_hz)):
             dt, steps = estimation.sampling(exp, f)
             t = np.arange(steps + 1) * dt
-            clean = bias + signals.sine(inp["amplitude_v"], f, t) * mix
+            clean = bias + signals.sine(inp.amplitude_v, f, t) * mix
             noisy = signals.gaussian(rng, level, (steps + 1, 1)) * mix
             noisy[0] = 0.0
             out.append((f"{f:g} Hz, input noise sigma {level:g}", exp.plan.truth,
@@ -150,7 +149,7 @@ def compare(exp, executable: str | None = None, rtol: float = 1e-10,
     """estim against ngspice on every case of the netlist config ``exp``: one row per
     case, check and quantity, with the relative ``difference``, the ngspice ``reltol`` it
     was measured at (:func:`_tightening`), its ``bar`` and whether it ``holds``."""
-    model_block = exp.spec.get("model") or {}
+    model_block = exp.model_block
     if not model_block.get("netlist"):
         what = (f"model is {model_block.get('name')!r}, not built from a netlist"
                 if model_block.get("name") else "analysis has no circuit model")
