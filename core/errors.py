@@ -37,6 +37,16 @@ class UsageError(EstimError):
     """A command cannot do what was asked (a folder it may not write, a missing baseline)."""
 
 
+class SettingError(EstimError, ValueError):
+    """A setting's value cannot be used; ``key`` names the setting (its key path within its
+    block: ``Q``, ``noise.levels[1]``), so a config error can point at it without parsing
+    the message."""
+
+    def __init__(self, key: str, reason: str) -> None:
+        self.key, self.reason = key, reason
+        super().__init__(f"{key}: {reason}")
+
+
 class ParameterError(EstimError, ValueError):
     """A model parameter override names an unknown parameter or has a bad value."""
 

@@ -840,7 +840,7 @@ def test_sweep_work_counts_what_each_value_costs(tmp_path):
     from estim.config.registry import ANALYSES
 
     spec = tiny_config()
-    work = ANALYSES["estimation"].work_size(parse_data(spec, "t", "tiny").spec)
+    work = ANALYSES["estimation"].work_size(parse_data(spec, "t", "tiny").config)
     runner = CliRunner()
     spec["sweep"] = {"monte_carlo.runs": [3, 3]}
     cheap = write(tmp_path, spec, "cheap.yaml")
@@ -884,7 +884,7 @@ def test_quick_ignores_the_size_of_the_grid_it_does_not_run(tmp_path):
     from estim.config.loading import parse_data
     from estim.config.registry import ANALYSES
 
-    work = ANALYSES["estimation"].work_size(parse_data(tiny_config(), "t", "tiny").spec)
+    work = ANALYSES["estimation"].work_size(parse_data(tiny_config(), "t", "tiny").config)
     limit = str(2 * work)                       # one cell fits, the grid of three does not
     assert runner.invoke(main, ["validate", str(path), "--max-work", limit]).exit_code == 2
     quick = runner.invoke(main, ["run", str(path), "--quick", "--quiet", "--max-work", limit,

@@ -4,6 +4,8 @@ source cannot explain, its rank and its first step."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 import yaml
@@ -111,7 +113,7 @@ def test_letkf_without_localisation_and_a_large_ensemble_is_the_dense_kf_with_it
     ``1/sqrt(m)``: measured 8.5 %, 5.6 %, 3.1 % at 300, 1000, 3000 members; tolerance 6 %.
     (With the ensemble's own mean and covariance the two agree to 1e-11.)"""
     exp = _spec()
-    su = df.setup(exp.spec, exp.plan)
+    su = df.setup(exp.config, exp.plan)
     grid, sensors = exp.plan.grid, exp.plan.sensors
     m, size = MEMBERS, 0.01
     state = np.zeros((1, 2, 2, grid.size))
@@ -161,8 +163,9 @@ def twin():
     """A twin experiment on N = 16 (8 points per wavelength): the truth is the simulation
     itself (true source, no noise in the model), the sensors read it with noise 0.001."""
     exp = _spec(n=16, length=2.0, fraction=0.06, members=20, sensors_r=(0.2, 0.9))
-    exp.spec["sensors"]["measurement_sigma"] = 1e-3
-    su = df.setup(exp.spec, exp.plan)
+    sensors = dataclasses.replace(exp.config.sensors, measurement_sigma=1e-3)
+    exp = dataclasses.replace(exp, config=dataclasses.replace(exp.config, sensors=sensors))
+    su = df.setup(exp.config, exp.plan)
     su.R_field[:] = 1e-6
     su.R_source[:] = 1e-6 + 0.02**2
     return exp, su
@@ -263,7 +266,7 @@ def test_the_truncation_profile_is_the_leapfrogs_own_error_per_step():
     spec.pop("check", None)
     spec["filter"]["field_error_profile"] = "truncation"
     exp = parse_data(spec, "t.yaml", "t")
-    su = df.setup(exp.spec, exp.plan)
+    su = df.setup(exp.config, exp.plan)
     assert len(su.local.points) == su.local.cubes == 512     # every cube has a sensor in reach
     r = exp.plan.grid.r
     far = (r >= 1.2) & (r < 1.9)
@@ -272,7 +275,7 @@ def test_the_truncation_profile_is_the_leapfrogs_own_error_per_step():
     A, Phi = su.error_scale[:, near].mean(axis=1)
     assert 0.006 < A < 0.012 and 0.025 < Phi < 0.045, (A, Phi)
     spec["filter"]["field_error_profile"] = "uniform"
-    su = df.setup(parse_data(spec, "t.yaml", "t").spec, exp.plan)
+    su = df.setup(parse_data(spec, "t.yaml", "t").config, exp.plan)
     assert np.all(su.error_scale == spec["filter"]["field_error"])
 
 

@@ -135,7 +135,8 @@ def test_first_order_improves_on_linear_in_every_circuit(name, excitation, close
     faster when the amplitude is halved. In the differential amplifier the pair's symmetry
     cancels most of the quadratic term at the differential output, so the remaining error
     is mostly cubic and x0 + x1 gains little there (docs/deviations.md)."""
-    exp, row = shrunk(name, **excitation), shrunk(name).spec["rows"][0]
+    exp = shrunk(name, **excitation)
+    row = exp.config.rows[0]
     row = analysis.summarize(exp, row, *analysis.respond_row(exp, row))
     assert row["err_first_order_rms"] < closer * row["err_linear_rms"]
     assert row["order_first_order"] == pytest.approx(3.0, abs=0.25)
@@ -151,7 +152,7 @@ def test_scipy_solver_gives_the_same_row():
         spec["excitation"]["samples_per_period"] = 48
         spec["simulation"]["solver"] = solver
         exp = config.parse(yaml.safe_dump(spec), solver, "mosfet")
-        row = exp.spec["rows"][0]
+        row = exp.config.rows[0]
         rows[solver] = analysis.summarize(exp, row, *analysis.respond_row(exp, row))
     for key in ("percent_distortion", "thd_percent", "err_linear_rms", "err_first_order_rms"):
         assert rows["scipy"][key] == pytest.approx(rows["batched_radau"][key], rel=1e-5), key

@@ -11,7 +11,8 @@ from contextvars import ContextVar
 import numpy as np
 
 from estim.config.schema import MAX_VOLTS, PARAM_RANGE, number, shown, validate
-from estim.errors import ConfigError, ParameterError
+from estim.config.settings import checked
+from estim.errors import ConfigError, ParameterError, SettingError
 
 _BUILT: ContextVar[dict | None] = ContextVar("estim_models_built", default=None)
 
@@ -87,16 +88,16 @@ def build_estimator(est_cls, settings: dict, model, source: str, path: str):
     """``est_cls`` with ``settings`` checked against its declared settings
     (:mod:`estim.config.settings`: every default filled in) and against ``model``; a problem is a
     ``ConfigError`` at the setting's key path (``estimators[0].settings.Q``)."""
-    checked = validate(settings, est_cls.schema(), source, path)
+    values = validate(settings, est_cls.schema(), source, path)
     try:
-        est = est_cls(**checked)
+        with checked():
+            est = est_cls(**values)
         est.validate(model)
+    except SettingError as exc:                         # "Q: not symmetric" -> settings.Q
+        where = f"{path}.{exc.key}" if exc.key.split(".")[0].split("[")[0] in values else path
+        raise ConfigError(source, where, exc.reason) from None
     except (ValueError, TypeError, OverflowError) as exc:
-        message = str(exc)
-        key, sep, rest = message.partition(": ")
-        if sep and key in checked:                      # "Q: not symmetric" -> settings.Q
-            raise ConfigError(source, f"{path}.{key}", rest) from None
-        raise ConfigError(source, path, message) from None
+        raise ConfigError(source, path, str(exc)) from None
     return est
 
 

@@ -19,12 +19,16 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
 
-from estim.config.schema import REQUIRED, list_of
+from estim.config.schema import REQUIRED, list_of, validate
+from estim.errors import ConfigError, ConfigErrors, SettingError
 
 _KIND = "estim_setting"
 
@@ -145,7 +149,7 @@ class Settings:
                 raise TypeError(f"{type(self).__name__}: missing required setting {f.name!r}")
             if kind == "value":
                 check = f.metadata["check"]
-                if check is not None and value is not None:
+                if check is not None and value is not None and not _CHECKED.get():
                     _check_value(check, plain(value), f.name)
             elif kind == "block" and isinstance(value, dict):
                 object.__setattr__(self, f.name, f.metadata["cls"].build(
@@ -160,19 +164,32 @@ def _anything(value: Any) -> None:
     return None
 
 
-def _check_value(check: Any, value: Any, name: str) -> None:
-    """``ValueError("name: expected ...")`` unless ``value`` passes ``check`` (a check
-    function or a :func:`estim.config.schema.list_of` spec)."""
-    from estim.config.schema import validate
-    from estim.errors import ConfigError, ConfigErrors
+_CHECKED: ContextVar[bool] = ContextVar("estim_settings_checked", default=False)
+"""Inside :func:`checked`: the values given were validated against these declarations."""
 
+
+@contextmanager
+def checked() -> Iterator[None]:
+    """Settings made inside take their values as already validated (by
+    :func:`estim.config.schema.validate` against the same declarations): each value is
+    checked once, where a config is read, not again when its object is made."""
+    token = _CHECKED.set(True)
+    try:
+        yield
+    finally:
+        _CHECKED.reset(token)
+
+
+def _check_value(check: Any, value: Any, name: str) -> None:
+    """:class:`SettingError` (``name: expected ...``) unless ``value`` passes ``check`` (a
+    check function or a :func:`estim.config.schema.list_of` spec)."""
     try:
         validate(value, check, "", name)
     except ConfigErrors as exc:
         first = exc.errors[0]
-        raise ValueError(f"{first.path}: {first.message}") from None
+        raise SettingError(first.path, first.message) from None
     except ConfigError as exc:
-        raise ValueError(f"{exc.path}: {exc.message}") from None
+        raise SettingError(exc.path, exc.message) from None
 
 
 def _with_defaults(cls: type, mapping: dict) -> dict:

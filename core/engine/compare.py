@@ -5,48 +5,49 @@ from __future__ import annotations
 
 import numpy as np
 
+from estim.config.loading import Tolerance
 from estim.util import lazy
 
 pd = lazy.load("pandas")
 
 
-def _cell_tolerated(x: float, y: float, i: int, tol: dict, stored: pd.DataFrame,
+def _cell_tolerated(x: float, y: float, i: int, tol: Tolerance, stored: pd.DataFrame,
                     new: pd.DataFrame, col: str) -> bool:
     """Whether the new value ``x`` passes against the stored ``y`` (row ``i`` of ``col``)."""
-    if abs(x - y) <= tol.get("atol", 0.0) + tol.get("rtol", 0.0) * abs(y):
+    if abs(x - y) <= tol.atol + tol.rtol * abs(y):
         return True
-    if tol.get("se") is not None:
-        se_col = tol.get("se_column") or f"{col}_se"
+    if tol.se is not None:
+        se_col = tol.se_column or f"{col}_se"
         if se_col in stored and se_col in new:
             se = np.hypot(float(stored[se_col].iloc[i]), float(new[se_col].iloc[i]))
-            if np.isfinite(se) and abs(x - y) <= tol["se"] * se:
+            if np.isfinite(se) and abs(x - y) <= tol.se * se:
                 return True
-    if tol.get("binomial") is not None:
-        trials = tol.get("trials") or []
+    if tol.binomial is not None:
+        trials = tol.trials or []
         if trials and all(c in stored for c in trials):
             n = float(sum(stored[c].iloc[i] for c in trials))
             p = (x + y) / (2 * n) if n > 0 else 0.0
             spread = np.sqrt(2 * n * p * (1 - p)) if 0 < p < 1 else 0.0
-            if abs(x - y) <= tol["binomial"] * spread:
+            if abs(x - y) <= tol.binomial * spread:
                 return True
     return False
 
 
-def _too_few_runs(tol: dict, stored: pd.DataFrame, new: pd.DataFrame, col: str,
+def _too_few_runs(tol: Tolerance, stored: pd.DataFrame, new: pd.DataFrame, col: str,
                   i: int) -> bool:
     """With an ``se`` criterion: a mean whose standard error is undefined on either side
     (fewer than two runs behind it, e.g. all runs but one diverged) is no Monte Carlo
     estimate to compare; the run counts beside it are compared instead."""
-    if tol.get("se") is None:
+    if tol.se is None:
         return False
-    se_col = tol.get("se_column") or f"{col}_se"
+    se_col = tol.se_column or f"{col}_se"
     if se_col not in stored or se_col not in new:
         return False
     return bool(pd.isna(stored[se_col].iloc[i]) or pd.isna(new[se_col].iloc[i]))
 
 
 def compare_tables(stored: pd.DataFrame, new: pd.DataFrame,
-                   tolerances: dict[str, dict]) -> list[dict]:
+                   tolerances: dict[str, dict | Tolerance]) -> list[dict]:
     """Cells that differ, under each column's tolerance (default: exact).
 
     A numeric cell passes when any of its criteria holds:
@@ -70,8 +71,9 @@ def compare_tables(stored: pd.DataFrame, new: pd.DataFrame,
                  "obtained": f"{len(new)} rows {list(new.columns)}", "difference": ""}]
     diffs = []
     for col in stored.columns:
-        tol = tolerances.get(col, {})
-        if tol.get("skip"):
+        tol = tolerances.get(col) or {}
+        tol = tol if isinstance(tol, Tolerance) else Tolerance(**tol)   # its declared defaults
+        if tol.skip:
             continue
         a, b = new[col], stored[col]
         numeric = pd.api.types.is_numeric_dtype(a) and pd.api.types.is_numeric_dtype(b) \

@@ -25,6 +25,7 @@ import numpy as np
 from estim.config import registry
 from estim.config.schema import REQUIRED, matrix, number, vector
 from estim.config.settings import Settings, setting, settings_class
+from estim.errors import SettingError
 from estim.numerics import linalg
 
 
@@ -90,7 +91,7 @@ class GaussianFilter(NoiseCovariances):
         check_covariance(self.P0, n, "P0")
         check_covariance(self.R, m, "R", definite=True)
         if self.x0 is not None and np.size(self.x0) != n:
-            raise ValueError(f"x0: expected {n} values for {list(model.state_names)}")
+            raise SettingError("x0", f"expected {n} values for {list(model.state_names)}")
 
 
 @dataclass(frozen=True)
@@ -178,7 +179,7 @@ def as_matrix(value, n: int, name: str) -> np.ndarray:
         return np.diag(a)
     if a.shape == (n, n):
         return a
-    raise ValueError(f"{name}: expected a scalar, {n} diagonal entries or an {n}x{n} matrix")
+    raise SettingError(name, f"expected a scalar, {n} diagonal entries or an {n}x{n} matrix")
 
 
 def check_covariance(value, n: int, name: str, definite: bool = False) -> np.ndarray:
@@ -186,14 +187,14 @@ def check_covariance(value, n: int, name: str, definite: bool = False) -> np.nda
     positive semidefinite (positive definite with ``definite``)."""
     M = as_matrix(value, n, name)
     if not np.all(np.isfinite(M)):
-        raise ValueError(f"{name}: entries must be finite")
+        raise SettingError(name, "entries must be finite")
     if not np.allclose(M, M.T, rtol=1e-12, atol=0.0):
-        raise ValueError(f"{name}: not symmetric")
+        raise SettingError(name, "not symmetric")
     lowest = float(np.linalg.eigvalsh(M)[0])
     scale = float(np.max(np.abs(M), initial=0.0))
     if lowest < -1e-12 * scale or (definite and not lowest > 0):
         kind = "positive definite" if definite else "positive semidefinite"
-        raise ValueError(f"{name}: not {kind} (smallest eigenvalue {lowest:.3g})")
+        raise SettingError(name, f"not {kind} (smallest eigenvalue {lowest:.3g})")
     return M
 
 

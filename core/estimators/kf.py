@@ -6,6 +6,7 @@ import numpy as np
 
 from estim.config.schema import REQUIRED, matrix
 from estim.config.settings import setting, settings_class
+from estim.errors import SettingError
 from estim.estimators.base import (
     Estimate,
     NoiseCovariances,
@@ -45,16 +46,16 @@ class KalmanFilter(NoiseCovariances, name="kf"):
         A = np.atleast_2d(np.asarray(self.A, float))
         n = A.shape[0]
         if A.shape != (n, n):
-            raise ValueError(f"A: expected a square matrix, got shape {A.shape}")
+            raise SettingError("A", f"expected a square matrix, got shape {A.shape}")
         B = np.asarray(self.B, float)
         if B.ndim > 2 or (B.size % n and B.size != 0) or (B.ndim == 2 and B.shape[0] != n):
-            raise ValueError(f"B: expected {n} rows (one per state), got shape {B.shape}")
+            raise SettingError("B", f"expected {n} rows (one per state), got shape {B.shape}")
         B = B.reshape(n, -1)
         C = np.atleast_2d(np.asarray(self.C, float))
         if C.ndim != 2 or C.shape[1] != n:
-            raise ValueError(f"C: expected {n} columns (one per state), got shape {C.shape}")
+            raise SettingError("C", f"expected {n} columns (one per state), got shape {C.shape}")
         if self.x0 is not None and np.size(self.x0) != n:
-            raise ValueError(f"x0: expected {n} values, got {np.size(self.x0)}")
+            raise SettingError("x0", f"expected {n} values, got {np.size(self.x0)}")
         return (A, B, C, as_matrix(self.Q, n, "Q"), as_matrix(self.R, C.shape[0], "R"),
                 as_matrix(self.P0, n, "P0"))
 
@@ -69,10 +70,10 @@ class KalmanFilter(NoiseCovariances, name="kf"):
                                                            "measured outputs"))
             for name, got, expected, what in sizes:
                 if got != expected:
-                    raise ValueError(f"{name}: {got} rows, but the model {model.name} has "
+                    raise SettingError(name, f"{got} rows, but the model {model.name} has "
                                      f"{expected} {what}")
             if B.size and B.shape[1] != model.n_inputs:
-                raise ValueError(f"B: {B.shape[1]} columns, but the model {model.name} has "
+                raise SettingError("B", f"{B.shape[1]} columns, but the model {model.name} has "
                                  f"{model.n_inputs} inputs")
         check_covariance(Q, n, "Q")
         check_covariance(P0, n, "P0")

@@ -42,6 +42,7 @@ import numpy as np
 
 from estim.config.schema import boolean, integer, number, text
 from estim.config.settings import setting, settings_class
+from estim.errors import SettingError
 from estim.estimators.base import Estimate, Estimator, batch_input
 
 
@@ -71,7 +72,7 @@ class RecursiveLeastSquares(Estimator, name="rls"):
                              "forgetting: variable eq 1.16 computes every lambda_k from its "
                              "step's error and lambda0 would have no effect")
         if self.forgetting == "fixed" and self.lambda0 is None:
-            raise ValueError("forgetting: fixed needs lambda0")
+            raise SettingError("forgetting", "fixed needs lambda0")
 
     @classmethod
     def example(cls, model) -> RecursiveLeastSquares:

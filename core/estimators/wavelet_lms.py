@@ -32,6 +32,7 @@ import numpy as np
 
 from estim.config.schema import integer, list_of, number, text
 from estim.config.settings import setting, settings_class
+from estim.errors import SettingError
 from estim.estimators.base import Estimate, Estimator, batch_input
 from estim.numerics import opcount
 from estim.util import lazy
@@ -118,7 +119,7 @@ class WaveletLMS(Estimator, name="wavelet_lms"):
     def __post_init__(self) -> None:
         super().__post_init__()
         if self.wavelet not in pywt.wavelist(kind="discrete"):
-            raise ValueError(f"wavelet: {self.wavelet!r} is not a discrete wavelet of "
+            raise SettingError("wavelet", f"{self.wavelet!r} is not a discrete wavelet of "
                              "PyWavelets (e.g. db4, sym8, haar)")
 
     @classmethod
@@ -141,7 +142,7 @@ class WaveletLMS(Estimator, name="wavelet_lms"):
         names = list(model.state_names)
         for s in self.measures or []:
             if s not in names:
-                raise ValueError(f"measures: {s!r} is not a state of {model.name}; "
+                raise SettingError("measures", f"{s!r} is not a state of {model.name}; "
                                  f"expected some of {names}")
         if self.output_state(model) not in self.measured_states(model):
             raise ValueError(f"measures must include the output state "

@@ -121,7 +121,7 @@ class Truth(Settings):
 
 
 @settings_class
-class Estimator(EstimatorEntry):
+class FilterEntry(EstimatorEntry):
     """An estimator of Table 4.2, possibly on a model of its own."""
 
     model: str | None = setting(None, text(registry.MODELS),
@@ -159,7 +159,7 @@ class Config(FilterTable):
     noise: Noise = block(Noise, required=True, doc="input and measurement noise")
     truth: Truth = block(Truth, doc="the actual circuit's own overrides")
     simulation: Any = block(simulation(rtol=1e-6, atol=1e-9), doc="the actual circuit's solver")
-    estimators: tuple = blocks(Estimator, max_length=20, doc="the estimators compared")
+    estimators: tuple = blocks(FilterEntry, max_length=20, doc="the estimators compared")
     tables: Tables = block(Tables, required=True, doc="the thesis table joined")
     figures: Figures = block(Figures, doc="the figures")
 
@@ -229,8 +229,9 @@ def prepare(config: Config, source: str) -> Plan:
     model_cls = registry.MODELS[config.model.name]
     variant = config.model.variant
     columns = config.geometry.columns
-    for i, c in enumerate(columns):
-        if c in columns[:i]:
+    given = [c.to_spec() for c in columns]
+    for i, c in enumerate(given):
+        if c in given[:i]:
             raise ConfigError(source, f"geometry.columns[{i}]", f"repeats {c}")
     for key in ("input.frequencies_hz", "noise.input_levels"):
         section, name = key.split(".")
@@ -255,7 +256,7 @@ def prepare(config: Config, source: str) -> Plan:
             raise ConfigError(source, f"claims[{i}].worse", "the same estimator as better: "
                               "a claim compares two")
     for i, fig in enumerate(config.figures.names):
-        if {"w_um": fig.w_um, "l_um": fig.l_um} not in columns:
+        if {"w_um": fig.w_um, "l_um": fig.l_um} not in given:
             raise ConfigError(source, f"figures.names[{i}]",
                               f"no geometry column W = {fig.w_um:g}, L = {fig.l_um:g} um")
     built = []

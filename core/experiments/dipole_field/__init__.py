@@ -72,11 +72,7 @@ from estim.util import lazy
 from estim.util.workunits import map_tasks
 
 pd = lazy.load("pandas")
-spatial = lazy.load("scipy.spatial")
-fdtd = lazy.load("estim.fields.fdtd")
 grids = lazy.load("estim.fields.grid")
-letkf = lazy.load("estim.fields.letkf")
-model_error = lazy.load("estim.fields.model_error")
 
 SCHEMA: dict = Config.schema()
 

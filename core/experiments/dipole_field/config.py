@@ -7,15 +7,6 @@ from estim.config.schema import REQUIRED, integer, list_of, number, text
 from estim.config.settings import Settings, block, blocks, setting, settings_class
 from estim.experiments import dipole as literal
 from estim.experiments.shared.blocks import MonteCarlo
-from estim.util import lazy
-
-pd = lazy.load("pandas")
-spatial = lazy.load("scipy.spatial")
-fdtd = lazy.load("estim.fields.fdtd")
-grids = lazy.load("estim.fields.grid")
-letkf = lazy.load("estim.fields.letkf")
-model_error = lazy.load("estim.fields.model_error")
-
 
 KF, RLS, PLAIN = "KF", "RLS", "plain simulation"
 

@@ -18,8 +18,6 @@ from estim.fields.dipole import Dipole
 from estim.util import lazy
 from estim.util.memory import reuse_freed_memory
 
-pd = lazy.load("pandas")
-spatial = lazy.load("scipy.spatial")
 fdtd = lazy.load("estim.fields.fdtd")
 grids = lazy.load("estim.fields.grid")
 letkf = lazy.load("estim.fields.letkf")

@@ -19,12 +19,9 @@ from estim.experiments.dipole_field.config import (
 from estim.fields import wave
 from estim.util import lazy
 
-pd = lazy.load("pandas")
 spatial = lazy.load("scipy.spatial")
 fdtd = lazy.load("estim.fields.fdtd")
 grids = lazy.load("estim.fields.grid")
-letkf = lazy.load("estim.fields.letkf")
-model_error = lazy.load("estim.fields.model_error")
 
 
 def amplitude_fit(measured: np.ndarray, basis_sensors: list, basis_traces: list) -> list:

@@ -360,7 +360,7 @@ def figure_cases(exp: Experiment) -> list[tuple[str, float, float, str]]:
     level = fig.noise_level or exp.config.noise.input_levels[0]
     reading = fig.reading or exp.config.noise.readings[0]
     cases = [("noisy", f, level, reading)]
-    cases += [(extra["name"], f, extra["noise_level"], extra["reading"])
+    cases += [(extra.name, f, extra.noise_level, extra.reading)
               for extra in fig.extra_noisy]
     return cases
 

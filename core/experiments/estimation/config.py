@@ -76,7 +76,7 @@ class Noise(InputNoise):
 
 
 @settings_class
-class Estimator(EstimatorEntry):
+class FilterEntry(EstimatorEntry):
     """An estimator of a Chapter 3 table, and how it gets dv_in/dt."""
 
     input_derivative: str = setting("difference", text(DERIVATIVE_METHODS),
@@ -121,7 +121,7 @@ class Config(FilterTable):
     input: Input = block(Input, required=True, doc="the source")
     noise: Noise = block(Noise, required=True, doc="input and measurement noise")
     simulation: Any = block(simulation(rtol=1e-6, atol=1e-7), doc="the actual circuit's solver")
-    estimators: tuple = blocks(Estimator, max_length=20, doc="the estimators compared")
+    estimators: tuple = blocks(FilterEntry, max_length=20, doc="the estimators compared")
     tables: Tables = block(Tables, required=True, doc="the thesis tables joined")
     regime: str | None = setting(None, text(max_length=60),
                                  doc="the operating regime the table names (rmse.csv gives the "

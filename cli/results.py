@@ -1,0 +1,174 @@
+"""The commands that read what is stored or declared: tables, summaries, the report page,
+the settings, the configs, and a config's validation."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+
+from estim import store
+from estim.cli import arguments, project
+from estim.cli.group import LazyChoice, LazyEpilog, fail
+from estim.cli.options import NamedPath, max_work_option
+from estim.config import loading as config
+from estim.config.registry import ANALYSES
+from estim.engine import runner
+from estim.errors import UsageError
+from estim.report import tables
+
+
+@click.command(cls=LazyEpilog, epilog_from=arguments.metrics_help)
+@click.argument("metric", type=LazyChoice(lambda: sorted(runner.table_specs())))
+@click.option("--results", type=click.Path(file_okay=False, path_type=Path),
+              help="Folder of stored results [default: the project's results/].")
+@click.option("--format", "fmt", type=click.Choice(["text", "csv", "markdown", "latex"]),
+              default="text", show_default=True)
+@click.option("--thesis", "--paper", "--reference", "thesis", is_flag=True,
+              help="Show the printed value (thesis or paper) and ours/printed beside ours.")
+@click.option("--partial", is_flag=True,
+              help="With --thesis: allow thesis rows that the results do not cover.")
+def table(metric, results, fmt, thesis, partial) -> None:
+    """Print the METRIC tables of every experiment found under RESULTS.
+
+    csv gives one CSV over all experiments (an ``experiment`` column first); markdown and
+    latex (booktabs, escaped) one table per experiment under its name; text wraps a table's
+    columns at 100 characters (a title or a long cell stays whole). RESULTS' experiment
+    folders are its direct subfolders.
+    """
+    if partial and not thesis:
+        fail("--partial applies only with --thesis")
+    results = results or project.locate().results
+    text_ = tables.stored(results, metric, fmt, thesis, partial, ANALYSES)
+    click.echo(text_, nl=not text_.endswith("\n"))
+
+
+@click.command()
+@click.argument("configs", nargs=-1, required=True)
+@max_work_option
+def validate(configs, max_work) -> None:
+    """Check CONFIGS without running them (overrides KEY.PATH=VALUE as for run)."""
+    paths, overrides = arguments.split_arguments(configs)
+    if not paths:
+        fail("no config file given")
+    for exp in config.load_files(paths, overrides, max_work=max_work):
+        click.echo(f"{exp.source}: ok ({exp.name})")
+
+
+@click.command(name="report")
+@click.option("--results", type=click.Path(file_okay=False, path_type=Path),
+              help="Folder of stored results [default: the project's results/].")
+@click.option("--out", type=NamedPath(dir_okay=False, path_type=Path), default="report.html",
+              show_default=True, help="The HTML file to write.")
+@click.option("--full", is_flag=True,
+              help="Embed every figure as stored and draw every row (by default PNGs are "
+                   "shrunk to 560 pixels, as 64-colour PNG or WebP, and tables to 40 rows: "
+                   "the page of the shipped results stays under 3 MB).")
+def report_page(results, out, full) -> None:
+    """Write one self-contained HTML page of the stored results: a summary of every
+    experiment's claims, printed cells and health at the top, then its tables beside the
+    printed values (failing claims in red), its figures, the deviations its config cites,
+    seeds and versions."""
+    from estim.report import html as html_report
+
+    where = project.locate()
+    results = results or where.results
+    notes = where.root / "docs" / "deviations.md" if where.root else None
+    store.ensure_writable(out.parent)               # before the page is built, not after
+    text_ = notes.read_text() if notes and notes.is_file() else ""
+    sections = html_report.sections(results, text_, where.config_dir, ANALYSES)
+    if not sections:
+        fail(f"no stored results under {results}/ (run 'estim reproduce')")
+    page = html_report.page("estim: stored results", sections, full=full)
+    store.atomic_write_bytes(out, page.encode("utf-8"))
+    click.echo(f"report: {len(sections)} experiments -> {out}")
+
+
+@click.command()
+@click.option("--results", type=click.Path(file_okay=False, path_type=Path),
+              help="Folder of stored results [default: the project's results/].")
+@click.option("--readme", type=click.Path(dir_okay=False, path_type=Path),
+              help="Re-generate the summary blocks (<!-- summary: NAME --> ... "
+                   "<!-- /summary -->) of this Markdown file in place.")
+@click.option("--check", "check_only", is_flag=True,
+              help="With --readme: write nothing; exit 1 naming the blocks that do not "
+                   "match the stored tables.")
+def summary(results, readme, check_only) -> None:
+    """Print each stored experiment's claims (holds / fails / undecided out of its cells,
+    with the range of the ratio) and the ranges of the quantities its analysis quotes."""
+    from estim.report import summary as summaries
+
+    if check_only and readme is None:
+        fail("--check applies only with --readme (it checks the README's generated blocks)")
+    results = results or project.locate().results
+    if readme is None:
+        found = summaries.everything(results, ANALYSES)
+        if not found:
+            fail(f"no stored results under {results}/ (run 'estim reproduce')")
+        click.echo("\n\n".join("\n".join(lines) for lines in found.values()))
+        return
+    try:
+        text_ = readme.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UsageError(f"{readme}: cannot read ({exc})") from None
+    new, stale = summaries.refresh(text_, results, ANALYSES)
+    if check_only:
+        if stale:
+            click.echo(f"{readme}: stale summary blocks: {', '.join(stale)} (re-generate with "
+                       f"'estim summary --readme {readme}')")
+            sys.exit(1)
+        click.echo(f"{readme}: every summary block matches {results}/")
+        return
+    if stale:
+        store.atomic_write_bytes(readme, new.encode())
+    click.echo(f"{readme}: {len(stale)} block(s) re-generated" + (
+        f" ({', '.join(stale)})" if stale else ""))
+
+
+@click.command()
+@click.argument("name", required=False)
+@click.option("--out", type=NamedPath(dir_okay=False, path_type=Path),
+              help="Write the listing to this Markdown file (docs/settings.md) instead.")
+@click.option("--plugin", "plugins", multiple=True, type=NamedPath(dir_okay=False,
+              path_type=Path), help="A Python file of models or estimators, as a config's "
+              "plugins: names it, imported first so that its classes are listed too "
+              "(repeatable).")
+def settings(name, out, plugins) -> None:
+    """List every setting a config can give, from its one declaration: each analysis' keys,
+    each estimator's settings and each model's parameters, with type, default, unit and
+    meaning (NAME: one analysis, estimator or model, built in or from a --plugin file)."""
+    from estim.config import listing as declared
+    from estim.errors import ConfigError
+
+    modules = []
+    for plugin in plugins:
+        try:
+            modules += config.load_plugins([plugin.name], str(plugin))
+        except ConfigError as exc:
+            fail(f"--plugin {plugin}: {exc.message}")
+    text_ = declared.listing(name, modules)
+    if name is not None and text_.strip() == "":
+        fail(f"no analysis, estimator or model named {name!r}")
+    if out is None:
+        click.echo(text_, nl=False)
+        return
+    header = ("# Settings\n\nEvery setting a config can give, generated by `estim settings "
+              "--out docs/settings.md` from the declarations in the code (`tests/test_settings"
+              ".py` fails when this file is stale).\n\n")
+    try:
+        store.atomic_write_bytes(out, (header + text_).encode())
+    except OSError as exc:
+        fail(f"cannot write {out} ({exc.strerror or exc})")
+    click.echo(f"settings -> {out}", err=True)
+
+
+@click.command(name="list")
+def list_configs() -> None:
+    """Show the configs and the thesis tables each reproduces."""
+    where = project.locate()
+    click.echo(where.describe(), err=True)
+    for exp in config.load_files(where.configs(), plan=False):
+        ids = ", ".join(exp.spec["reproduces"])
+        shown = f"Tables {ids}" if ids else "no printed table"
+        click.echo(f"{exp.source:40s} {exp.name:24s} {shown}  {exp.spec['title']}")
