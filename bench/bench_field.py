@@ -17,7 +17,7 @@ import time
 
 import numpy as np
 
-from estim.experiments.dipole_field import _observe, sensor_operators
+from estim.experiments.dipole_field.filtering import observe, sensor_operators
 from estim.fields import etkf, letkf
 from estim.fields.dipole import Dipole
 from estim.fields.fdtd import Grid, Simulation
@@ -44,7 +44,7 @@ def case(n: int, members: int = 50) -> dict:
     sensors = np.sort(rng.choice(grid.size, max(1, grid.size // 50), replace=False))
     ops = sensor_operators(grid, sensors)
     nxt = sim.step(ens, 0.0, amps)
-    Y = np.concatenate([v for v in _observe(grid, ens, nxt, dt, 1.0, ops).values()], axis=1)
+    Y = np.concatenate([v for v in observe(grid, ens, nxt, dt, 1.0, ops).values()], axis=1)
     Y = Y.reshape(members, -1)
     X = nxt.reshape(members, -1)
     y = Y.mean(axis=0)

@@ -96,7 +96,7 @@ def report(exp: Experiment, folder: Path, result: Result, resumed: int, quiet: b
         click.echo(f"{exp.name}: resumed with {resumed} finished cell(s) of an earlier run",
                    err=True)
     click.echo(f"{exp.name} -> {folder / exp.name}")
-    text = runner.summary(exp, result)
+    text = runner.printout(exp, result)
     if text:
         click.echo(text)
 

@@ -43,7 +43,7 @@ def test_every_analysis_has_a_shipped_config():
 @pytest.mark.parametrize("name", sorted(ANALYSES))
 def test_analysis_contract(tmp_path, name):
     module = ANALYSES[name]
-    for attr in ("SCHEMA", "TABLES", "prepare", "work_units", "run", "summary", "tiny"):
+    for attr in ("SCHEMA", "TABLES", "prepare", "work_units", "run", "printout", "tiny"):
         assert hasattr(module, attr), f"{name} lacks {attr}"
     spec = tiny_of(shipped(name)[0])
     path = write(tmp_path, spec, "contract")

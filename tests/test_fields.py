@@ -99,8 +99,10 @@ def _literal_batch(series=4, steps=60, seed=0):
     rate = np.stack([(1j * d.omega * f[p][:, None] * turn).real
                      for p in ("A_r", "A_theta", "Phi")], -1)
     z = q[:, 1:] + 0.1 * np.random.default_rng(seed).standard_normal(q[:, 1:].shape)
-    spec = {"kf": {"Q": [1e-4, 1e-3, 1e-4, 1e-2], "R": 0.01, "P0": [1e-4] * 4}}
-    return {"q": q, "rate": rate}, z, dt, spec
+    from estim.experiments.dipole import KFSettings
+
+    kf = KFSettings(Q=[1e-4, 1e-3, 1e-4, 1e-2], R=0.01, P0=[1e-4] * 4)
+    return {"q": q, "rate": rate}, z, dt, kf
 
 
 def test_literal_unmeasured_points_are_the_open_loop():
@@ -222,7 +224,7 @@ def test_field_etkf_equals_a_dense_kalman_filter_on_an_8_cube():
     members differ only in their source amplitude, so the covariance has rank 2 and the
     ensemble represents it exactly; a dense KF on the same linear model, started from the
     ensemble's mean and covariance, must give the same analysis mean."""
-    from estim.experiments.dipole_field import _observe, sensor_operators
+    from estim.experiments.dipole_field.filtering import observe, sensor_operators
     from estim.fields import etkf
     from estim.fields.dipole import Dipole
     from estim.fields.fdtd import Grid, Simulation
@@ -250,7 +252,7 @@ def test_field_etkf_equals_a_dense_kalman_filter_on_an_8_cube():
     def observe_rows(X_before, X_after):
         before = X_before[:, :-2].reshape(-1, 2, 2, g.size)
         after = X_after[:, :-2].reshape(-1, 2, 2, g.size)
-        o = _observe(g, before, after, dt, d.mu0, ops)
+        o = observe(g, before, after, dt, d.mu0, ops)
         return np.concatenate([o["E"], o["H"]], axis=1).reshape(len(X_before), -1)
 
     X = vec(ens, amps)

@@ -69,11 +69,11 @@ def execute(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None =
                           tables.items()}, figures=figures)
 
 
-def summary(exp: Experiment, result: Result) -> str:
+def printout(exp: Experiment, result: Result) -> str:
     if exp.sweep:
         return "\n".join(f"{metric}: {len(df)} rows over {len(sweep_cells(exp))} sweep cells"
                          for metric, df in result.tables.items())
-    return ANALYSES[exp.analysis].summary(result)
+    return ANALYSES[exp.analysis].printout(result)
 
 
 def table_specs() -> dict[str, dict]:

@@ -15,7 +15,7 @@ An analysis is a module registered by one line in :data:`estim.config.registry.A
 ``work_units(exp) -> int``          for progress reports
 ``work_size(config) -> int``        state-samples the run computes, bounded by ``--max-work``
 ``run(exp, jobs, on_done) -> Result``  tables (one DataFrame per metric) and figures
-``summary(result) -> str``          what ``estim run`` prints after a run
+``printout(result) -> str``         what ``estim run`` prints after a run
 ``tiny(config) -> overrides``      the experiment shrunk to seconds (``--quick``, the
                                     contract tests), as key path -> value
 ``RUNS_ALONE``  optional, True for an analysis whose tables are timings: run with no other

@@ -370,7 +370,7 @@ def slopes(timing: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=TABLES["slopes"].columns)
 
 
-def summary(result: Result) -> str:
+def printout(result: Result) -> str:
     ekf = result.tables["burden_ekf"]
     view = ekf.pivot_table(index=["row_order", "row_label_printed"], columns="n_x",
                            values=["printed", "counted"], sort=False)

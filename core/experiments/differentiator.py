@@ -156,7 +156,7 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
                   figures={config.figures.name: figure})
 
 
-def summary(result: Result) -> str:
+def printout(result: Result) -> str:
     df = result.tables["orders"]
     view = df.pivot_table(index="omega_p", columns="threshold_db", values=["n1", "n2"],
                           sort=False)

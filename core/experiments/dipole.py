@@ -275,7 +275,7 @@ def fields(zone: Zone, mu0: float, A_r, A_theta, Phi, V_r, V_theta) -> dict[str,
             "H_phi": (d_rAth_dr - dAr_dth) / (mu0 * r)}
 
 
-def kf_per_point(truth: dict, z: np.ndarray, dt: float, config: Config,
+def kf_per_point(truth: dict, z: np.ndarray, dt: float, settings: KFSettings,
                  measured: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """The per-point KF of eqs 5.45-5.47 on every series: ``z`` the measured potentials
     ``(series, steps, 3)``, ``truth`` the analytic potentials and rates ``(series, steps+1, 3)``
@@ -288,11 +288,11 @@ def kf_per_point(truth: dict, z: np.ndarray, dt: float, config: Config,
     F = np.kron(np.eye(3), F1)
     x_all = np.stack([q, rate], axis=-1).reshape(series, steps + 1, 6)
     Z = x_all[:, 1:] - x_all[:, :-1] @ F.T           # the analytic solution fits exactly
-    Qd, P0d = config.kf.Q, config.kf.P0
+    Qd, P0d = settings.Q, settings.P0
     Q = np.diag([Qd[0], Qd[1], Qd[0], Qd[1], Qd[2], Qd[3]])
     P0 = np.diag([P0d[0], P0d[1], P0d[0], P0d[1], P0d[2], P0d[3]])
     C = np.kron(np.eye(3), [[1.0, 0.0]])
-    kf = KalmanFilter(A=F, B=np.eye(6), C=C, Q=Q, R=as_matrix(config.kf.R, 3, "R"), P0=P0)
+    kf = KalmanFilter(A=F, B=np.eye(6), C=C, Q=Q, R=as_matrix(settings.R, 3, "R"), P0=P0)
     measured = np.ones(series, bool) if measured is None else np.asarray(measured, bool)
     x_hat = np.empty((series, steps, 6))
     if measured.any():
@@ -361,7 +361,7 @@ def run_point(exp: Experiment, point: Point) -> tuple[list[dict], list]:
     z = actual_q[:, 1:] + signals.gaussian(rng, config.noise.measurement_sigma,
                                            actual_q[:, 1:].shape)
     estimates = {
-        KF: kf_per_point({"q": q, "rate": rate}, z, dt, config),
+        KF: kf_per_point({"q": q, "rate": rate}, z, dt, config.kf),
         RLS: rls_per_point(z, t, dipole.omega, dt, config),
         "measurement": {"q": z, "rate": _backward_rate(z, dt)},
         "exact potentials": {"q": q[:, 1:], "rate": rate[:, 1:]},
@@ -417,7 +417,7 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     return Result(tables={"rmse": df, "claims": table})
 
 
-def summary(result: Result) -> str:
+def printout(result: Result) -> str:
     df = result.tables["rmse"]
     view = df[df["part"] == "abs"].pivot_table(
         index=["zone", "noise_reading", "noise_param", "field_component"],

@@ -186,7 +186,7 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     return Result(tables={"rmse": df, "claims": table}, figures={"study": figure})
 
 
-def summary(result: Result) -> str:
+def printout(result: Result) -> str:
     df = result.tables["rmse"]
     view = df[(df["part"] == "real") & df["estimator"].isin(
         [field.KF, field.FIT, field.PLAIN])].pivot_table(

@@ -354,7 +354,7 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     return Result(tables=tables, figures=figures)
 
 
-def summary(result: Result) -> str:
+def printout(result: Result) -> str:
     df = result.tables["snr"][["image", "estimator", "snr_db", "isnr_db", "psnr_db", "ssim",
                                "paper_snr_db"]]
     return df.to_string(index=False, float_format=lambda v: f"{v:.3g}")

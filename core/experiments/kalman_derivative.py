@@ -177,5 +177,5 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
                   figures={exp.config.figures.name: figure})
 
 
-def summary(result: Result) -> str:
+def printout(result: Result) -> str:
     return result.tables["derivative"].to_string(index=False, float_format=lambda v: f"{v:.4g}")

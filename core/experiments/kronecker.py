@@ -443,7 +443,7 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     return out
 
 
-def summary(result: Result) -> str:
+def printout(result: Result) -> str:
     df = result.tables["rmse"]
     view = df.pivot_table(index=["noise_reading", "noise_param", "frequency_hz"],
                           columns=["w_um", "l_um", "estimator"], values="rmse", sort=False)

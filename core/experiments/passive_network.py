@@ -217,7 +217,7 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     return Result(tables={"errors": df, "claims": table}, figures=figures)
 
 
-def summary(result: Result) -> str:
+def printout(result: Result) -> str:
     df = result.tables["errors"]
     view = df.pivot_table(index=["reading", "A", "sigma"], columns="estimator",
                           values="mean_abs_error", sort=False)

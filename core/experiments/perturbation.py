@@ -307,7 +307,7 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     return out
 
 
-def summary(result: Result) -> str:
+def printout(result: Result) -> str:
     """The distortion table's main columns."""
     columns = ["s_no", "amplitude_v", "frequency_hz", "percent_distortion", "thd_percent",
                "gain_db", "err_linear_rms", "err_first_order_rms"]

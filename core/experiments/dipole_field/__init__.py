@@ -80,7 +80,7 @@ __all__ = ["CLAIMS", "DIVERGED_RATIO", "FIT", "KF", "PLAIN", "QUOTES", "RLS", "S
            "SOURCE_ONLY", "TABLES", "Config", "Plan", "amplitude", "cycle", "field_analysis",
            "fields_of", "levels", "nis_of", "observe", "prepare", "rows_of", "run", "run_errors",
            "run_point", "sensor_rows", "setup", "smoothed", "source_analysis",
-           "source_analysis_on_basis", "summary", "tiny", "work_size", "work_units"]
+           "source_analysis_on_basis", "printout", "tiny", "work_size", "work_units"]
 """The analysis' protocol, and the parts of the cycle that field_study, the tests and the
 DAPPER cross-check use."""
 
@@ -300,7 +300,7 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
                           "health": health.reset_index(drop=True)}, figures=figures)
 
 
-def summary(result: Result) -> str:
+def printout(result: Result) -> str:
     df = result.tables["rmse"]
     view = df[df["part"] == "real"].pivot_table(
         index=["scenario", "noise_param", "zone", "field_component"], columns="estimator",

@@ -438,7 +438,7 @@ def figures(exp: Experiment, known: dict) -> dict:
     return estimation_figures.figures(exp, figure_traces(exp, known), f, level, reading)
 
 
-def summary(result: Result) -> str:
+def printout(result: Result) -> str:
     """RMSE by estimator (columns) and sweep point (rows)."""
     df = result.tables.get("rmse")
     if df is None:
