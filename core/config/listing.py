@@ -5,12 +5,11 @@ models."""
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import fields
 
 from estim.config import registry
 from estim.config.loading import Common
 from estim.config.registry import ANALYSES
-from estim.config.settings import describe, plain
+from estim.config.settings import describe
 
 
 def _table(rows: list[tuple[str, ...]], head: tuple[str, ...]) -> str:
@@ -20,11 +19,6 @@ def _table(rows: list[tuple[str, ...]], head: tuple[str, ...]) -> str:
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     lines += ["| " + " | ".join(cell(c) for c in row) + " |" for row in rows]
     return "\n".join(lines)
-
-
-def _model_rows(cls: type) -> list[tuple[str, str, str, str]]:
-    return [(f.name, repr(plain(f.default)), f.metadata.get("unit") or "-",
-             f.metadata.get("doc", "")) for f in fields(cls.Params)]
 
 
 def listing(only: str | None = None, plugins: Iterable[str] = ()) -> str:
@@ -66,6 +60,5 @@ def listing(only: str | None = None, plugins: Iterable[str] = ()) -> str:
             doc = first(cls)
             variants = ", ".join(cls.variants) or "-"
             parts.append(f"### model `{name}` (`model.params`; variants: {variants})\n\n{doc}"
-                         "\n\n" + _table(_model_rows(cls), ("parameter", "default", "unit",
-                                                          "what")))
+                         "\n\n" + _table(describe(cls.Params), head))
     return "\n\n".join(parts) + "\n"
