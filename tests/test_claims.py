@@ -133,3 +133,54 @@ def test_a_perfect_baseline_gives_an_infinite_ratio_not_an_error():
     """A noise-free measurement has zero error: no filter beats it, and the ratio is inf."""
     out = claims.judge(Losses(np.full(5, 0.1) + np.arange(5) * 1e-3), Losses(np.zeros(5)))
     assert out["verdict"] == "fails" and out["ratio"] == np.inf
+
+
+def test_holm_on_p_values_whose_answer_is_known():
+    """Holm at family level 95 % over four p-values: thresholds 0.05/4, 0.05/3, 0.05/2,
+    0.05/1 in ascending order; the step-down stops at the first p above its threshold
+    (0.02 > 0.05/3), so 0.03 and 0.04 are not rejected though each is below 0.05 alone."""
+    assert claims.holm([0.04, 0.001, 0.03, 0.02]).tolist() == [False, True, False, False]
+    assert claims.holm([0.04, 0.001, 0.013, 0.02]).tolist() == [True] * 4
+    assert claims.holm([0.01, 0.02]).tolist() == [True, True]           # 0.025 and 0.05
+    assert claims.holm([]).tolist() == []
+    assert claims.holm([0.5]).tolist() == [False]
+
+
+def test_a_family_keeps_only_the_verdicts_holm_rejects(tmp_path):
+    """Twelve cells each 'holding' at 95 % alone by a difference of 2.3 standard errors (p
+    about 0.03 with 30 runs) do not hold as a family; one 6-SE cell among them does."""
+    rng = np.random.default_rng(5)
+    cells = []
+    for i in range(12):
+        noise = rng.standard_normal(30)
+        noise = (noise - noise.mean()) / noise.std(ddof=1)          # exactly mean 0, SD 1
+        shift = 6.0 if i == 0 else 2.3
+        worse = 10.0 + rng.standard_normal(30)
+        better = worse - shift / np.sqrt(30) + noise
+        cells.append((claims.cell(s_no=i), {"a": claims.Losses(better),
+                                            "b": claims.Losses(worse)}))
+    df = claims.table(cells, [("a", "b")], "RMSE")
+    assert (df["verdict"] == "holds").all()
+    assert (df["p_value"] < 0.05).all() and (df["p_value"].iloc[1:] > 0.05 / 12).all()
+    assert df["verdict_family"].tolist() == ["holds"] + ["undecided"] * 11
+    counted = claims.counts(df)
+    assert counted.loc[0, ["holds", "fails", "undecided", "cells"]].tolist() == [1, 0, 11, 12]
+    assert claims.counts(df, "verdict").loc[0, "holds"] == 12
+
+
+def test_p_values_match_scipy_stats_and_the_exact_sign_test():
+    from scipy import stats
+
+    d = np.array([0.3, -0.1, 0.5, 0.2, 0.4, -0.2, 0.6, 0.1])
+    se = d.std(ddof=1) / np.sqrt(d.size)
+    assert claims.t_p_value(d.mean(), se, d.size) == pytest.approx(
+        stats.ttest_1samp(d, 0.0).pvalue, rel=1e-12)
+    signed = np.array([np.inf, 1.0, 2.0, -3.0, 0.0, 4.0, 5.0, np.inf])   # a tie left out
+    assert claims.sign_p_value(signed) == pytest.approx(
+        stats.binomtest(6, 7, 0.5).pvalue, rel=1e-12)
+    better = claims.Losses(np.array([1.0, 1.0, 2.0, 1.0, 1.0, 1.0, 1.0]),
+                           np.array([False] * 6 + [True]))
+    worse = claims.Losses(np.full(7, 3.0))
+    judged = claims.judge(better, worse)
+    assert judged["method"] == "sign"
+    assert judged["p_value"] == pytest.approx(stats.binomtest(1, 7, 0.5).pvalue, rel=1e-12)

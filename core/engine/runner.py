@@ -14,6 +14,7 @@ from estim.config.loading import sweep_cells
 from estim.config.registry import ANALYSES
 from estim.engine import cells
 from estim.experiments.base import Result
+from estim.experiments.shared import claims
 from estim.reference import SWEEP_PREFIX
 from estim.util import lazy
 from estim.util.workunits import ShardDone, execution, sweep_cell
@@ -65,8 +66,10 @@ def execute(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None =
             on_figures(drawn)
     if incomplete:
         raise ShardDone
-    return Result(tables={m: pd.concat(parts, ignore_index=True) for m, parts in
-                          tables.items()}, figures=figures)
+    stacked = {m: pd.concat(parts, ignore_index=True) for m, parts in tables.items()}
+    if "claims" in stacked:             # a claim's family is its cells over the whole sweep
+        stacked["claims"] = claims.families(stacked["claims"])
+    return Result(tables=stacked, figures=figures)
 
 
 def printout(exp: Experiment, result: Result) -> str:

@@ -221,7 +221,8 @@ def summary(section: Section) -> dict:
     out = {"holds": 0, "fails": 0, "undecided": 0, "printed": 0, "ratio": None, "flags": []}
     claims = frames.get("claims")
     if claims is not None and "verdict" in claims:
-        counts = claims["verdict"].astype(str).value_counts()
+        column = "verdict_family" if "verdict_family" in claims else "verdict"
+        counts = claims[column].astype(str).value_counts()
         out.update({k: int(counts.get(k, 0)) for k in ("holds", "fails", "undecided")})
     ratios = []
     for df in frames.values():
@@ -268,7 +269,8 @@ def _summary_table(sections: list[Section]) -> str:
             f'<td class="num">{ratio}</td>'
             f'<td class="text">{html.escape("; ".join(v["flags"]) or "--")}</td></tr>')
     return ('<h2 id="summary">Summary</h2><p class="meta">Claims are paired comparisons on '
-            "the same noise draws (claims.csv); a ratio is our value over the printed one. "
+            "the same noise draws (claims.csv), counted after Holm's correction within "
+            "each claim's cells (docs/claims.md); a ratio is our value over the printed one. "
             "Health: runs that diverged (the estimate broke or ran away) are counted, never "
             "dropped; a filter row is flagged when its NEES sits in the consistency band in "
             'under half of its runs.</p><table class="summary"><thead>'

@@ -49,11 +49,18 @@ def span(values) -> str:
 def claim_lines(df: pd.DataFrame) -> list[str]:
     """One line per claim of a claims table, in the order they first appear."""
     lines = []
+    family = "verdict_family" in df
     for claim, part in df.groupby("claim", sort=False):
-        v = part["verdict"].astype(str)
+        v = part["verdict_family" if family else "verdict"].astype(str)
         n = {k: int((v == k).sum()) for k in claims.VERDICTS}
         line = (f"- `{claim}`: holds {n['holds']}, fails {n['fails']}, undecided "
-                f"{n['undecided']} of {len(part)} cells; ratio {span(part['ratio'])}")
+                f"{n['undecided']} of {len(part)} cells")
+        own = part["verdict"].astype(str)
+        if family and not (own == v).all():
+            line += (f" after Holm's correction (each cell alone: holds "
+                     f"{int((own == claims.HOLDS).sum())}, fails "
+                     f"{int((own == claims.FAILS).sum())})")
+        line += f"; ratio {span(part['ratio'])}"
         keys = [claims.cell_keys(str(c)) for c in part["cell"]]
         varying = [k for k in keys[0] if len({row.get(k) for row in keys}) > 1]
         for verdict in claims.VERDICTS:

@@ -22,6 +22,13 @@ The verdict reads the interval: ``holds`` when it lies below zero, ``fails`` whe
 above zero, ``undecided`` when it contains zero. Analyses declare which pairs they compare;
 they never judge (``tests/test_analyses.py`` checks that every claims table comes from
 :func:`table`).
+
+A claim judged in many cells is a **family**: each cell also has the ``p_value`` of its
+test (two-sided; the t test, the exact sign test, or 0 / 1 for a deterministic difference),
+and ``verdict_family`` is its verdict after Holm's step-down correction within the claim's
+cells (:func:`families`), so that the chance of any wrong decided verdict in the family is
+at most 1 - :data:`LEVEL`. A cell keeps its verdict only where Holm's test rejects "no
+difference"; elsewhere it is ``undecided``.
 """
 
 from __future__ import annotations
@@ -51,10 +58,10 @@ METHODS = ("exact", "t", "sign")
 KEYS = ("claim", "cell", "better", "worse", "metric")
 VALUES = ("runs", "diverged_better", "diverged_worse", "loss_better", "loss_worse",
           "difference", "difference_se", "difference_low", "difference_high", "ratio",
-          "ratio_low", "ratio_high", "method", "verdict")
+          "ratio_low", "ratio_high", "method", "verdict", "p_value", "verdict_family")
 
 TABLE = TableSpec(
-    "claims.csv", KEYS, VALUES, text=("method", "verdict"),
+    "claims.csv", KEYS, VALUES, text=("method", "verdict", "verdict_family"),
     title="claims: paired comparisons on the same draws, holds / fails / undecided "
           "(docs/claims.md)")
 """The claims table of every analysis: the same columns everywhere."""
@@ -104,6 +111,60 @@ def t_quantile(n: int, level: float = LEVEL) -> float:
     return float(special.stdtrit(n - 1, 0.5 + level / 2))
 
 
+def t_p_value(mean: float, se: float, n: int) -> float:
+    """Two-sided p-value of the t test of a zero mean difference (``n - 1`` degrees of
+    freedom): ``2 stdtr(n - 1, -|mean / se|)``, as ``scipy.stats.t`` (tested equal). A
+    difference with no spread is certain (0) unless it is zero (1); one run decides nothing."""
+    if n < 2 or not np.isfinite(se):
+        return 1.0
+    if se == 0:
+        return 0.0 if mean != 0 else 1.0
+    from scipy import special
+
+    return float(min(1.0, 2.0 * special.stdtr(n - 1, -abs(mean / se))))
+
+
+def sign_p_value(d: np.ndarray) -> float:
+    """Two-sided p-value of the exact sign test of a zero median difference: zero
+    differences (ties, runs where both diverged) are left out; ``2 P(Binomial(m, 1/2) <=
+    min(n+, n-))`` over the ``m`` others, at most 1."""
+    pos, neg = int(np.sum(d > 0)), int(np.sum(d < 0))
+    m = pos + neg
+    if m == 0:
+        return 1.0
+    tail = sum(math.comb(m, i) for i in range(min(pos, neg) + 1))
+    return float(min(Fraction(1), Fraction(2 * tail, 2**m)))
+
+
+def holm(p_values: Sequence[float], level: float = LEVEL) -> np.ndarray:
+    """Holm's step-down test at family level ``level``: the p-values sorted ascending,
+    ``p_(i)`` is rejected while ``p_(i) <= (1 - level) / (m - i + 1)`` holds for it and every
+    smaller one. Returns which hypotheses (in the order given) are rejected."""
+    p = np.asarray(p_values, float)
+    alpha = 1.0 - level
+    out = np.zeros(p.size, bool)
+    for rank, i in enumerate(np.argsort(p, kind="stable")):
+        if not p[i] <= alpha / (p.size - rank):
+            break
+        out[i] = True
+    return out
+
+
+def families(df: pd.DataFrame, level: float = LEVEL) -> pd.DataFrame:
+    """``verdict_family`` of every row of a claims table: each claim is a family over its
+    cells, corrected by :func:`holm`; a cell keeps its ``verdict`` where Holm rejects,
+    else it is ``undecided``."""
+    out = df.copy()
+    family = pd.Series(UNDECIDED, index=out.index, dtype=object)
+    for _, part in out.groupby("claim", sort=False):
+        rejected = holm(part["p_value"].to_numpy(float), level)
+        decided = part["verdict"].astype(str) != UNDECIDED
+        keep = part.index[rejected & decided.to_numpy()]
+        family.loc[keep] = part.loc[keep, "verdict"].astype(str)
+    out["verdict_family"] = family
+    return out
+
+
 def _verdict(low: float, high: float) -> str:
     if high < 0:
         return HOLDS
@@ -147,6 +208,7 @@ def judge(better: Losses, worse: Losses, level: float = LEVEL, exact: bool = Fal
         out.update(difference=d, difference_se=0.0, difference_low=low, difference_high=high,
                    ratio=ratio, ratio_low=ratio, ratio_high=ratio)
         verdict = UNDECIDED if d == 0 else _verdict(low, high)
+        p = 1.0 if d == 0 else 0.0
     elif not fb.any() and not fw.any():
         method = "t"
         d = b - w
@@ -166,6 +228,7 @@ def judge(better: Losses, worse: Losses, level: float = LEVEL, exact: bool = Fal
         out.update(difference=mean, difference_se=se, difference_low=low, difference_high=high,
                    ratio=ratio, ratio_low=r_low, ratio_high=r_high)
         verdict = UNDECIDED if se == 0 and mean == 0 else _verdict(low, high)
+        p = t_p_value(mean, se, n)
     else:
         method = "sign"
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -179,7 +242,8 @@ def judge(better: Losses, worse: Losses, level: float = LEVEL, exact: bool = Fal
                    difference_high=high, ratio=float(np.median(r)), ratio_low=r_low,
                    ratio_high=r_high)
         verdict = _verdict(low, high)
-    out["method"], out["verdict"] = method, verdict
+        p = sign_p_value(d)
+    out["method"], out["verdict"], out["p_value"] = method, verdict, p
     return out
 
 
@@ -219,16 +283,18 @@ def table(cells: Iterable[tuple[str, Mapping[str, Losses]]], pairs: Sequence[tup
                 continue
             rows.append({"claim": claim or f"{better} {metric} < {worse} {metric}",
                          "cell": where, "better": better, "worse": worse, "metric": metric,
-                         **judge(losses[better], losses[worse], exact=exact)})
-    return pd.DataFrame(rows, columns=TABLE.columns)
+                         **judge(losses[better], losses[worse], exact=exact),
+                         "verdict_family": UNDECIDED})
+    return families(pd.DataFrame(rows, columns=TABLE.columns))
 
 
-def counts(df: pd.DataFrame) -> pd.DataFrame:
-    """Verdict counts per claim: ``holds``, ``fails``, ``undecided`` and ``cells``, in the
-    order the claims first appear."""
+def counts(df: pd.DataFrame, column: str = "verdict_family") -> pd.DataFrame:
+    """Verdict counts per claim (of ``column``: the family-corrected verdicts, or the
+    cells' own): ``holds``, ``fails``, ``undecided`` and ``cells``, in the order the claims
+    first appear."""
     out = []
     for claim, part in df.groupby("claim", sort=False):
-        v = part["verdict"].astype(str)
+        v = part[column].astype(str)
         out.append({"claim": claim, HOLDS: int((v == HOLDS).sum()),
                     FAILS: int((v == FAILS).sum()), UNDECIDED: int((v == UNDECIDED).sum()),
                     "cells": len(part)})
