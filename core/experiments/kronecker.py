@@ -246,15 +246,7 @@ def prepare(config: Config, source: str) -> Plan:
             raise ConfigError(source, f"estimators[{i}].label",
                               f"duplicate or reserved label {est.label!r}")
         labels.append(est.label)
-    for i, claim in enumerate(config.claims):
-        for side in ("better", "worse"):
-            label = getattr(claim, side)
-            if label not in labels:
-                raise ConfigError(source, f"claims[{i}].{side}",
-                                  f"expected an estimator label {labels}, got {label!r}")
-        if claim.better == claim.worse:
-            raise ConfigError(source, f"claims[{i}].worse", "the same estimator as better: "
-                              "a claim compares two")
+    pipeline.check_claims(config.claims, labels, source)
     for i, fig in enumerate(config.figures.names):
         if {"w_um": fig.w_um, "l_um": fig.l_um} not in given:
             raise ConfigError(source, f"figures.names[{i}]",

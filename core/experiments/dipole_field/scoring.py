@@ -28,7 +28,7 @@ def amplitude_fit(measured: np.ndarray, basis_sensors: list, basis_traces: list)
     """The amplitude-only fit: the one complex source amplitude ``a`` whose simulation best
     fits every reading of the record in least squares (the simulation is linear in ``Re a``
     and ``Im a``: two basis runs, driven by 1 and by j), then its fields. It sees the whole
-    record at once (a smoother): the best any filter that corrects only the source can do."""
+    record at once (a smoother, not a filter: the source-only filter beats it in some cells)."""
     G = np.stack(basis_sensors)                    # (steps, 2 basis, sensors, 6)
     y = measured.reshape(len(G), 6, -1).transpose(0, 2, 1)
     design = G.transpose(1, 0, 2, 3).reshape(2, -1).T

@@ -160,17 +160,9 @@ def prepare(config: Config, source: str) -> Plan:
     if not any(table_id for _, table_id in config.tables.items()):
         raise ConfigError(source, "tables", "expected at least one of tables.rmse and "
                           "tables.residual")
-    for i, claim in enumerate(config.claims):
-        for side in ("better", "worse"):
-            label = getattr(claim, side)
-            if label not in labels:
-                raise ConfigError(source, f"claims[{i}].{side}",
-                                  f"expected an estimator label {labels}, got {label!r}")
-        if claim.better == claim.worse:
-            raise ConfigError(source, f"claims[{i}].worse", "the same estimator as better: "
-                              "a claim compares two")
-        if config.tables.rmse is None:
-            raise ConfigError(source, "claims", "claims compare RMSEs: set tables.rmse")
+    pipeline.check_claims(config.claims, labels, source)
+    if config.claims and config.tables.rmse is None:
+        raise ConfigError(source, "claims", "claims compare RMSEs: set tables.rmse")
     names = config.figures.names
     for kind, name in names.items():
         if kind not in FIGURE_KINDS:

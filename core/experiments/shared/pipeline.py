@@ -10,6 +10,7 @@ import numpy as np
 
 from estim import reference
 from estim.config.experiment import Experiment
+from estim.errors import ConfigError
 from estim.experiments.shared import claims, health
 from estim.numerics import metrics
 from estim.util import lazy
@@ -126,6 +127,20 @@ def thesis_row_numbers(rows: pd.DataFrame, table_id: str | None) -> pd.Series:
         hit = ref[np.isclose(ref["noise_param_value"], level) & np.isclose(ref["frequency_hz"], f)]
         s_no.append(int(hit["s_no"].iloc[0]) if len(hit) else pd.NA)
     return pd.Series(s_no, dtype="Int64")
+
+
+def check_claims(declared, labels: list[str], source: str) -> None:
+    """The config's ``claims`` each compare two of the estimators ``labels`` (a
+    ``ConfigError`` at ``claims[i].better`` or ``.worse`` otherwise)."""
+    for i, claim in enumerate(declared):
+        for side in ("better", "worse"):
+            label = getattr(claim, side)
+            if label not in labels:
+                raise ConfigError(source, f"claims[{i}].{side}",
+                                  f"expected an estimator label {labels}, got {label!r}")
+        if claim.better == claim.worse:
+            raise ConfigError(source, f"claims[{i}].worse", "the same estimator as better: "
+                              "a claim compares two")
 
 
 def claim_pairs(config) -> list[tuple[str, str]]:
