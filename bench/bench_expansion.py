@@ -34,19 +34,19 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def case(path: Path) -> dict:
     exp = parse_data(yaml.safe_load(path.read_text()), str(path), path.stem)
-    row = exp.spec["rows"][0]
-    amplitudes = np.array([row["amplitude_v"], row["amplitude_v"] / 2])
+    row = exp.config.rows[0]
+    amplitudes = np.array([row.amplitude_v, row.amplitude_v / 2])
     src, dt = perturbation.source(exp, row, amplitudes)
-    model = exp.plan.models[row["s_no"]]
-    bias = np.asarray(exp.spec["excitation"]["bias_v"], float)
+    model = exp.plan.models[row.s_no]
+    bias = np.asarray(exp.config.excitation.bias_v, float)
     u_in = model.source_to_input(src, dt)
     u_op = model.source_to_input(np.broadcast_to(bias, (2, src.shape[-1])), dt)[0]
     e = expand(model, model.operating_point(u=u_op), u_op)
     du = u_in - u_op
     start = np.zeros((2, 2 * model.n_states))
-    sim = exp.spec["simulation"]
+    sim = exp.config.simulation
     t0 = time.perf_counter()
-    old = simulate(ExpandedSystem(e, model.name), start, du, dt, rtol=sim["rtol"], atol=sim["atol"])
+    old = simulate(ExpandedSystem(e, model.name), start, du, dt, rtol=sim.rtol, atol=sim.atol)
     t_old = time.perf_counter() - t0
     t0 = time.perf_counter()
     new = propagate_expanded(e, du, dt, start)[:, 1:]

@@ -100,7 +100,7 @@ def _field_setup(n: int = 16):
     spec.pop("check", None)
     spec["grid"]["n"] = n
     exp = parse_data(spec, "dipole_field.yaml", "dipole_field")
-    return exp, dipole_field.setup(exp.spec, exp.plan)
+    return exp, dipole_field.setup(exp.config, exp.plan)
 
 
 def check_local_analysis() -> list[tuple[str, float, float]]:

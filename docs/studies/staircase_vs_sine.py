@@ -43,7 +43,6 @@ relative for THD and percent distortion, in dB for gain), then the largest chang
 from __future__ import annotations
 
 import argparse
-import copy
 import dataclasses
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -55,6 +54,7 @@ import pandas as pd
 
 from estim.config import loading as config
 from estim.config.experiment import Experiment
+from estim.config.settings import checked
 from estim.experiments import perturbation
 
 COLUMNS = ("percent_distortion", "thd_percent", "gain_db")
@@ -85,16 +85,17 @@ def experiment(name: str, tight: bool) -> Experiment:
 
 def with_samples(exp: Experiment, n: int) -> Experiment:
     """``exp`` at ``n`` samples a period (also above the schema's limit of 10000)."""
-    spec = copy.deepcopy(exp.spec)
-    spec["excitation"]["samples_per_period"] = n
-    return dataclasses.replace(exp, spec=spec)
+    with checked():                     # the schema's limit is the study's to pass
+        excitation = dataclasses.replace(exp.config.excitation, samples_per_period=n)
+    return dataclasses.replace(exp, config=dataclasses.replace(exp.config,
+                                                              excitation=excitation))
 
 
 def evaluate(task: tuple[str, bool, int, int]) -> tuple[tuple[str, bool, int, int], dict]:
     """The three columns of one row at ``n`` samples a period."""
     name, tight, n, s_no = task
     exp = with_samples(experiment(name, tight), n)
-    row = next(r for r in exp.spec["rows"] if r["s_no"] == s_no)
+    row = next(r for r in exp.config.rows if r.s_no == s_no)
     response, amplitudes = perturbation.respond_row(exp, row)
     summary = perturbation.summarize(exp, row, response, amplitudes)
     return task, {c: summary[c] for c in COLUMNS}
