@@ -271,3 +271,20 @@ def test_the_stored_burden_counts_say_what_the_deviations_say():
     one, lms = "Kronecker EKF", "wavelet LMS (per sample of a block)"
     assert f"{slopes[(one, 'counted')]:.2f}" == "2.90"
     assert f"{slopes[(lms, 'counted')]:.2f}" == "1.91"
+
+
+def test_claim_passes_refuses_a_wrong_value_naming_key_and_file(tmp_path):
+    """The burden config's claim_passes (the LMS passes its claim counts) is a whole number
+    of at least 1; anything else is one line naming the file and the key."""
+    from click.testing import CliRunner
+
+    from estim.cli.main import main
+
+    spec = yaml.safe_load(open("configs/kronecker_burden.yaml"))
+    for bad in (0, "many", 2.5):
+        spec["claim_passes"] = bad
+        path = tmp_path / "burden.yaml"
+        path.write_text(yaml.safe_dump(spec))
+        out = CliRunner().invoke(main, ["validate", str(path)])
+        assert out.exit_code == 2, out.output
+        assert str(path) in out.output and "claim_passes" in out.output, out.output

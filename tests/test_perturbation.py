@@ -167,3 +167,15 @@ def test_distortion_metrics_on_known_signals():
     assert metrics.gain_db(y, 0.2) == pytest.approx(20.0)
     y0, y1 = np.sin(phase), 0.01 * np.sin(2 * phase)
     assert metrics.percent_distortion(y0, y1) == pytest.approx(100 * 0.01 / np.hypot(1, 0.01))
+
+
+def test_d33_quotes_how_much_closer_x0_plus_x1_comes_in_table_2_2():
+    """docs/deviations.md D33: x0 + x1 is 11-21 % closer (RMS error) to the full output than
+    x0 in Table 2.2's rows, read from the stored table."""
+    import pandas as pd
+
+    text = (ROOT / "docs" / "deviations.md").read_text()
+    assert "only 11–21 % closer" in text
+    df = pd.read_csv(ROOT / "results" / "diffamp_distortion" / "distortion.csv")
+    closer = 100 * (1 - df["err_first_order_rms"] / df["err_linear_rms"])
+    assert round(closer.min()) == 11 and round(closer.max()) == 21
