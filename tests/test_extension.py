@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import pandas as pd
 
-from estim.config.schema import number
+from estim.config.settings import number
 from estim.config.settings import Settings, block, setting, settings_class
 from estim.experiments.base import Result
 from estim.experiments.shared.blocks import MonteCarlo

@@ -7,7 +7,7 @@ import pytest
 
 from estim.config import listing, registry, settings
 from estim.config.registry import ANALYSES
-from estim.config.schema import REQUIRED, validate
+from estim.config.settings import REQUIRED, validate
 from estim.errors import ConfigError
 from estim.experiments.shared.blocks import MonteCarlo
 

@@ -10,8 +10,7 @@ from contextvars import ContextVar
 
 import numpy as np
 
-from estim.config.schema import MAX_VOLTS, PARAM_RANGE, number, shown, validate
-from estim.config.settings import checked
+from estim.config.settings import MAX_VOLTS, PARAM_RANGE, checked, number, shown, validate
 from estim.errors import ConfigError, ParameterError, SettingError
 
 _BUILT: ContextVar[dict | None] = ContextVar("estim_models_built", default=None)

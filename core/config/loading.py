@@ -23,8 +23,17 @@ from estim.config.builders import recording_models
 from estim.config.experiment import Experiment
 from estim.config.overrides import OVERRIDE_KEY, apply_overrides, key_path
 from estim.config.registry import ANALYSES
-from estim.config.schema import list_of, mapping, number, text, validate
-from estim.config.settings import Settings, block, setting, settings_class
+from estim.config.settings import (
+    Settings,
+    block,
+    list_of,
+    mapping,
+    number,
+    setting,
+    settings_class,
+    text,
+    validate,
+)
 from estim.config.yaml_reader import load_yaml
 from estim.errors import ConfigError, ConfigErrors, UsageError
 

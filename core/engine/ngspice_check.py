@@ -76,7 +76,7 @@ def cases(exp) -> list[tuple[str, object, np.ndarray, float, float | None]]:
             dt, steps = estimation.sampling(exp, f)
             t = np.arange(steps + 1) * dt
             clean = bias + signals.sine(inp.amplitude_v, f, t) * mix
-            noisy = signals.gaussian(rng, level, (steps + 1, 1)) * mix
+            noisy = level * rng.standard_normal((steps + 1, 1)) * mix
             noisy[0] = 0.0
             out.append((f"{f:g} Hz, input noise sigma {level:g}", exp.plan.truth,
                         clean + noisy, dt, f))

@@ -23,8 +23,15 @@ from typing import ClassVar
 import numpy as np
 
 from estim.config import registry
-from estim.config.schema import REQUIRED, matrix, number, vector
-from estim.config.settings import Settings, setting, settings_class
+from estim.config.settings import (
+    REQUIRED,
+    Settings,
+    matrix,
+    number,
+    setting,
+    settings_class,
+    vector,
+)
 from estim.errors import SettingError
 from estim.numerics import linalg
 

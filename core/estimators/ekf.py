@@ -9,8 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from estim.config.schema import integer, text
-from estim.config.settings import setting, settings_class
+from estim.config.settings import integer, setting, settings_class, text
 from estim.estimators.base import (
     Estimate,
     GaussianFilter,

@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from estim.config.schema import REQUIRED, matrix
-from estim.config.settings import setting, settings_class
+from estim.config.settings import REQUIRED, matrix, setting, settings_class
 from estim.errors import SettingError
 from estim.estimators.base import (
     Estimate,

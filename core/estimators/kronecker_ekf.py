@@ -24,8 +24,7 @@ from dataclasses import field
 
 import numpy as np
 
-from estim.config.schema import integer, text
-from estim.config.settings import setting, settings_class
+from estim.config.settings import integer, setting, settings_class, text
 from estim.estimators.base import Estimate, GaussianFilter, as_matrix, batch_input, run_batch
 from estim.numerics import kronecker_form as kronecker
 from estim.numerics import opcount

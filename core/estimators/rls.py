@@ -40,8 +40,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from estim.config.schema import boolean, integer, number, text
-from estim.config.settings import setting, settings_class
+from estim.config.settings import boolean, integer, number, setting, settings_class, text
 from estim.errors import SettingError
 from estim.estimators.base import Estimate, Estimator, batch_input
 

@@ -24,8 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from estim.config.schema import number
-from estim.config.settings import setting, settings_class
+from estim.config.settings import number, setting, settings_class
 from estim.estimators.base import joseph_update
 from estim.estimators.ekf import ExtendedKalmanFilter
 from estim.numerics import discretize, linalg

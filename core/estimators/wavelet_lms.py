@@ -30,8 +30,7 @@ import functools
 
 import numpy as np
 
-from estim.config.schema import integer, list_of, number, text
-from estim.config.settings import setting, settings_class
+from estim.config.settings import integer, list_of, number, setting, settings_class, text
 from estim.errors import SettingError
 from estim.estimators.base import Estimate, Estimator, batch_input
 from estim.numerics import opcount

@@ -3,7 +3,7 @@
 An analysis is a module registered by one line in :data:`estim.config.registry.ANALYSES`. It owns:
 
 ``SCHEMA``      its config keys beyond the common ones of :mod:`estim.config.loading` (a schema of
-                :mod:`estim.config.schema`; it may re-declare a common key, e.g. make ``model``
+                :mod:`estim.config.settings`; it may re-declare a common key, e.g. make ``model``
                 required)
 ``TABLES``      ``{metric: TableSpec}``: every table it writes, its columns and the key that
                 joins a row to the reference (thesis or paper) table

@@ -33,8 +33,19 @@ from estim import reference
 from estim.config import registry
 from estim.config.builders import build_estimator, build_model
 from estim.config.experiment import Experiment
-from estim.config.schema import REQUIRED, file_name, integer, list_of, mapping, number, text
-from estim.config.settings import Settings, block, setting, settings_class
+from estim.config.settings import (
+    REQUIRED,
+    Settings,
+    block,
+    file_name,
+    integer,
+    list_of,
+    mapping,
+    number,
+    setting,
+    settings_class,
+    text,
+)
 from estim.errors import ConfigError
 from estim.estimators.kronecker_ekf import KroneckerEKF
 from estim.estimators.wavelet_lms import WaveletLMS

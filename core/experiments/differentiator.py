@@ -23,8 +23,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from estim.config.experiment import Experiment
-from estim.config.schema import file_name, integer, list_of, number, text
-from estim.config.settings import Settings, block, setting, settings_class
+from estim.config.settings import (
+    Settings,
+    block,
+    file_name,
+    integer,
+    list_of,
+    number,
+    setting,
+    settings_class,
+    text,
+)
 from estim.experiments.base import Quote, Result
 from estim.experiments.shared import claims, plots
 from estim.numerics import fir_differentiators as fd

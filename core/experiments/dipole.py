@@ -36,8 +36,18 @@ import numpy as np
 
 from estim.config.builders import check_interval
 from estim.config.experiment import Experiment
-from estim.config.schema import REQUIRED, integer, list_of, number, text
-from estim.config.settings import Settings, block, blocks, setting, settings_class
+from estim.config.settings import (
+    REQUIRED,
+    Settings,
+    block,
+    blocks,
+    integer,
+    list_of,
+    number,
+    setting,
+    settings_class,
+    text,
+)
 from estim.errors import ConfigError
 from estim.estimators.base import as_matrix
 from estim.estimators.kf import KalmanFilter
@@ -352,14 +362,14 @@ def run_point(exp: Experiment, point: Point) -> tuple[list[dict], list]:
     q, rate = (a.reshape(-1, steps + 1, 3) for a in (q, rate))
     # the source noise enters the rates (T c^2 w, eq 5.42's B^(3)) and accumulates
     c2dt = config.source.c ** 2 * dt
-    kick = c2dt * signals.gaussian(rng, point.sigma, (q.shape[0], steps, 3))
+    kick = c2dt * (point.sigma * rng.standard_normal((q.shape[0], steps, 3)))
     drift_rate = np.zeros_like(rate)
     drift_rate[:, 1:] = np.cumsum(kick, axis=1)
     drift_q = np.zeros_like(q)
     drift_q[:, 1:] = dt * np.cumsum(drift_rate[:, :-1], axis=1)
     actual_q = q + drift_q
-    z = actual_q[:, 1:] + signals.gaussian(rng, config.noise.measurement_sigma,
-                                           actual_q[:, 1:].shape)
+    z = actual_q[:, 1:] + config.noise.measurement_sigma * rng.standard_normal(
+        actual_q[:, 1:].shape)
     estimates = {
         KF: kf_per_point({"q": q, "rate": rate}, z, dt, config.kf),
         RLS: rls_per_point(z, t, dipole.omega, dt, config),

@@ -18,8 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from estim.config.experiment import Experiment
-from estim.config.schema import REQUIRED, list_of, number, text
-from estim.config.settings import Settings, block, settings_class
+from estim.config.settings import REQUIRED, Settings, block, list_of, number, settings_class, text
 from estim.config.settings import setting as declare
 from estim.errors import ConfigError
 from estim.experiments import dipole_field as field

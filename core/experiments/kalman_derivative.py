@@ -13,8 +13,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from estim.config.experiment import Experiment
-from estim.config.schema import REQUIRED, file_name, number
-from estim.config.settings import Settings, block, blocks, setting, settings_class
+from estim.config.settings import (
+    REQUIRED,
+    Settings,
+    block,
+    blocks,
+    file_name,
+    number,
+    setting,
+    settings_class,
+)
 from estim.errors import ConfigError
 from estim.estimators import kalman_differentiator as kd
 from estim.experiments.base import Quote, Result

@@ -34,17 +34,21 @@ import numpy as np
 from estim.config import registry
 from estim.config.builders import build_estimator, build_model, check_interval, operating_point
 from estim.config.experiment import Experiment
-from estim.config.schema import (
+from estim.config.settings import (
     REQUIRED,
+    Settings,
+    block,
+    blocks,
     boolean,
     file_name,
     integer,
     list_of,
     mapping,
     number,
+    setting,
+    settings_class,
     text,
 )
-from estim.config.settings import Settings, block, blocks, setting, settings_class
 from estim.errors import ConfigError
 from estim.experiments.base import Quote, Result
 from estim.experiments.shared import claims, pipeline, plots
@@ -346,7 +350,7 @@ def simulate_point(exp: Experiment, column: Column, point: SweepPoint, runs: int
     truth = column.truth
     states = SOLVERS[sim.solver](truth, column.x0, truth.source_to_input(source, dt), dt,
                                     rtol=sim.rtol, atol=sim.atol)
-    measured = states + signals.gaussian(rng, noise.measurement_sigma, states.shape)
+    measured = states + noise.measurement_sigma * rng.standard_normal(states.shape)
     if noise.adc_bits is not None:
         lo, hi = noise.adc_range_v
         lsb = (hi - lo) / 2 ** noise.adc_bits

@@ -15,8 +15,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from estim.config.experiment import Experiment
-from estim.config.schema import REQUIRED, file_name, integer, number, text
-from estim.config.settings import Settings, block, blocks, setting, settings_class
+from estim.config.settings import (
+    REQUIRED,
+    Settings,
+    block,
+    blocks,
+    file_name,
+    integer,
+    number,
+    setting,
+    settings_class,
+    text,
+)
 from estim.estimators import passive_network as pn
 from estim.experiments.base import Quote, Result
 from estim.experiments.shared import claims, plots

@@ -29,17 +29,21 @@ from estim import reference
 from estim.config import registry
 from estim.config.builders import build_model, check_input_vector, operating_point
 from estim.config.experiment import Experiment
-from estim.config.schema import (
+from estim.config.settings import (
     MAX_VOLTS,
     REQUIRED,
+    Settings,
+    block,
+    blocks,
     file_name,
     integer,
     list_of,
     mapping,
     number,
+    setting,
+    settings_class,
     text,
 )
-from estim.config.settings import Settings, block, blocks, setting, settings_class
 from estim.errors import ConfigError, SimulationError
 from estim.experiments.base import Quote, Result
 from estim.experiments.shared import claims, plots

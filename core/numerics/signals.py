@@ -1,4 +1,5 @@
-"""Input waveforms and noise."""
+"""Input waveforms, the reading of printed noise levels, and coloured noise (white noise is
+``sigma * rng.standard_normal(shape)`` where it is drawn)."""
 
 from __future__ import annotations
 
@@ -20,11 +21,6 @@ def noise_sigma(level: float, reading: str) -> float:
     if reading == "variance":
         return float(np.sqrt(level))
     raise ValueError(f"reading {reading!r}; expected 'sigma' or 'variance'")
-
-
-def gaussian(rng: np.random.Generator, sigma: float, shape: tuple[int, ...]) -> np.ndarray:
-    """Zero-mean white Gaussian samples of standard deviation ``sigma``."""
-    return sigma * rng.standard_normal(shape)
 
 
 def ornstein_uhlenbeck(rng: np.random.Generator, sigma: float, gamma: float, dt: float,

@@ -1,25 +1,11 @@
-"""Stored results: result folders written as a unit (:mod:`.folders`), their manifests
-(:mod:`.manifest`) and the bounded reading of what is stored (:mod:`.read`).
+"""Stored results: result folders written as a unit (:mod:`.folders`), the tables, figures and
+manifest written into them (:mod:`.writing`) and the bounded reading of what is stored
+(:mod:`.read`).
 
 The names below are the layer's face: ``from estim import store; store.read_table(...)``.
 """
 
-from estim.store.folders import (
-    FIGURE_FORMATS,
-    ResultFolder,
-    atomic_write_bytes,
-    ensure_writable,
-    sha256,
-    write_csv,
-    write_figure,
-)
-from estim.store.manifest import (
-    git_commit,
-    spec_hash,
-    versions,
-    write_manifest,
-    write_tables_and_manifest,
-)
+from estim.store.folders import ResultFolder, atomic_write_bytes, ensure_writable, sha256
 from estim.store.read import (
     MAX_MANIFEST_BYTES,
     MAX_TABLE_BYTES,
@@ -28,6 +14,16 @@ from estim.store.read import (
     read_table,
     stored_table_path,
     stored_tables,
+)
+from estim.store.writing import (
+    FIGURE_FORMATS,
+    git_commit,
+    spec_hash,
+    versions,
+    write_csv,
+    write_figure,
+    write_manifest,
+    write_tables_and_manifest,
 )
 
 __all__ = ["FIGURE_FORMATS", "MAX_MANIFEST_BYTES", "MAX_TABLE_BYTES", "ResultFolder",

@@ -1,6 +1,6 @@
-"""Result folders written as a unit (all old or all new), atomic file writes, and the CSV
-and figure files inside them. These functions take paths from their caller (the CLI);
-nothing here picks a location."""
+"""Result folders written as a unit (all old or all new) and atomic file writes (what goes
+into a folder is :mod:`estim.store.writing`'s). These functions take paths from their caller
+(the CLI); nothing here picks a location."""
 
 from __future__ import annotations
 
@@ -8,17 +8,12 @@ import ctypes
 import errno
 import fcntl
 import hashlib
-import io
 import os
 import shutil
 import tempfile
 from pathlib import Path
 
 from estim.errors import UsageError
-from estim.util import lazy
-
-pd = lazy.load("pandas")
-
 
 _UMASK = os.umask(0)
 os.umask(_UMASK)
@@ -169,33 +164,6 @@ def _size(folder: Path) -> int:
     if not folder.is_dir():
         return 0
     return sum(p.stat().st_size for p in folder.rglob("*") if p.is_file())
-
-
-def write_csv(df: pd.DataFrame, path: Path) -> None:
-    """Tidy CSV; floats as repr, so they round-trip."""
-    atomic_write_bytes(path, df.to_csv(index=False, lineterminator="\n").encode())
-
-
-FIGURE_FORMATS = ("png", "pdf", "svg")
-
-
-def write_figure(fig, path: Path) -> None:
-    """A figure in the format its suffix names (PNG, PDF or SVG), without a timestamp or
-    software tag (the same figure gives the same bytes), written atomically."""
-    fmt = path.suffix.lstrip(".").lower() or "png"
-    if fmt not in FIGURE_FORMATS:
-        raise ValueError(f"figure format {fmt!r}: expected one of {FIGURE_FORMATS}")
-    meta = {"png": {"Software": None}, "pdf": {"Creator": None, "Producer": None,
-                                               "CreationDate": None},
-            "svg": {"Creator": None, "Date": None}}[fmt]
-    buf = io.BytesIO()
-    import matplotlib
-
-    from estim.util.drawing import DRAWING
-
-    with DRAWING, matplotlib.rc_context({"svg.hashsalt": "estim"}):
-        fig.savefig(buf, format=fmt, dpi=fig.dpi, metadata=meta)
-    atomic_write_bytes(path, buf.getvalue())
 
 
 def sha256(path: Path) -> str:

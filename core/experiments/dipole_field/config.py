@@ -3,8 +3,18 @@ names of its estimators."""
 
 from __future__ import annotations
 
-from estim.config.schema import REQUIRED, integer, list_of, number, text
-from estim.config.settings import Settings, block, blocks, setting, settings_class
+from estim.config.settings import (
+    REQUIRED,
+    Settings,
+    block,
+    blocks,
+    integer,
+    list_of,
+    number,
+    setting,
+    settings_class,
+    text,
+)
 from estim.experiments import dipole as literal
 from estim.experiments.shared.blocks import MonteCarlo
 

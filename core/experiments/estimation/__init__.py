@@ -36,7 +36,7 @@ from estim import reference
 from estim.config import registry
 from estim.config.builders import build_estimator, build_model, check_input_vector, operating_point
 from estim.config.experiment import Experiment
-from estim.config.schema import file_name, validate
+from estim.config.settings import file_name, validate
 from estim.errors import ConfigError, UsageError
 from estim.estimators import kalman_differentiator
 from estim.experiments.base import Quote, Result
@@ -271,7 +271,7 @@ def simulate_point(exp: Experiment, frequency_hz: float, sigma: float, runs: int
     t = np.arange(steps + 1) * dt
     mix, bias = np.asarray(inp.mix, float), np.asarray(inp.bias_v, float)
     clean = bias + signals.sine(inp.amplitude_v, frequency_hz, t) * mix
-    input_noise = signals.gaussian(rng, sigma, (runs, steps + 1, 1)) * mix
+    input_noise = sigma * rng.standard_normal((runs, steps + 1, 1)) * mix
     input_noise[:, 0] = 0.0    # the circuit starts at its operating point with v_in(t_0) known
     source = clean[None] + input_noise
     x0 = exp.plan.x0           # the DC point with the source held at its value at t_0
@@ -279,12 +279,12 @@ def simulate_point(exp: Experiment, frequency_hz: float, sigma: float, runs: int
     states = SOLVERS[sim.solver](truth, x0, truth.source_to_input(source, dt), dt,
                                     rtol=sim.rtol, atol=sim.atol)
     actual = truth.h(states)
-    z = actual + signals.gaussian(rng, noise.measurement_sigma, actual.shape)
+    z = actual + noise.measurement_sigma * rng.standard_normal(actual.shape)
     if measurement == "noise_free":
         z = actual.copy()
     seen = clean[None] if noise.filters_see == "nominal" else source
     if noise.input_sensor_sigma > 0:        # the filters measure the source imperfectly
-        seen = seen + signals.gaussian(rng, noise.input_sensor_sigma, source.shape) * mix
+        seen = seen + noise.input_sensor_sigma * rng.standard_normal(source.shape) * mix
         seen[:, 0] = source[:, 0]               # v_in(t_0) is known, as for the circuit
     return {"t": t[1:], "dt": dt, "x0": x0, "source": source, "clean": clean, "seen": seen,
             "frequency_hz": frequency_hz, "states": states, "actual": actual, "z": z,

@@ -6,18 +6,22 @@ from __future__ import annotations
 
 from typing import Any
 
-from estim.config.schema import (
+from estim.config.settings import (
     MAX_VOLTS,
     REQUIRED,
+    Settings,
+    block,
+    blocks,
     boolean,
     file_name,
     integer,
     list_of,
     mapping,
     number,
+    setting,
+    settings_class,
     text,
 )
-from estim.config.settings import Settings, block, blocks, setting, settings_class
 from estim.experiments.shared.blocks import (
     READING,
     VOLTS,

@@ -11,8 +11,20 @@ import re
 import numpy as np
 
 from estim.config import registry
-from estim.config.schema import MAX_VOLTS, REQUIRED, integer, list_of, mapping, number, text
-from estim.config.settings import Settings, block, blocks, setting, settings_class
+from estim.config.settings import (
+    MAX_VOLTS,
+    REQUIRED,
+    Settings,
+    block,
+    blocks,
+    integer,
+    list_of,
+    mapping,
+    number,
+    setting,
+    settings_class,
+    text,
+)
 from estim.experiments.shared import health
 
 READING = text({"sigma", "variance"})
@@ -157,7 +169,7 @@ class EstimatorEntry(Settings):
 
 
 VOLTS = number(minimum=-MAX_VOLTS, maximum=MAX_VOLTS)
-"""A voltage within the bound of every config (:data:`estim.config.schema.MAX_VOLTS`)."""
+"""A voltage within the bound of every config (:data:`estim.config.settings.MAX_VOLTS`)."""
 
 
 @settings_class

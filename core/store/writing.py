@@ -1,18 +1,48 @@
-"""``manifest.json``: the resolved config and its hash, the models, seed and runs, versions,
-wall time and the sha256 of every file of a result folder."""
+"""What a result folder holds, written file by file into the folder a
+:class:`~estim.store.folders.ResultFolder` holds open: each table as CSV, each figure, and
+``manifest.json`` (the resolved config and its hash, the models, seed and runs, versions, wall
+time and the sha256 of every file beside it)."""
 
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import platform
 from importlib import metadata
 from pathlib import Path
 
-from estim.store.folders import atomic_write_bytes, sha256, write_csv
+from estim.store.folders import atomic_write_bytes, sha256
 from estim.util import lazy
 
 pd = lazy.load("pandas")
+
+
+def write_csv(df: pd.DataFrame, path: Path) -> None:
+    """Tidy CSV; floats as repr, so they round-trip."""
+    atomic_write_bytes(path, df.to_csv(index=False, lineterminator="\n").encode())
+
+
+FIGURE_FORMATS = ("png", "pdf", "svg")
+
+
+def write_figure(fig, path: Path) -> None:
+    """A figure in the format its suffix names (PNG, PDF or SVG), without a timestamp or
+    software tag (the same figure gives the same bytes), written atomically."""
+    fmt = path.suffix.lstrip(".").lower() or "png"
+    if fmt not in FIGURE_FORMATS:
+        raise ValueError(f"figure format {fmt!r}: expected one of {FIGURE_FORMATS}")
+    meta = {"png": {"Software": None}, "pdf": {"Creator": None, "Producer": None,
+                                               "CreationDate": None},
+            "svg": {"Creator": None, "Date": None}}[fmt]
+    buf = io.BytesIO()
+    import matplotlib
+
+    from estim.util.drawing import DRAWING
+
+    with DRAWING, matplotlib.rc_context({"svg.hashsalt": "estim"}):
+        fig.savefig(buf, format=fmt, dpi=fig.dpi, metadata=meta)
+    atomic_write_bytes(path, buf.getvalue())
 
 
 PACKAGES = ("estim", "numpy", "scipy", "pandas", "matplotlib", "click", "PyYAML")
