@@ -19,13 +19,26 @@ def _below_fit(name: str, value=None, part: str = "real") -> set:
     return {cell for cell, below in (p[KF] < p[FIT]).items() if below}
 
 
-def test_at_2_percent_the_field_filter_beats_the_fit_only_in_near_E_r():
+def test_at_2_percent_the_field_filter_is_below_the_fit_only_in_near_E_r():
+    """D61: with 3 runs per cell no verdict is decided; the 3-run mean RMSE of the field
+    filter is below the fit's in all 12 near E_r cells and in two of the other 60 (one
+    near H_phi, one far H_phi); near E_theta and far E_r are above in every cell."""
     claims = pd.read_csv(RESULTS / "dipole_field" / "claims.csv")
-    held = claims[(claims["claim"] == "KF RMSE < amplitude-only fit RMSE")
-                  & (claims["verdict"] == "holds")]
-    assert len(held) == 12
-    assert held["cell"].str.contains("zone=near").all()
-    assert held["cell"].str.contains("field_component=E_r;").all()
+    assert (claims["verdict"] == "undecided").all() and set(claims["runs"]) == {3}
+    df = _rmse()
+    keys = ["scenario", "zone", "noise_reading", "noise_param", "field_component", "part"]
+    p = df[df["estimator"].isin([KF, FIT])].pivot_table(index=keys, columns="estimator",
+                                                        values="rmse").reset_index()
+    assert len(p) == 72
+    below = p[p[KF] < p[FIT]]
+    near_e_r = (below["zone"] == "near") & (below["field_component"] == "E_r")
+    assert near_e_r.sum() == 12
+    others = below[~near_e_r]
+    assert sorted(others["zone"]) == ["far", "near"]
+    assert set(others["field_component"]) == {"H_phi"}
+    above = p[p[KF] > p[FIT]]
+    for zone, component in (("near", "E_theta"), ("far", "E_r")):
+        assert ((above["zone"] == zone) & (above["field_component"] == component)).sum() == 12
 
 
 def test_at_10_percent_sensors_the_field_filter_is_below_the_fit_but_in_far_E_r():

@@ -282,3 +282,62 @@ def test_the_reduced_filter_of_eq_13b_predicts_worse_than_the_exact_filter():
     assert np.mean(exact["innovation"][rows] ** 2) < 0.99 * np.mean(
         reduced["innovation"][rows] ** 2)
     assert np.mean((exact["image"] - u)[rows] ** 2) < np.mean((reduced["image"] - u)[rows] ** 2)
+
+
+# ----- docs/deviations.md D69-D70: the numbers quoted, against results/image_kalman ----------
+
+def _image_table():
+    from pathlib import Path
+
+    import pandas as pd
+
+    root = Path(__file__).resolve().parents[1]
+    doc = (root / "docs" / "deviations.md").read_text()
+    snr = pd.read_csv(root / "results" / "image_kalman" / "snr.csv")
+    return doc, snr.set_index(["image", "estimator"])
+
+
+def _rounds_to(value: float, quoted: str) -> bool:
+    digits = len(quoted.split(".")[1]) if "." in quoted else 0
+    return abs(value - float(quoted)) <= 0.5 * 10 ** -digits + 1e-12
+
+
+def test_d69_table_is_the_stored_table():
+    """D69's table: SNR (and SSIM where given) of every stored column, by image."""
+    doc, snr = _image_table()
+    d69 = doc[doc.index("**D69."):doc.index("**D70.")]
+    assert "mean of 10 runs" in d69
+    assert set(snr["runs"]) == {10}
+    stored = ("NSHP Kalman", "NSHP Kalman, adaptive", None, "Wiener, noise given",
+              "Wiener, noise estimated", "wavelet (BayesShrink)")
+    rows = [r for r in d69.splitlines() if r.strip().startswith(("| camera", "| moon",
+                                                                 "| brick"))]
+    assert len(rows) == 3
+    for row in rows:
+        cells = [c.strip() for c in row.strip().strip("|").split("|")]
+        for estimator, cell in zip(stored, cells[1:], strict=True):
+            if estimator is None:
+                continue
+            parts = [p.replace("dB", "").replace("SSIM", "").split("±")[0].strip()
+                     for p in cell.split(",")]
+            value = snr.loc[(cells[0], estimator)]
+            assert _rounds_to(value["snr_db"], parts[0]), (row, estimator)
+            if len(parts) > 1:
+                assert _rounds_to(value["ssim"], parts[1]), (row, estimator)
+
+
+def test_d70_strip_results_are_the_stored_ones():
+    doc, snr = _image_table()
+    d70 = doc[doc.index("- Results (5 dB, 10 runs)"):]
+    d70 = d70[:d70.index("`unstable_strips`")]
+    quoted = {"strip Kalman": ("13.3", "12.4", "12.0"),
+              "strip Kalman, online model (eq 15)": ("12.7", "11.6", "11.3"),
+              "strip Kalman, model from clean image": ("13.8", "12.8", "12.3")}
+    text = " ".join(d70.split())
+    assert "camera 13.3 dB (SSIM 0.45), moon 12.4, brick 12.0" in text
+    assert "on line 12.7, 11.6, 11.3; from the clean image 13.8, 12.8, 12.3" in text
+    for estimator, values in quoted.items():
+        for image, text in zip(("camera", "moon", "brick"), values, strict=True):
+            assert _rounds_to(snr.loc[(image, estimator), "snr_db"], text), (estimator, image)
+    assert _rounds_to(snr.loc[("camera", "strip Kalman"), "ssim"], "0.45")
+    assert _rounds_to(snr.loc[("brick", "strip Kalman"), "ssim"], "0.81")

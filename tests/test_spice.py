@@ -613,7 +613,8 @@ def test_the_netlist_estimation_configs_remake_chapter_3(hand, netlist, ukf_gap)
 
     mosfet_conduction's tolerances are statistical (runs near divergence flip with the last
     bit of rounding: means within 4 standard errors, divergence counts within 4 binomial
-    deviations), and its twin holds them as they are, for every filter."""
+    deviations, medians and verdicts following the counts not compared), and its twin holds
+    them as they are, for every filter."""
     from estim import store
     from estim.config.loading import load_file
     from estim.engine import compare

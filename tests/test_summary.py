@@ -58,6 +58,28 @@ def test_a_flipped_verdict_changes_the_counts(tmp_path):
     assert before[1] != after[1]
 
 
+def test_a_fragile_verdict_is_counted_beside_its_claim(tmp_path):
+    """A cell results/fragile_verdicts.csv names is counted as fragile on its claim's line
+    in the summary and flagged in the report's summary table; other claims are not."""
+    from estim.report import fragility, html
+
+    results = tmp_path / "results"
+    shutil.copytree(ROOT / "results" / "dipole_literal", results / "dipole_literal")
+    df = pd.read_csv(results / "dipole_literal" / "claims.csv")
+    row = df.iloc[0]
+    pd.DataFrame([{"config": "dipole_literal", "claim": row["claim"], "cell": row["cell"],
+                   "verdict": row["verdict"], "verdict_moved": "undecided",
+                   "verdict_family": row["verdict_family"],
+                   "verdict_family_moved": "undecided", "variant": "Zen kernels"}],
+                 columns=fragility.COLUMNS).to_csv(results / fragility.FILE, index=False)
+    lines = summary.experiment(results / "dipole_literal", ANALYSES)
+    marked = [line for line in lines if "fragile" in line]
+    assert len(marked) == 1 and f"`{row['claim']}`" in marked[0]
+    assert "fragile in 1 (a verdict another machine's arithmetic moves)" in marked[0]
+    (section,) = html.sections(results, "", ROOT / "configs", ANALYSES)
+    assert any("1 fragile claim verdicts" in flag for flag in html.summary(section)["flags"])
+
+
 def test_summary_command_prints_every_experiment():
     out = CliRunner().invoke(main, ["summary", "--results", str(ROOT / "results")])
     assert out.exit_code == 0, out.output
@@ -70,3 +92,59 @@ def test_span_and_number_formats():
     assert summary.span([1.0, float("inf")]) == "1–inf"
     assert summary.span([2.0, 2.0]) == "2"
     assert summary.number(float("nan")) == "nan"
+
+
+def test_the_stored_fragile_verdicts_are_those_of_the_stored_claims():
+    """results/fragile_verdicts.csv (docs/studies/verdict_fragility.py) names cells of the
+    stored claims tables with their stored verdicts: re-made results that leave it stale
+    fail here until the study is run again."""
+    from estim.report import fragility
+
+    table = fragility.read(ROOT / "results")
+    assert (ROOT / "results" / fragility.FILE).is_file()
+    for _, row in table.iterrows():
+        claims = pd.read_csv(ROOT / "results" / row["config"] / "claims.csv")
+        hit = claims[(claims["claim"] == row["claim"]) & (claims["cell"] == row["cell"])]
+        assert len(hit) == 1, row.to_dict()
+        assert hit["verdict"].item() == row["verdict"], row.to_dict()
+        assert hit["verdict_family"].item() == row["verdict_family"], row.to_dict()
+        assert (row["verdict_moved"], row["verdict_family_moved"]) != (
+            row["verdict"], row["verdict_family"])
+
+
+def test_the_conduction_twin_differs_in_the_verdicts_the_readme_says():
+    """README (circuits from netlists): the netlist twin of mosfet_conduction has another
+    verdict in 4 of the 12 cells of `EKF RMSE < RLS RMSE` and the same in every other."""
+    text = " ".join((ROOT / "README.md").read_text().split())
+    assert "another verdict in 4 of the 12 cells of `EKF RMSE < RLS RMSE`" in text
+    a = pd.read_csv(ROOT / "results" / "mosfet_conduction" / "claims.csv")
+    b = pd.read_csv(ROOT / "results" / "mosfet_netlist_conduction" / "claims.csv")
+    both = a.merge(b, on=["claim", "cell"], suffixes=("", "_twin"), validate="1:1")
+    assert len(both) == len(a) == len(b)
+    differ = both[both["verdict"] != both["verdict_twin"]]
+    assert set(differ["claim"]) == {"EKF RMSE < RLS RMSE"} and len(differ) == 4
+    assert (both["claim"] == "EKF RMSE < RLS RMSE").sum() == 12
+
+
+def test_docs_claims_fragile_section_is_the_stored_table():
+    """docs/claims.md "Fragile verdicts": its counts, read back from the stored table."""
+    from estim.report import fragility
+
+    text = " ".join((ROOT / "docs" / "claims.md").read_text().split())
+    table = fragility.read(ROOT / "results")
+    header = (ROOT / "results" / fragility.FILE).read_text().splitlines()[0]
+    assert "over 15 configs" in header and "(15 of them)" in text
+    per_config = table["config"].value_counts().to_dict()
+    assert per_config == {"mosfet_conduction": 3, "mosfet_netlist_conduction": 2}
+    assert set(table["claim"]) == {"EKF RMSE < RLS RMSE"}
+    assert "5 fragile cells" in text
+    assert "3 in `mosfet_conduction` and 2 in its netlist twin" in text
+    cell = (table["verdict"] != table["verdict_moved"]).sum()
+    family = table[table["verdict_family"] != table["verdict_family_moved"]]
+    assert cell == 4 and len(family) == 2 and set(family["config"]) == {
+        "mosfet_netlist_conduction"}
+    assert "moved in 4 of them and the family verdict in 2 (both in the twin)" in text
+    diverged = [pd.read_csv(ROOT / "results" / r["config"] / "claims.csv").set_index(
+        ["claim", "cell"]).loc[(r["claim"], r["cell"]), "diverged_better"]
+        for _, r in table.iterrows()]
+    assert (min(diverged), max(diverged)) == (6, 21) and "6–21 of 30" in text

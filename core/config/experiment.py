@@ -41,6 +41,11 @@ class Experiment:
         return self.spec["check"]["tolerances"]
 
     @property
+    def claim_margin(self) -> float:
+        """``claim_margin``: the margin of practical significance of the config's claims."""
+        return float(self.spec.get("claim_margin") or 0.0)
+
+    @property
     def model_block(self) -> dict:
         """The config's ``model`` block as given (a netlist's file, inputs and output too),
         or an empty mapping."""

@@ -80,6 +80,10 @@ class Common(Settings):
     plugins: list = setting([], list_of(text(max_length=4096), nonempty=False, max_length=20),
                             doc="Python files (relative to the config) that register models "
                                 "and estimators of your own")
+    claim_margin: float = setting(0.0, number(minimum=0.0, below=1.0), unit="fraction",
+                                  doc="margin of practical significance of every claim: a "
+                                      "difference whose interval does not clear this fraction "
+                                      "of the worse loss is undecided (docs/claims.md)")
     check: Check = block(Check, doc="estim check's tolerances")
 
 

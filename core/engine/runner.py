@@ -40,6 +40,9 @@ def execute(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None =
     cells = sweep_cells(exp)
     if len(cells) == 1 and not cells[0][0]:
         result = ANALYSES[exp.analysis].run(exp, jobs, on_done)
+        if "claims" in result.tables and exp.claim_margin:
+            result.tables["claims"] = claims.with_margin(result.tables["claims"],
+                                                         exp.claim_margin)
         if on_figures is None:
             return result
         on_figures(result.figures)
@@ -68,7 +71,8 @@ def execute(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None =
         raise ShardDone
     stacked = {m: pd.concat(parts, ignore_index=True) for m, parts in tables.items()}
     if "claims" in stacked:             # a claim's family is its cells over the whole sweep
-        stacked["claims"] = claims.families(stacked["claims"])
+        stacked["claims"] = claims.with_margin(claims.families(stacked["claims"]),
+                                               exp.claim_margin)
     return Result(tables=stacked, figures=figures)
 
 

@@ -154,11 +154,11 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
             grouped.setdefault((v, s, zone, comp, part), {}).setdefault(name, []).append(
                 (mse, ref))
     rows, cells = [], []
+    complex_mse: dict = {}      # claims: one cell per zone and component (dipole_field._rows)
     for (v, s, zone, comp, part), by_name in grouped.items():
         one = exp.plan.experiments[v]
         value = study.values[v]
         scenario = exp.config.scenarios[s].name
-        losses = {}
         for name, pairs in by_name.items():
             values = np.sqrt([p[0] for p in pairs])
             ref = float(np.mean([p[1] for p in pairs]))
@@ -167,7 +167,9 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
                         else (float(values[0]), float("nan")))
             if broke.any():
                 mean, se = float("inf"), float("nan")
-            losses[name] = claims.Losses(values, broke)
+            if part in ("real", "imag"):
+                complex_mse.setdefault((v, s, zone, comp), {}).setdefault(name, []).append(
+                    ([p[0] for p in pairs], [p[1] for p in pairs]))
             rows.append({"study": study.setting, "value": value, "scenario": scenario,
                          "zone": zone, "beta_r": one.plan.beta_r[zone], "estimator": name,
                          "field_component": comp, "part": part, "rmse": mean, "rmse_se": se,
@@ -175,9 +177,19 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
                          "relative": mean / np.sqrt(ref),
                          "sensors": int(one.plan.sensors.size),
                          "members": int(one.config.filter.members)})
-        cells.append((claims.cell(study=study.setting, value=f"{value:g}",
-                                  scenario=scenario, zone=zone, field_component=comp,
-                                  part=part), losses))
+    for (v, s, zone, comp), by_name in complex_mse.items():
+        losses = {}
+        for name, parts in by_name.items():
+            if len(parts) != 2:
+                continue
+            (mse_re, ref_re), (mse_im, ref_im) = parts
+            values = np.sqrt(np.add(mse_re, mse_im))
+            ref = float(np.mean(ref_re)) + float(np.mean(ref_im))
+            losses[name] = claims.Losses(values,
+                                         ~(values <= field.DIVERGED_RATIO * np.sqrt(ref)))
+        cells.append((claims.cell(study=study.setting, value=f"{study.values[v]:g}",
+                                  scenario=exp.config.scenarios[s].name, zone=zone,
+                                  field_component=comp), losses))
     df = pd.DataFrame(rows)[TABLES["rmse"].columns]
     table = claims.table(cells, CLAIMS, "RMSE")
     figure = plots.field_study(df, study.setting, (field.KF, field.FIT, field.PLAIN,

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 from estim import reference
 from estim.errors import UsageError
-from estim.report import tables
+from estim.report import fragility, tables
 from estim.util import lazy
 
 pd = lazy.load("pandas")
@@ -68,6 +68,8 @@ class Section:
     deviations: list[tuple[str, str]] = field(default_factory=list)
     empty: list[str] = field(default_factory=list)
     """Captions of the tables with no value in any cell (keys alone): named, not drawn."""
+    fragile: int = 0
+    """Claim cells whose verdict another machine's arithmetic moves (:mod:`.fragility`)."""
 
 
 def deviation_entries(markdown: str) -> dict[str, str]:
@@ -235,6 +237,9 @@ def summary(section: Section) -> dict:
                 ratios += [float(x) for x in r if pd.notna(x) and abs(x) != float("inf")]
     if ratios:
         out["ratio"] = (min(ratios), max(ratios))
+    if section.fragile:
+        out["flags"].append(f"{section.fragile} fragile claim verdicts (moved by another "
+                            "machine's arithmetic)")
     health = frames.get("health")
     if health is not None:
         for column, words in (("diverged", "diverged"), ("broken", "broke")):
@@ -269,11 +274,12 @@ def _summary_table(sections: list[Section]) -> str:
             f'<td class="num">{ratio}</td>'
             f'<td class="text">{html.escape("; ".join(v["flags"]) or "--")}</td></tr>')
     return ('<h2 id="summary">Summary</h2><p class="meta">Claims are paired comparisons on '
-            "the same noise draws (claims.csv), counted after Holm's correction within "
-            "each claim's cells (docs/claims.md); a ratio is our value over the printed one. "
-            "Health: runs that diverged (the estimate broke or ran away) are counted, never "
-            "dropped; a filter row is flagged when its NEES sits in the consistency band in "
-            'under half of its runs.</p><table class="summary"><thead>'
+            "the same noise draws (claims.csv): the median paired difference and its sign-test "
+            "interval, counted after Holm's correction within each claim's cells "
+            "(docs/claims.md; fewer than 6 runs decide nothing); a ratio is our value over "
+            "the printed one. Health: runs that diverged (the estimate broke or ran away) are "
+            "counted, never dropped; a filter row is flagged when its NEES sits in the "
+            'consistency band in under half of its runs.</p><table class="summary"><thead>'
             f"{head}</thead><tbody>{''.join(rows)}</tbody></table>")
 
 
@@ -340,6 +346,7 @@ def sections(results, deviations_text: str, config_dir, analyses: dict) -> list[
     from estim.store import read_manifest, read_stored, read_table, stored_table_path
 
     entries = deviation_entries(deviations_text) if deviations_text else {}
+    fragile = fragility.read(Path(results))
     out = []
     for manifest_path in sorted(Path(results).glob("*/manifest.json")):
         folder = manifest_path.parent
@@ -351,7 +358,8 @@ def sections(results, deviations_text: str, config_dir, analyses: dict) -> list[
         analysis = analyses.get(name) if isinstance(name, str) else None
         if analysis is None:
             raise UsageError(f"{manifest_path}: names an unknown analysis {str(name)[:60]!r}")
-        section = Section(folder.name, str(config.get("title") or ""), manifest)
+        section = Section(folder.name, str(config.get("title") or ""), manifest,
+                          fragile=sum(map(len, fragility.cells(fragile, folder.name).values())))
         for metric, spec in analysis.TABLES.items():
             path = stored_table_path(folder, spec)
             if path is None:

@@ -17,6 +17,7 @@ import numpy as np
 
 from estim.experiments.base import Quote
 from estim.experiments.shared import claims
+from estim.report import fragility
 from estim.store import read_manifest, read_table
 from estim.util import lazy
 
@@ -46,8 +47,11 @@ def span(values) -> str:
     return number(lo) if number(lo) == number(hi) else f"{number(lo)}–{number(hi)}"
 
 
-def claim_lines(df: pd.DataFrame) -> list[str]:
-    """One line per claim of a claims table, in the order they first appear."""
+def claim_lines(df: pd.DataFrame, fragile: dict[str, set[str]] | None = None) -> list[str]:
+    """One line per claim of a claims table, in the order they first appear; ``fragile``
+    (``{claim: {cell, ...}}``, :mod:`estim.report.fragility`) counts the cells whose verdict
+    another machine's arithmetic moves."""
+    fragile = fragile or {}
     lines = []
     family = "verdict_family" in df
     for claim, part in df.groupby("claim", sort=False):
@@ -60,6 +64,10 @@ def claim_lines(df: pd.DataFrame) -> list[str]:
             line += (f" after Holm's correction (each cell alone: holds "
                      f"{int((own == claims.HOLDS).sum())}, fails "
                      f"{int((own == claims.FAILS).sum())})")
+        moved = fragile.get(str(claim), set()) & set(part["cell"].astype(str))
+        if moved:
+            line += (f"; fragile in {len(moved)} (a verdict another machine's arithmetic "
+                     "moves)")
         line += f"; ratio {span(part['ratio'])}"
         keys = [claims.cell_keys(str(c)) for c in part["cell"]]
         varying = [k for k in keys[0] if len({row.get(k) for row in keys}) > 1]
@@ -99,7 +107,8 @@ def quote_line(quote: Quote, df: pd.DataFrame) -> str | None:
 
 
 def experiment(folder: Path, analyses: dict) -> list[str]:
-    """The summary lines of one stored experiment (empty when the folder holds none)."""
+    """The summary lines of one stored experiment (empty when the folder holds none); the
+    fragile verdicts are read from the folder's parent (``results/``)."""
     manifest = read_manifest(folder)
     if manifest is None or not isinstance(manifest.get("config"), dict):
         return []
@@ -110,12 +119,16 @@ def experiment(folder: Path, analyses: dict) -> list[str]:
     title = str(config.get("title") or "")
     runs = (config.get("monte_carlo") or {}).get("runs")
     head = f"**{folder.name}**" + (f": {title}" if title else "")
-    if runs and runs > 1:
-        head += f" ({runs} runs per cell)"
-    lines = [head]
     path = folder / claims.TABLE.file
+    notes = [f"{runs} runs per cell"] if runs and runs > 1 else []
+    if path.is_file():          # the margin of practical significance (docs/claims.md)
+        notes.append(f"claim margin {number(float(config.get('claim_margin') or 0.0))}")
+    if notes:
+        head += f" ({'; '.join(notes)})"
+    lines = [head]
     if path.is_file():
-        lines += claim_lines(read_table(path, claims.TABLE))
+        lines += claim_lines(read_table(path, claims.TABLE),
+                             fragility.cells(fragility.read(folder.parent), folder.name))
     loaded: dict[str, pd.DataFrame] = {}
     for quote in getattr(module, "QUOTES", ()):
         spec = module.TABLES[quote.metric]

@@ -106,7 +106,8 @@ TABLES = {
 
 CLAIMS = ((KF, FIT), (KF, PLAIN), (KF, SOURCE_ONLY), (KF, RLS), (KF, "measurement"),
           (RLS, "measurement"))
-"""The field filter against the best a source-only filter can do (the amplitude-only fit),
+"""The field filter against the amplitude-only fit (the one source amplitude that fits the
+whole record best: a smoother),
 the plain simulation (the open loop: with the true source, the grid's floor), today's
 source-only ETKF, the thesis' RLS baseline (its headline) and the raw nearest sensor; and RLS
 against the raw sensor."""
@@ -247,13 +248,17 @@ def _health_rows(exp, key, reading, level, health) -> list[dict]:
 
 
 def _rows(exp, key, reading, level, per_run) -> tuple[list[dict], list]:
-    """The rows of one scenario and noise row, and per zone, component and part the cell's
-    per-run losses (RMSE) for the claims; an RMSE above :data:`DIVERGED_RATIO` times the
-    field's RMS is a diverged run (reported ``inf``)."""
+    """The rows of one scenario and noise row (a row per zone, component and part), and per
+    zone and component the claims cell's per-run losses: the RMSE of the complex phasor,
+    ``sqrt(MSE_real + MSE_imag)``, one value per run (the real and imaginary parts of one run
+    are one experiment, and ``abs`` is formed from them: parts are columns, not cells). An
+    RMSE above :data:`DIVERGED_RATIO` times the field's RMS is a diverged run (reported
+    ``inf``)."""
     config = exp.config
     scenario = config.scenarios[key[0]].name
     s_no = key[2] + 1
     rows, losses = [], {}
+    complex_mse: dict[tuple, dict[str, list]] = {}
     for cell in per_run[0]:
         name, zone, comp, part = cell
         present = [r for r in per_run if cell in per_run[r]]     # the Euler run: run 1 only
@@ -265,16 +270,26 @@ def _rows(exp, key, reading, level, per_run) -> tuple[list[dict], list]:
                                                                         float("nan"))
         if broke.any():
             mean, se = float("inf"), float("nan")
-        losses.setdefault((zone, comp, part), {})[name] = claims.Losses(values, broke)
+        if part in ("real", "imag"):
+            parts = complex_mse.setdefault((zone, comp), {}).setdefault(name, [])
+            parts.append((mse, ref))
         rows.append({"table_id": TABLE_IDS.get((comp, zone, name), ""), "s_no": s_no,
                      "scenario": scenario, "zone": zone, "beta_r": exp.plan.beta_r[zone],
                      "noise_reading": reading,
                      "noise_param": level, "estimator": name, "field_component": comp,
                      "part": part, "rmse": mean, "rmse_se": se, "runs": len(values),
                      "field_rms": np.sqrt(ref), "relative": mean / np.sqrt(ref)})
+    for (zone, comp), by_name in complex_mse.items():
+        for name, parts in by_name.items():
+            if len(parts) != 2:
+                continue
+            (mse_re, ref_re), (mse_im, ref_im) = parts
+            values = np.sqrt(mse_re + mse_im)
+            broke = ~(values <= DIVERGED_RATIO * np.sqrt(ref_re + ref_im))
+            losses.setdefault((zone, comp), {})[name] = claims.Losses(values, broke)
     cells = [(claims.cell(scenario=scenario, zone=zone, noise_reading=reading,
-                          noise_param=level, field_component=comp, part=part), cell_losses)
-             for (zone, comp, part), cell_losses in losses.items()]
+                          noise_param=level, field_component=comp), cell_losses)
+             for (zone, comp), cell_losses in losses.items()]
     return rows, cells
 
 

@@ -4,19 +4,18 @@ A claim says that estimator ``better`` has a smaller loss than estimator ``worse
 mean absolute error, MSE, taps, multiplications: whatever the table measures, smaller is
 better) in one table cell. Both were run on the same noise draws, so the claim is judged on
 the paired per-run differences ``d_i = loss_better_i - loss_worse_i``, at the level
-:data:`LEVEL`, by one of three methods chosen by the data alone:
+:data:`LEVEL`. The estimand is the same whatever the data: the **median** of ``d``.
 
-``exact``  a deterministic computation (one "run" with no noise): the difference itself; a
-           tie when it is within :data:`TIE_RTOL` of the larger loss (rounding), or when
-           both diverged.
-``t``      every loss finite and no run diverged: the mean difference and its Student-t
-           interval (``n - 1`` degrees of freedom; a single random run has none: undecided).
-``sign``   two or more runs, some run diverged or a loss is not finite: a diverged run is a
-           loss for its filter larger than any finite one (``d = +inf`` where only
-           ``better`` diverged, ``-inf`` where only ``worse`` did, ``0`` where both did), and
-           the interval is the distribution-free interval of the median difference from the
-           sign test (order statistics ``d_(k), d_(n-k+1)``), which infinities do not break.
-           Fewer than six runs give no such interval at 95 %: undecided.
+``exact``  a deterministic computation (one "run" with no noise, the analysis declares it):
+           the difference itself; a tie when it is within :data:`TIE_RTOL` of the larger
+           loss (rounding), or when both diverged.
+``sign``   Monte Carlo runs: the distribution-free interval of the median difference from
+           the sign test (order statistics ``d_(k), d_(n-k+1)``). A diverged run is a loss for
+           its filter larger than any finite one (``d = +inf`` where only ``better``
+           diverged, ``-inf`` where only ``worse`` did, ``0`` where both did), which order
+           statistics carry without dropping the run, so a broken run never changes the
+           question. Fewer than six runs give no such interval at 95 %: undecided, thin
+           evidence whatever the differences.
 
 The verdict reads the interval: ``holds`` when it lies below zero, ``fails`` when it lies
 above zero, ``undecided`` when it contains zero. Analyses declare which pairs they compare;
@@ -24,11 +23,15 @@ they never judge (``tests/test_analyses.py`` checks that every claims table come
 :func:`table`).
 
 A claim judged in many cells is a **family**: each cell also has the ``p_value`` of its
-test (two-sided; the t test, the exact sign test, or 0 / 1 for a deterministic difference),
+test (two-sided; the exact sign test, or 0 / 1 for a deterministic difference),
 and ``verdict_family`` is its verdict after Holm's step-down correction within the claim's
 cells (:func:`families`), so that the chance of any wrong decided verdict in the family is
 at most 1 - :data:`LEVEL`. A cell keeps its verdict only where Holm's test rejects "no
 difference"; elsewhere it is ``undecided``.
+
+A config may set a **margin of practical significance** (``claim_margin``, a fraction of the
+worse loss; 0 by default and for every thesis claim): a difference whose interval does not
+clear it is undecided (:func:`with_margin`).
 """
 
 from __future__ import annotations
@@ -53,11 +56,11 @@ TIE_RTOL = 1e-9
 
 HOLDS, FAILS, UNDECIDED = "holds", "fails", "undecided"
 VERDICTS = (HOLDS, FAILS, UNDECIDED)
-METHODS = ("exact", "t", "sign")
+METHODS = ("exact", "sign")
 
 KEYS = ("claim", "cell", "better", "worse", "metric")
 VALUES = ("runs", "diverged_better", "diverged_worse", "loss_better", "loss_worse",
-          "difference", "difference_se", "difference_low", "difference_high", "ratio",
+          "difference", "difference_low", "difference_high", "ratio",
           "ratio_low", "ratio_high", "method", "verdict", "p_value", "verdict_family")
 
 TABLE = TableSpec(
@@ -83,9 +86,10 @@ class Losses:
         return out
 
 
-def _mean(values: np.ndarray) -> float:
-    """Mean loss over every run; a run with a non-finite loss counts as infinite."""
-    return float(np.mean(np.where(np.isfinite(values), values, np.inf)))
+def _median_loss(values: np.ndarray, flags: np.ndarray) -> float:
+    """Median loss over every run; a run that diverged, or whose loss is not finite, counts as
+    a loss larger than any finite one (``inf``)."""
+    return float(np.median(np.where(flags, np.inf, values)))
 
 
 def sign_interval_rank(n: int, level: float = LEVEL) -> int:
@@ -98,30 +102,6 @@ def sign_interval_rank(n: int, level: float = LEVEL) -> int:
         k += 1
         below += math.comb(n, k)
     return k
-
-
-def t_quantile(n: int, level: float = LEVEL) -> float:
-    """The two-sided ``level`` quantile of Student's t with ``n - 1`` degrees of freedom
-    (``inf`` for one run): ``stdtrit``, the computation of ``scipy.stats.t.ppf`` (tested
-    equal), without importing scipy.stats."""
-    if n < 2:
-        return float("inf")
-    from scipy import special
-
-    return float(special.stdtrit(n - 1, 0.5 + level / 2))
-
-
-def t_p_value(mean: float, se: float, n: int) -> float:
-    """Two-sided p-value of the t test of a zero mean difference (``n - 1`` degrees of
-    freedom): ``2 stdtr(n - 1, -|mean / se|)``, as ``scipy.stats.t`` (tested equal). A
-    difference with no spread is certain (0) unless it is zero (1); one run decides nothing."""
-    if n < 2 or not np.isfinite(se):
-        return 1.0
-    if se == 0:
-        return 0.0 if mean != 0 else 1.0
-    from scipy import special
-
-    return float(min(1.0, 2.0 * special.stdtr(n - 1, -abs(mean / se))))
 
 
 def sign_p_value(d: np.ndarray) -> float:
@@ -165,12 +145,32 @@ def families(df: pd.DataFrame, level: float = LEVEL) -> pd.DataFrame:
     return out
 
 
-def _verdict(low: float, high: float) -> str:
-    if high < 0:
+def _verdict(low: float, high: float, tie: float = 0.0) -> str:
+    if high < -tie:
         return HOLDS
-    if low > 0:
+    if low > tie:
         return FAILS
     return UNDECIDED
+
+
+def with_margin(df: pd.DataFrame, margin: float, level: float = LEVEL) -> pd.DataFrame:
+    """The claims table ``df`` judged with a margin of practical significance: a cell holds
+    only where its interval lies below ``-margin * L`` and fails only where it lies above
+    ``+margin * L``, ``L`` the worse (larger) of the two median losses (the finite one when
+    only one is; 0 when neither is), and is undecided otherwise; ``verdict_family`` follows
+    (:func:`families`). ``margin`` 0 leaves every verdict as it is."""
+    if not margin or df.empty:
+        return df
+    out = df.copy()
+    losses = out[["loss_better", "loss_worse"]].to_numpy(float)
+    finite = np.where(np.isfinite(losses), np.abs(losses), -np.inf)
+    larger = finite.max(axis=1)
+    tie = margin * np.where(np.isfinite(larger), larger, 0.0)
+    out["verdict"] = [
+        _verdict(low, high, t) if verdict != UNDECIDED else UNDECIDED
+        for low, high, t, verdict in zip(out["difference_low"], out["difference_high"], tie,
+                                         out["verdict"].astype(str), strict=True)]
+    return families(out, level)
 
 
 def judge(better: Losses, worse: Losses, level: float = LEVEL, exact: bool = False) -> dict:
@@ -184,9 +184,8 @@ def judge(better: Losses, worse: Losses, level: float = LEVEL, exact: bool = Fal
                          f"and {w.shape}")
     fb, fw = better.flags(), worse.flags()
     n = b.size
-    nan = float("nan")
     out = {"runs": n, "diverged_better": int(fb.sum()), "diverged_worse": int(fw.sum()),
-           "loss_better": _mean(b), "loss_worse": _mean(w)}
+           "loss_better": _median_loss(b, fb), "loss_worse": _median_loss(w, fw)}
     if exact:
         if n != 1:
             raise ValueError(f"an exact claim compares one value a side, got {n}")
@@ -205,30 +204,10 @@ def judge(better: Losses, worse: Losses, level: float = LEVEL, exact: bool = Fal
         with np.errstate(divide="ignore", invalid="ignore"):
             ratio = float(np.inf if fb[0] and not fw[0] else 0.0 if fw[0] and not fb[0]
                           else 1.0 if fb[0] else b[0] / w[0])
-        out.update(difference=d, difference_se=0.0, difference_low=low, difference_high=high,
+        out.update(difference=d, difference_low=low, difference_high=high,
                    ratio=ratio, ratio_low=ratio, ratio_high=ratio)
         verdict = UNDECIDED if d == 0 else _verdict(low, high)
         p = 1.0 if d == 0 else 0.0
-    elif not fb.any() and not fw.any():
-        method = "t"
-        d = b - w
-        mean = float(np.mean(d))
-        se = float(np.std(d, ddof=1) / np.sqrt(n)) if n > 1 else float("nan")
-        q = t_quantile(n, level)
-        low, high = mean - q * se, mean + q * se
-        mw = np.mean(w)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ratio = float(np.mean(b) / mw)
-            ratio_se = (float(np.std(b - ratio * w, ddof=1) / np.sqrt(n) / np.abs(mw))
-                        if n > 1 else float("nan"))
-        if n == 1:
-            low, high, r_low, r_high = -np.inf, np.inf, 0.0, np.inf
-        else:
-            r_low, r_high = ratio - q * ratio_se, ratio + q * ratio_se
-        out.update(difference=mean, difference_se=se, difference_low=low, difference_high=high,
-                   ratio=ratio, ratio_low=r_low, ratio_high=r_high)
-        verdict = UNDECIDED if se == 0 and mean == 0 else _verdict(low, high)
-        p = t_p_value(mean, se, n)
     else:
         method = "sign"
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -238,7 +217,7 @@ def judge(better: Losses, worse: Losses, level: float = LEVEL, exact: bool = Fal
         k = sign_interval_rank(n, level)
         low, high = (float(d[k - 1]), float(d[n - k])) if k else (-np.inf, np.inf)
         r_low, r_high = (float(r[k - 1]), float(r[n - k])) if k else (0.0, np.inf)
-        out.update(difference=float(np.median(d)), difference_se=nan, difference_low=low,
+        out.update(difference=float(np.median(d)), difference_low=low,
                    difference_high=high, ratio=float(np.median(r)), ratio_low=r_low,
                    ratio_high=r_high)
         verdict = _verdict(low, high)
