@@ -14,7 +14,7 @@ import importlib
 import click
 
 import estim
-from estim.cli.group import Group
+from estim.cli.group import Group, debug_option
 
 SHORT_HELP = {
     "check": "Re-run configs and compare every cell with the stored tables.",
@@ -58,7 +58,8 @@ class LazyGroup(Group):
 
 @click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(estim.__version__, "-V", "--version", prog_name="estim")
-def main() -> None:
+@debug_option
+def main(debug: bool) -> None:
     """Reproduce the result tables of Bansal (2019), state estimation in ODE/PDE models.
 
     Exit codes: 0 ok, 1 check found differences, 2 usage or config error, 3 a run failed,

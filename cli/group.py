@@ -3,6 +3,7 @@ failure into one line and an exit code, and ``fail``."""
 
 from __future__ import annotations
 
+import os
 import sys
 import warnings
 from collections.abc import Callable, Iterable
@@ -23,6 +24,46 @@ def bounded(line: str) -> str:
         return line
     cut = len(line) - (MAX_LINE - 100)
     return f"{line[:MAX_LINE - 180]} ...[{cut} characters]... {line[-80:]}"
+
+
+DEBUG_ENV = "ESTIM_DEBUG"
+"""Set to 1 for what ``--debug`` does."""
+
+
+def debug_option(f: Callable) -> Callable:
+    """``--debug``: an unexpected error shows its traceback and writes it to a log."""
+    return click.option("--debug", is_flag=True, envvar=DEBUG_ENV,
+                        help="On an unexpected error (not a config or usage mistake), print "
+                             "the traceback and write it to a log file "
+                             f"(also: {DEBUG_ENV}=1).")(f)
+
+
+def debug_log() -> str:
+    """Where ``--debug`` writes the traceback: ``estim-debug.log`` in the temporary folder."""
+    import tempfile
+
+    return os.path.join(tempfile.gettempdir(), "estim-debug.log")
+
+
+def report_unexpected(exc: BaseException, debug: bool) -> None:
+    """One line naming the error; with ``debug`` its traceback too, also written to
+    :func:`debug_log`."""
+    first = (str(exc).strip().splitlines() or [""])[0]
+    line = f"{type(exc).__name__}: {first}"
+    if not debug:
+        click.echo(f"error: {bounded(line)} (estim --debug shows the traceback)", err=True)
+        return
+    import traceback
+
+    text = "".join(traceback.format_exception(exc))
+    click.echo(text.rstrip(), err=True)
+    try:
+        with open(debug_log(), "w", encoding="utf-8") as log:
+            log.write(f"estim {' '.join(sys.argv[1:])}\n{text}")
+        where = f"; traceback written to {debug_log()}"
+    except OSError:
+        where = ""
+    click.echo(f"error: {bounded(line)}{where}", err=True)
 
 
 def fail(message: str) -> None:
@@ -59,8 +100,9 @@ class Group(click.Group):
             if interrupted():                       # e.g. a worker pool the Ctrl-C broke
                 click.echo("error: interrupted", err=True)
                 sys.exit(130)
-            first = (str(exc).strip().splitlines() or [""])[0]
-            click.echo(f"error: {bounded(f'{type(exc).__name__}: {first}')}", err=True)
+            debug = bool(ctx.params.get("debug")) or os.environ.get(DEBUG_ENV, "") not in (
+                "", "0")
+            report_unexpected(exc, debug)
             sys.exit(3)
 
 

@@ -16,7 +16,7 @@ import click
 import estim
 from estim import store
 from estim.cli import arguments, project, results
-from estim.cli.group import Group, fail
+from estim.cli.group import Group, debug_option, fail
 from estim.cli.options import NamedPath, jobs_option, max_work_option
 from estim.cli.output import on_shared_pool, progress_lines, run_and_report, run_together
 from estim.config import loading as config
@@ -30,7 +30,8 @@ from estim.experiments.shared import tuning
 
 @click.group(cls=Group, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(estim.__version__, "-V", "--version", prog_name="estim")
-def main() -> None:
+@debug_option
+def main(debug: bool) -> None:
     """Reproduce the result tables of Bansal (2019), state estimation in ODE/PDE models.
 
     Exit codes: 0 ok, 1 check found differences, 2 usage or config error, 3 a run failed,

@@ -982,3 +982,43 @@ def test_the_readme_counts_the_rows_table_rmse_formats():
     rows = len(result.output.strip().splitlines()) - 1
     assert f"{rows:,}" == "3,138"
     assert "`table rmse` formats 3,138 rows" in (ROOT / "README.md").read_text()
+
+
+def test_an_unexpected_error_is_one_line_and_debug_shows_its_traceback(monkeypatch, tmp_path):
+    """An error no check foresaw (here a TypeError inside config loading) is one line with a
+    pointer to --debug; with --debug (or ESTIM_DEBUG=1) the traceback is printed and written
+    to the debug log; a config mistake stays one line either way."""
+    from estim.cli import group, results
+
+    def broken(*args, **kwargs):
+        raise TypeError("boom inside the loader")
+
+    monkeypatch.setattr(results.config, "load_files", broken)
+    monkeypatch.setattr(group, "debug_log", lambda: str(tmp_path / "estim-debug.log"))
+    plain = CliRunner().invoke(main, ["validate", "x.yaml"])
+    assert plain.exit_code == 3
+    assert plain.output.strip().splitlines() == [
+        "error: TypeError: boom inside the loader (estim --debug shows the traceback)"]
+    for args, env in ((["--debug", "validate", "x.yaml"], {}),
+                      (["validate", "x.yaml"], {"ESTIM_DEBUG": "1"})):
+        out = CliRunner().invoke(main, args, env=env)
+        assert out.exit_code == 3
+        assert "Traceback (most recent call last)" in out.output
+        assert "in broken" in out.output
+        log = (tmp_path / "estim-debug.log").read_text()
+        assert "TypeError: boom inside the loader" in log and "in broken" in log
+    monkeypatch.undo()
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(yaml.safe_dump(tiny_config(**{"monte_carlo.runz": 3})))
+    out = CliRunner().invoke(main, ["--debug", "validate", str(bad)])
+    assert out.exit_code == 2 and "Traceback" not in out.output
+    assert "monte_carlo.runz" in out.output
+
+
+def test_python_dash_m_estim_is_the_command():
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-m", "estim", "--version"], capture_output=True,
+                         text=True, timeout=60)
+    assert out.returncode == 0 and out.stdout.startswith("estim, version ")
