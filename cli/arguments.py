@@ -58,6 +58,11 @@ def split_arguments(args) -> tuple[list[Path], dict]:
         elif "=" in text_ and not _exists(text_):
             raise UsageError(f"{text_!r}: expected a config file or key.path=value (list "
                              "items by index)")
+        elif ":" in text_ and not _exists(text_) and "." in text_.partition(":")[0] \
+                and OVERRIDE_KEY.fullmatch(text_.partition(":")[0].strip()):
+            k, _, v = text_.partition(":")
+            raise UsageError(f"{text_!r}: no such config file; an override is written "
+                             f"key.path=value ({k.strip()}={v.strip()})")
         else:
             paths.append(Path(text_))
     return paths, overrides

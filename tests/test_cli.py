@@ -1022,3 +1022,14 @@ def test_python_dash_m_estim_is_the_command():
     out = subprocess.run([sys.executable, "-m", "estim", "--version"], capture_output=True,
                          text=True, timeout=60)
     assert out.returncode == 0 and out.stdout.startswith("estim, version ")
+
+
+def test_a_colon_override_gets_a_syntax_hint_not_no_such_file(tmp_path):
+    config = tmp_path / "tiny.yaml"
+    config.write_text(yaml.safe_dump(tiny_config()))
+    out = CliRunner().invoke(main, ["validate", str(config), "monte_carlo.runs:5"])
+    assert out.exit_code == 2
+    assert out.output.strip() == ("error: 'monte_carlo.runs:5': no such config file; an "
+                                  "override is written key.path=value (monte_carlo.runs=5)")
+    drive = CliRunner().invoke(main, ["validate", "C:/nothing.yaml"])
+    assert drive.exit_code == 2 and "override" not in drive.output
