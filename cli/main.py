@@ -74,9 +74,9 @@ def run(configs, out, runs, seed, update_baseline, quick, jobs, max_work, execut
 
     CONFIGS may mix config files and overrides KEY.PATH=VALUE (the value is YAML; list
     items by index), applied to every config before it is validated, e.g.
-    ``estim run configs/mosfet_saturation.yaml simulation.rtol=1e-6 monte_carlo.runs=5``.
+    "estim run configs/mosfet_saturation.yaml simulation.rtol=1e-6 monte_carlo.runs=5".
     An overridden run writes into scratch/ and its manifest records the overrides.
-    Every setting a config may give: ``estim settings``.
+    Every setting a config may give: "estim settings".
     """
     paths, given = arguments.split_arguments(configs)
     if not paths:

@@ -32,7 +32,7 @@ from estim.report import tables
 def table(metric, results, fmt, thesis, partial) -> None:
     """Print the METRIC tables of every experiment found under RESULTS.
 
-    csv gives one CSV over all experiments (an ``experiment`` column first); markdown and
+    csv gives one CSV over all experiments (an "experiment" column first); markdown and
     latex (booktabs, escaped) one table per experiment under its name; text wraps a table's
     columns at 100 characters (a title or a long cell stays whole). RESULTS' experiment
     folders are its direct subfolders.

@@ -1033,3 +1033,11 @@ def test_a_colon_override_gets_a_syntax_hint_not_no_such_file(tmp_path):
                                   "override is written key.path=value (monte_carlo.runs=5)")
     drive = CliRunner().invoke(main, ["validate", "C:/nothing.yaml"])
     assert drive.exit_code == 2 and "override" not in drive.output
+
+
+@pytest.mark.parametrize("command", ["run", "reproduce", "check", "table", "summary",
+                                     "settings", "list", "report", "validate", "tune",
+                                     "spice", "merge"])
+def test_help_texts_carry_no_rest_markup(command):
+    out = CliRunner().invoke(main, [command, "--help"])
+    assert out.exit_code == 0 and "``" not in out.output and ":func:" not in out.output
