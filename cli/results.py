@@ -21,16 +21,19 @@ from estim.report import tables
 
 @click.command(cls=LazyEpilog, epilog_from=arguments.metrics_help)
 @click.argument("metric", type=LazyChoice(lambda: sorted(runner.table_specs())))
+@click.argument("experiments", nargs=-1)
 @click.option("--results", type=click.Path(file_okay=False, path_type=Path),
               help="Folder of stored results [default: the project's results/].")
 @click.option("--format", "fmt", type=click.Choice(["text", "csv", "markdown", "latex"]),
               default="text", show_default=True)
 @click.option("--thesis", "--paper", "--reference", "thesis", is_flag=True,
-              help="Show the printed value (thesis or paper) and ours/printed beside ours.")
+              help="Show the printed value (thesis or paper) and ours/printed beside ours; "
+                   "experiments with no printed table are left out, named in one line.")
 @click.option("--partial", is_flag=True,
               help="With --thesis: allow thesis rows that the results do not cover.")
-def table(metric, results, fmt, thesis, partial) -> None:
-    """Print the METRIC tables of every experiment found under RESULTS.
+def table(metric, experiments, results, fmt, thesis, partial) -> None:
+    """Print the METRIC tables of the EXPERIMENTS named (result folder names, e.g.
+    mosfet_saturation), or of every experiment found under RESULTS.
 
     csv gives one CSV over all experiments (an "experiment" column first); markdown and
     latex (booktabs, escaped) one table per experiment under its name; text wraps a table's
@@ -40,7 +43,8 @@ def table(metric, results, fmt, thesis, partial) -> None:
     if partial and not thesis:
         fail("--partial applies only with --thesis")
     results = results or project.locate().results
-    text_ = tables.stored(results, metric, fmt, thesis, partial, ANALYSES)
+    text_ = tables.stored(results, metric, fmt, thesis, partial, ANALYSES,
+                          only=tuple(experiments))
     click.echo(text_, nl=not text_.endswith("\n"))
 
 

@@ -97,3 +97,32 @@ def test_text_layout_is_pandas_to_string_without_its_cut_of_long_cells():
     long = "strip Kalman, model from the clean image, on line, wide strips"
     text = tables.render(pd.DataFrame({"estimator": [long, "EKF"], "rmse": [0.1, 0.2]}), "text")
     assert long in text and "..." not in text
+
+
+def test_table_of_named_experiments_and_the_thesis_view_leaves_out_unprinted_ones():
+    """estim table METRIC EXPERIMENT... prints just those; --thesis leaves out the
+    experiments with no printed table and names them in one line; a misspelled name is a
+    usage error with a did-you-mean."""
+    from pathlib import Path
+
+    from click.testing import CliRunner
+
+    from estim.cli.main import main
+
+    results = str(Path(__file__).resolve().parents[1] / "results")
+    one = CliRunner().invoke(main, ["table", "rmse", "mosfet_saturation", "--results", results])
+    assert one.exit_code == 0
+    heads = [line for line in one.output.splitlines() if line.startswith("== ")]
+    assert len(heads) == 1 and heads[0].startswith("== mosfet_saturation:")
+    every = CliRunner().invoke(main, ["table", "rmse", "--thesis", "--results", results])
+    assert every.exit_code == 0
+    last = every.output.strip().splitlines()[-1]
+    assert last.startswith("(--thesis: left out ") and "mosfet_input_derivative" in last
+    assert "== mosfet_input_derivative:" not in every.output
+    alone = CliRunner().invoke(main, ["table", "rmse", "mosfet_input_derivative", "--thesis",
+                                      "--results", results])
+    assert alone.exit_code == 0 and alone.output.strip().splitlines() == [
+        "(--thesis: left out 1 experiment(s) with no printed rmse table to compare with: "
+        "mosfet_input_derivative; leave out --thesis to see them)"]
+    typo = CliRunner().invoke(main, ["table", "rmse", "mosfet_saturaton", "--results", results])
+    assert typo.exit_code == 2 and "did you mean 'mosfet_saturation'" in typo.output

@@ -102,20 +102,37 @@ def render(df: pd.DataFrame, fmt: str) -> str:
 
 
 def stored(results, metric: str, fmt: str, thesis: bool, partial: bool,
-           analyses: dict) -> str:
+           analyses: dict, only: tuple[str, ...] = ()) -> str:
     """What ``estim table`` prints: the ``metric`` tables of every experiment stored under
     ``results`` in ``fmt`` (text, csv, markdown, latex), with the printed values and the
     ratios beside ours when ``thesis``. csv is one table over all experiments (an
-    ``experiment`` column first); the others one table per experiment under its title. A
-    thesis join that fails, or no values at all, is a ``UsageError``."""
+    ``experiment`` column first); the others one table per experiment under its title.
+    ``only``: just these experiments (folder names). With ``thesis``, the experiments with
+    no printed table are left out and named in one closing line (the only line when no
+    experiment has one). A thesis join that fails, an experiment of ``only`` that holds no
+    such table, or no values at all, is a ``UsageError``."""
+    from estim.config.settings import did_you_mean
     from estim.errors import UsageError
     from estim.store import read_table, stored_tables
 
-    parts, frames = [], []
-    for folder, spec, path in stored_tables(results, metric, analyses):
+    found = list(stored_tables(results, metric, analyses))
+    names = [folder.name for folder, _, _ in found]
+    for name in only:
+        if name not in names:
+            raise UsageError(f"{name}: no stored {metric} table under {results}/"
+                             f"{did_you_mean(name, names)}; experiments with one: "
+                             f"{', '.join(sorted(names)) or 'none'}")
+    parts, frames, unprinted = [], [], []
+    for folder, spec, path in found:
+        if only and folder.name not in only:
+            continue
         df = view(read_table(path, spec), spec)
         values = df.drop(columns=[*spec.keys, *sweep_columns(df)], errors="ignore")
         if values.isna().all().all():
+            continue
+        printed = spec.join and "table_id" in df and df["table_id"].astype(str).str.len().any()
+        if thesis and not printed:
+            unprinted.append(folder.name)
             continue
         if thesis and spec.join and "table_id" in df:
             try:
@@ -126,14 +143,17 @@ def stored(results, metric: str, fmt: str, thesis: bool, partial: bool,
             frames.append(df.assign(experiment=folder.name)[["experiment", *df.columns]])
             continue
         ids = ", ".join(sorted({str(t) for t in df.get("table_id", []) if t}))
-        note = f" (thesis Table {ids})" if ids else (
-            " (no printed table to compare with)" if thesis else "")
+        note = f" (thesis Table {ids})" if ids else ""
         title = f"{folder.name}: {spec.title}" if spec.title else folder.name
         head = {"text": f"== {title}{note}", "markdown": f"### {title}{note}\n"}.get(
             fmt, f"% {latex_escape(title + note)}")
         parts.append(f"{head}\n{render(df, fmt)}")
     if frames:
         parts.append(render(pd.concat(frames, ignore_index=True), "csv").rstrip("\n"))
+    if unprinted and (parts or not frames) and fmt != "csv":
+        parts.append(f"(--thesis: left out {len(unprinted)} experiment(s) with no printed "
+                     f"{metric} table to compare with: {', '.join(unprinted)}; leave out "
+                     "--thesis to see them)")
     if not parts:
         if (Path(results) / "manifest.json").exists():
             raise UsageError(f"{results} is one experiment's folder; give the folder that "
