@@ -167,12 +167,51 @@ def settings(name, out, plugins) -> None:
     click.echo(f"settings -> {out}", err=True)
 
 
+def table_span(ids: list[str]) -> str:
+    """The thesis tables a config reproduces, a run of one chapter's consecutive tables
+    written as a range: ``5.1-5.12``; ``no printed table`` for none."""
+    if not ids:
+        return "no printed table"
+    parts = [i.split(".") for i in ids]
+    if len(ids) > 2 and all(len(p) == 2 and p[0] == parts[0][0] and p[1].isdigit()
+                            for p in parts):
+        numbers = [int(p[1]) for p in parts]
+        if numbers == list(range(numbers[0], numbers[0] + len(numbers))):
+            return f"{ids[0]}-{ids[-1]}"
+    return ", ".join(ids)
+
+
 @click.command(name="list")
-def list_configs() -> None:
-    """Show the configs and the thesis tables each reproduces."""
+@click.option("--json", "as_json", is_flag=True,
+              help="One JSON list: name, group, path, analysis, tables and title of each.")
+def list_configs(as_json) -> None:
+    """Show the configs, grouped as estim reproduce runs them (configs/; studies/ and
+    netlist/ with --all), with the thesis tables each reproduces and its title."""
+    import json
+
     where = project.locate()
+    groups = [("configs", "estim reproduce", where.config_dir)]
+    groups += [(f"configs/{extra}", "estim reproduce --all", where.config_dir / extra)
+               for extra in where.EXTRA]
+    entries = []
+    for group, runs, folder in groups:
+        for exp in config.load_files(sorted(folder.glob("*.yaml")), plan=False):
+            entries.append({"name": exp.name, "group": group, "run_by": runs,
+                            "path": str(Path(exp.source).relative_to(where.config_dir.parent))
+                            if where.root is not None else exp.source,
+                            "analysis": exp.analysis, "tables": list(exp.spec["reproduces"]),
+                            "title": exp.spec["title"]})
+    if as_json:
+        click.echo(json.dumps(entries, indent=1))
+        return
     click.echo(where.describe(), err=True)
-    for exp in config.load_files(where.configs(), plan=False):
-        ids = ", ".join(exp.spec["reproduces"])
-        shown = f"Tables {ids}" if ids else "no printed table"
-        click.echo(f"{exp.source:40s} {exp.name:24s} {shown}  {exp.spec['title']}")
+    width = max((len(e["name"]) for e in entries), default=0)
+    span = max((len(table_span(e["tables"])) for e in entries), default=0)
+    for group, runs, _ in groups:
+        members = [e for e in entries if e["group"] == group]
+        if not members:
+            continue
+        click.echo(f"\n{group}/ ({runs}, {len(members)} configs)")
+        for e in members:
+            click.echo(f"  {e['name']:<{width}}  {table_span(e['tables']):<{span}}  "
+                       f"{e['title']}")

@@ -1042,3 +1042,31 @@ def test_a_colon_override_gets_a_syntax_hint_not_no_such_file(tmp_path):
 def test_help_texts_carry_no_rest_markup(command):
     out = CliRunner().invoke(main, [command, "--help"])
     assert out.exit_code == 0 and "``" not in out.output and ":func:" not in out.output
+
+
+def test_list_groups_every_config_aligned_and_as_json():
+    """estim list shows configs/, configs/studies/ and configs/netlist/ under their own
+    heads, names in one column; --json gives the same configs as data."""
+    import json
+
+    root = Path(__file__).resolve().parents[1] / "configs"
+    out = CliRunner().invoke(main, ["list"])
+    assert out.exit_code == 0
+    lines = out.output.splitlines()
+    heads = [line for line in lines if line.startswith("configs")]
+    counts = {"configs": len(list(root.glob("*.yaml"))),
+              "configs/studies": len(list((root / "studies").glob("*.yaml"))),
+              "configs/netlist": len(list((root / "netlist").glob("*.yaml")))}
+    assert [h.split("/ (")[0] for h in heads] == list(counts)
+    for head in heads:
+        assert head.endswith(f", {counts[head.split('/ (')[0]]} configs)")
+    rows = [line for line in lines if line.startswith("  ")]
+    assert len(rows) == sum(counts.values())
+    starts = {line.index(line.split()[1], len(line.split()[0]) + 2) for line in rows}
+    assert len(starts) == 1                          # the tables column is aligned
+    assert any(" 5.1-5.12 " in line for line in rows)
+    data = json.loads(CliRunner().invoke(main, ["list", "--json"]).output)
+    assert len(data) == len(rows)
+    assert {e["group"] for e in data} == set(counts)
+    saturation = next(e for e in data if e["name"] == "mosfet_saturation")
+    assert saturation["tables"] == ["3.2", "3.4"] and saturation["analysis"] == "estimation"
