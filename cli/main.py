@@ -185,7 +185,10 @@ def reproduce(out, jobs, max_work, everything, quiet) -> None:
 @max_work_option
 @click.option("--all", "everything", is_flag=True,
               help="Also configs/studies/ and configs/netlist/ when no CONFIGS are named.")
-def check(configs, results, jobs, max_work, everything) -> None:
+@click.option("--json", "as_json", is_flag=True,
+              help="Print one JSON object at the end: per config its differences and the "
+                   "lines the text would print (the exit code is the same).")
+def check(configs, results, jobs, max_work, everything, as_json) -> None:
     """Re-run CONFIGS (default: configs/*.yaml) as they are and compare every cell with the
     stored tables under each config's tolerances; the stored manifest must record the same
     config (runs, seed and every other value).
@@ -197,12 +200,13 @@ def check(configs, results, jobs, max_work, everything) -> None:
     where = project.locate()
     paths, overrides = arguments.split_arguments(configs)
     exps = config.load_files(paths or where.configs(everything), overrides, max_work=max_work)
-    if overrides:
+    if overrides and not as_json:
         click.echo("check: with overrides " + ", ".join(f"{k}={v!r}" for k, v in
                                                        overrides.items())
                    + ": comparing tables only, not the stored config")
     results = results or where.results
     differing = 0
+    report: list[dict] = []
     with tempfile.TemporaryDirectory(ignore_cleanup_errors=True) as tmp:
         def one(exp, say, pool=None) -> int:
             return checking.check(exp, results / exp.name, Path(tmp), jobs, say,
@@ -215,13 +219,29 @@ def check(configs, results, jobs, max_work, everything) -> None:
                 said: list[str] = []                # printed whole once the config is done
                 return one(exp, said.append, pool), said
 
-            for _exp, (found, said) in on_shared_pool(exps, jobs, results, said_of):
-                for line in said:
+            for exp, (found, said) in on_shared_pool(exps, jobs, results, said_of):
+                for line in [] if as_json else said:
                     click.echo(line)
+                report.append({"config": exp.name, "differences": found, "lines": said})
                 differing += found
         else:
             for exp in exps:
-                differing += one(exp, click.echo)
+                said = []
+
+                def say(line: str, said: list = said) -> None:
+                    said.append(line)
+                    if not as_json:
+                        click.echo(line)
+
+                found = one(exp, say)
+                report.append({"config": exp.name, "differences": found, "lines": said})
+                differing += found
+    if as_json:
+        import json
+
+        click.echo(json.dumps({"differences": differing, "overrides": overrides,
+                               "configs": report}, indent=1, default=str))
+        sys.exit(1 if differing else 0)
     if differing:
         click.echo(f"check: {differing} difference(s)")
         sys.exit(1)

@@ -98,14 +98,27 @@ def report_page(results, out, full) -> None:
 @click.option("--check", "check_only", is_flag=True,
               help="With --readme: write nothing; exit 1 naming the blocks that do not "
                    "match the stored tables.")
-def summary(results, readme, check_only) -> None:
+@click.option("--json", "as_json", is_flag=True,
+              help="The same as data: per experiment, each claim's verdict counts (family "
+                   "and per cell), fragile cells and ratio range, and the quoted ranges.")
+def summary(results, readme, check_only, as_json) -> None:
     """Print each stored experiment's claims (holds / fails / undecided out of its cells,
     with the range of the ratio) and the ranges of the quantities its analysis quotes."""
     from estim.report import summary as summaries
 
     if check_only and readme is None:
         fail("--check applies only with --readme (it checks the README's generated blocks)")
+    if as_json and readme is not None:
+        fail("--json and --readme are two outputs; give one")
     results = results or project.locate().results
+    if as_json:
+        import json
+
+        data = summaries.as_data(Path(results), ANALYSES)
+        if not data:
+            fail(f"no stored results under {results}/ (run 'estim reproduce')")
+        click.echo(json.dumps(data, indent=1, allow_nan=False, default=str))
+        return
     if readme is None:
         found = summaries.everything(results, ANALYSES)
         if not found:

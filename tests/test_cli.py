@@ -1070,3 +1070,26 @@ def test_list_groups_every_config_aligned_and_as_json():
     assert {e["group"] for e in data} == set(counts)
     saturation = next(e for e in data if e["name"] == "mosfet_saturation")
     assert saturation["tables"] == ["3.2", "3.4"] and saturation["analysis"] == "estimation"
+
+
+def test_check_json_reports_each_config_and_keeps_the_exit_code(tmp_path):
+    import json
+
+    path = write(tmp_path, tiny_config())
+    out = tmp_path / "out"
+    assert CliRunner().invoke(main, ["run", str(path), "--out", str(out), "--quiet"]
+                              ).exit_code == 0
+    same = CliRunner().invoke(main, ["check", str(path), "--results", str(out), "--json"])
+    assert same.exit_code == 0
+    data = json.loads(same.stdout)
+    assert data["differences"] == 0 and [c["config"] for c in data["configs"]] == ["tiny"]
+    assert any(line.endswith("rows match") for line in data["configs"][0]["lines"])
+    rmse = out / "tiny" / "rmse.csv"
+    df = pd.read_csv(rmse)
+    df.loc[0, "rmse"] *= 1.01
+    df.to_csv(rmse, index=False)
+    moved = CliRunner().invoke(main, ["check", str(path), "--results", str(out), "--json"])
+    assert moved.exit_code == 1
+    data = json.loads(moved.stdout)
+    assert data["differences"] >= 1 and data["configs"][0]["differences"] >= 1
+    assert any("rmse" in line for line in data["configs"][0]["lines"])

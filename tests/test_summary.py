@@ -148,3 +148,28 @@ def test_docs_claims_fragile_section_is_the_stored_table():
         ["claim", "cell"]).loc[(r["claim"], r["cell"]), "diverged_better"]
         for _, r in table.iterrows()]
     assert (min(diverged), max(diverged)) == (6, 21) and "6–21 of 30" in text
+
+
+def test_summary_json_is_the_text_as_data():
+    """estim summary --json: per experiment and claim the same counts as the text lines."""
+    import json
+    import re
+
+    text = CliRunner().invoke(main, ["summary", "--results", str(ROOT / "results")])
+    data = json.loads(CliRunner().invoke(main, ["summary", "--json", "--results",
+                                                str(ROOT / "results")]).output)
+    assert {e["name"] for e in data} == {
+        p.parent.name for p in (ROOT / "results").glob("*/manifest.json")}
+    counted = 0
+    for entry in data:
+        for c in entry["claims"]:
+            pattern = (rf"- `{re.escape(c['claim'])}`: holds {c['holds']}, fails {c['fails']}, "
+                       rf"undecided {c['undecided']} of {c['cells']} cells")
+            block = text.output[text.output.index(f"**{entry['name']}**"):]
+            assert re.search(pattern, block), (entry["name"], c["claim"])
+            counted += 1
+    assert counted > 100
+    conduction = next(e for e in data if e["name"] == "mosfet_conduction")
+    assert sum(c["fragile"] for c in conduction["claims"]) == 3
+    bad = CliRunner().invoke(main, ["summary", "--json", "--readme", "README.md"])
+    assert bad.exit_code == 2

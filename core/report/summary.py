@@ -160,6 +160,48 @@ def everything(results: Path, analyses: dict) -> dict[str, list[str]]:
     return out
 
 
+def _finite_or_text(value: float) -> float | str:
+    """A number for JSON: itself when finite, else ``"inf"``, ``"-inf"`` or ``"nan"``."""
+    value = float(value)
+    return value if np.isfinite(value) else number(value)
+
+
+def as_data(results: Path, analyses: dict) -> list[dict]:
+    """What ``estim summary --json`` prints: per stored experiment its name, title, runs,
+    claim margin and, per claim, the family verdict counts (``holds``, ``fails``,
+    ``undecided``, ``cells``), the cells' own (``cell_holds``, ``cell_fails``), the fragile
+    cells and the ratio's range (``"inf"`` where a filter broke); then the quoted ranges as
+    the lines the text gives."""
+    out = []
+    fragile = fragility.read(results)
+    for name, lines in everything(results, analyses).items():
+        manifest = read_manifest(results / name) or {}
+        config = manifest.get("config") or {}
+        entry = {"name": name, "title": str(config.get("title") or ""),
+                 "runs": (config.get("monte_carlo") or {}).get("runs"),
+                 "claim_margin": float(config.get("claim_margin") or 0.0), "claims": [],
+                 "quotes": [line[2:] for line in lines if line.startswith("- ")
+                            and not line.startswith("- `")]}
+        path = results / name / claims.TABLE.file
+        if path.is_file():
+            df = read_table(path, claims.TABLE)
+            moved = fragility.cells(fragile, name)
+            family, own = claims.counts(df), claims.counts(df, "verdict")
+            for (_, f), (_, o) in zip(family.iterrows(), own.iterrows(), strict=True):
+                part = df[df["claim"] == f["claim"]]
+                ratio = pd.to_numeric(part["ratio"], errors="coerce")
+                entry["claims"].append({
+                    "claim": f["claim"], "holds": int(f[claims.HOLDS]),
+                    "fails": int(f[claims.FAILS]), "undecided": int(f[claims.UNDECIDED]),
+                    "cells": int(f["cells"]), "cell_holds": int(o[claims.HOLDS]),
+                    "cell_fails": int(o[claims.FAILS]),
+                    "fragile": len(moved.get(f["claim"], set())),
+                    "ratio_min": _finite_or_text(ratio.min()),
+                    "ratio_max": _finite_or_text(ratio.max())})
+        out.append(entry)
+    return out
+
+
 BLOCK = re.compile(r"(<!-- summary: (?P<name>[A-Za-z0-9_.-]+) -->\n)(?P<body>.*?)"
                    r"(<!-- /summary -->)", re.S)
 """A generated block in a Markdown file: ``<!-- summary: NAME -->`` ... ``<!-- /summary -->``."""
