@@ -106,7 +106,7 @@ def run(configs, out, runs, seed, update_baseline, quick, jobs, max_work, execut
         return
     if executor == "local" and jobs > 1 and len(exps) > 1:
         run_together(exps, folder, jobs, quiet, folder, overrides, resume=not no_resume,
-                     figure_format=figure_format)
+                     figure_format=figure_format, verb="run")
         return
     with executor_for(executor, scheduler, jobs) as units:
         for exp in exps:
@@ -171,7 +171,7 @@ def reproduce(out, jobs, max_work, everything, quiet) -> None:
     exps = config.load_files(where.configs(everything), max_work=max_work)
     store.ensure_writable(folder)
     if jobs > 1 and len(exps) > 1:
-        run_together(exps, folder, jobs, quiet, where.results)
+        run_together(exps, folder, jobs, quiet, where.results, verb="reproduce")
         return
     for exp in exps:
         run_and_report(exp, folder, jobs, quiet)

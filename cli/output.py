@@ -124,16 +124,142 @@ def on_shared_pool(exps: list[Experiment], jobs: int, recorded: Path,
                                       on_error=lambda: scheduler.stop(pool))
 
 
+def _duration(seconds: float) -> str:
+    seconds = max(0.0, seconds)
+    if seconds < 60:
+        return f"{seconds:.0f} s"
+    minutes, rest = divmod(round(seconds), 60)
+    return f"{minutes} min {rest} s" if minutes < 60 else f"{minutes // 60} h {minutes % 60} min"
+
+
+class Overall:
+    """The progress of several configs run together: one bar over all of them on a terminal
+    (tqdm), else a line per finished config and at most one every :attr:`EVERY` seconds in
+    between; then a closing summary. The time left is estimated from the wall time each
+    config's stored manifest records (a work unit weighs its config's time over its units),
+    not from counts of units whose cost differs a thousandfold between configs."""
+
+    EVERY = 30.0
+    """Seconds between progress lines without a terminal."""
+
+    def __init__(self, exps: list[Experiment], recorded: Path, quiet: bool, verb: str) -> None:
+        self.quiet, self.verb, self.count = quiet, verb, len(exps)
+        self.units = {e.name: max(1, runner.work_units(e)) for e in exps}
+        known = [runner.recorded_seconds(recorded / e.name) for e in exps]
+        finite = sorted(t for t in known if t != float("inf"))
+        guess = finite[len(finite) // 2] if finite else 10.0
+        self.seconds = {e.name: (t if t != float("inf") else guess) or 0.1
+                        for e, t in zip(exps, known, strict=True)}
+        self.total = sum(self.seconds.values())
+        self.done_weight, self.finished = 0.0, 0
+        self.counts = {v: 0 for v in ("holds", "fails", "undecided")}
+        self.start_time = time.perf_counter()
+        self._last_line = self.start_time
+        self._bar = None
+
+    def start(self) -> None:
+        if self.quiet:
+            return
+        click.echo(f"{self.verb}: {self.count} configs, {sum(self.units.values())} work "
+                   "units ...", err=True)
+        if sys.stderr.isatty():
+            from tqdm import tqdm
+
+            self._bar = tqdm(total=round(self.total, 1), file=sys.stderr, unit="s",
+                             bar_format="{l_bar}{bar}| {percentage:3.0f}% of the work "
+                                        "[{elapsed} elapsed, {remaining} left]",
+                             desc=self.verb, leave=False)
+
+    def _left(self) -> str:
+        elapsed = time.perf_counter() - self.start_time
+        if self.done_weight <= 0:
+            return "time left unknown yet"
+        left = elapsed * (self.total - self.done_weight) / self.done_weight
+        return f"about {_duration(left)} left"
+
+    def unit_done(self, exp: Experiment) -> None:
+        weight = self.seconds[exp.name] / self.units[exp.name]
+        self.done_weight = min(self.total, self.done_weight + weight)
+        if self.quiet:
+            return
+        if self._bar is not None:
+            self._bar.update(round(weight, 3))
+            return
+        now = time.perf_counter()
+        if now - self._last_line >= self.EVERY:
+            self._last_line = now
+            click.echo(f"{self.verb}: {100 * self.done_weight / self.total:.0f} % of the work, "
+                       f"{_duration(now - self.start_time)} elapsed, {self._left()}", err=True)
+
+    def config_done(self, exp: Experiment, folder: Path, result: Result, resumed: int,
+                    seconds: float) -> None:
+        """One line per finished config: where it went, its time and its claims."""
+        self.finished += 1
+        table = result.tables.get("claims")
+        said = ""
+        if table is not None and "verdict_family" in table:
+            found = table["verdict_family"].astype(str).value_counts()
+            part = {v: int(found.get(v, 0)) for v in self.counts}
+            for v, n in part.items():
+                self.counts[v] += n
+            said = (f"; claims holds {part['holds']}, fails {part['fails']}, undecided "
+                    f"{part['undecided']}")
+        if self.quiet:
+            return
+        if resumed:
+            self._say(f"{exp.name}: resumed with {resumed} finished cell(s) of an earlier run")
+        line = (f"{exp.name} -> {folder / exp.name} ({_duration(seconds)}{said}) "
+                f"[{self.finished}/{self.count}]")
+        if self._bar is not None:
+            self._bar.write(line, file=sys.stdout)
+        else:
+            click.echo(line)
+
+    def _say(self, text: str) -> None:
+        if self._bar is not None:
+            self._bar.write(text, file=sys.stderr)
+        else:
+            click.echo(text, err=True)
+
+    def close(self, finished: bool = True) -> None:
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
+        if self.quiet or not finished:
+            return
+        c = self.counts
+        click.echo(f"{self.verb}: {self.finished} configs in "
+                   f"{_duration(time.perf_counter() - self.start_time)}; claims (after Holm's "
+                   f"correction) holds {c['holds']}, fails {c['fails']}, undecided "
+                   f"{c['undecided']}.\nNext: 'estim summary' (the verdicts by claim), "
+                   "'estim table METRIC EXPERIMENT --thesis' (a table beside the printed one), "
+                   "'estim report' (one page, report.html).")
+
+
 def run_together(exps: list[Experiment], folder: Path, jobs: int, quiet: bool,
                  recorded: Path, overrides: dict | None = None, resume: bool = True,
-                 figure_format: str = "png") -> None:
-    """Every config of ``exps`` run :func:`on_shared_pool`; each one's summary is printed as
-    it finishes, its progress one line per finished work unit."""
-    def work(exp: Experiment, pool: Executor) -> tuple[Result, int]:
-        shown = Progress(exp, quiet, bar=False)
-        return runner.run_to_folder(exp, folder, jobs, on_done=shown.done, resume=resume,
-                                    figure_format=figure_format, command=_command(),
-                                    overrides=overrides, on_start=shown.start, pool=pool)
+                 figure_format: str = "png", verb: str = "run") -> None:
+    """Every config of ``exps`` run :func:`on_shared_pool`: one overall progress
+    (:class:`Overall`), one line per finished config (no tables: ``estim table`` prints
+    them) and a closing summary."""
+    overall = Overall(exps, recorded, quiet, verb)
+    began: dict[str, float] = {}
 
-    for exp, (result, resumed) in on_shared_pool(exps, jobs, recorded, work):
-        report(exp, folder, result, resumed, quiet)
+    def work(exp: Experiment, pool: Executor) -> tuple[Result, int]:
+        def on_start() -> None:
+            began[exp.name] = time.perf_counter()
+
+        return runner.run_to_folder(exp, folder, jobs, on_done=lambda: overall.unit_done(exp),
+                                    resume=resume, figure_format=figure_format,
+                                    command=_command(), overrides=overrides,
+                                    on_start=on_start, pool=pool)
+
+    overall.start()
+    finished = False
+    try:
+        for exp, (result, resumed) in on_shared_pool(exps, jobs, recorded, work):
+            overall.config_done(exp, folder, result, resumed,
+                                time.perf_counter() - began.get(exp.name, overall.start_time))
+        finished = True
+    finally:
+        overall.close(finished)

@@ -235,3 +235,25 @@ def test_a_failing_config_stops_a_shared_run_without_hanging():
     runner.start()
     runner.join(60)
     assert outcome == ["boom"], "the run hung or did not raise the first failure"
+
+
+def test_reproduce_of_several_configs_prints_a_line_each_and_a_closing_summary(
+        tmp_path, monkeypatch):
+    """No tables in the stream: each finished config is one line (where it went, its time,
+    its claims, k/N), then one summary with the verdict counts and what to run next."""
+    root = fake_project(tmp_path, monkeypatch)
+    (root / "configs" / "tiny2.yaml").write_text(yaml.safe_dump(
+        tiny_config(name="tiny2", **{"monte_carlo.seed": 7})))
+    out = CliRunner().invoke(main, ["reproduce", "--jobs", "2", "--out", str(tmp_path / "o")])
+    assert out.exit_code == 0, out.output
+    lines = out.output.splitlines()
+    done = [line for line in lines if " -> " in line]
+    assert len(done) == 2 and all(line.endswith(("[1/2]", "[2/2]")) for line in done)
+    assert all("claims holds " in line for line in done)
+    assert "noise_param" not in out.output                      # no table printed
+    closing = next(line for line in lines if line.startswith("reproduce: 2 configs in "))
+    assert "after Holm's correction" in closing
+    assert any(line.startswith("Next: ") and "estim report" in line for line in lines)
+    quiet = CliRunner().invoke(main, ["reproduce", "--jobs", "2", "--quiet", "--out",
+                                      str(tmp_path / "q")])
+    assert quiet.exit_code == 0 and quiet.output == ""
