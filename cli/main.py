@@ -18,7 +18,13 @@ from estim import store
 from estim.cli import arguments, project, results
 from estim.cli.group import Group, debug_option, fail
 from estim.cli.options import NamedPath, jobs_option, max_work_option
-from estim.cli.output import on_shared_pool, progress_lines, run_and_report, run_together
+from estim.cli.output import (
+    on_shared_pool,
+    progress_lines,
+    run_and_report,
+    run_together,
+    say_if_compiling,
+)
 from estim.config import loading as config
 from estim.config.registry import ANALYSES
 from estim.engine import check as checking
@@ -86,6 +92,7 @@ def run(configs, out, runs, seed, update_baseline, quick, jobs, max_work, execut
         fail("--quick never writes the baseline: drop --update-baseline")
     if scheduler and executor != "dask":
         fail("--scheduler needs --executor dask")
+    say_if_compiling(quiet)
     exps = config.load_files(paths, overrides, max_work, quick)
     folder, note = project.locate().output_folder(out, [e.source for e in exps],
                                                   bool(overrides), update_baseline, quick)
@@ -135,6 +142,7 @@ def merge(configs, sources, out, runs, seed, quick, jobs, max_work, quiet) -> No
     if not paths:
         fail("no config file given (merge takes the config the shards ran)")
     overrides = arguments.overrides(given, runs, seed)
+    say_if_compiling(quiet)
     exps = config.load_files(paths, overrides, max_work, quick)
     folder, note = project.locate().output_folder(out, [e.source for e in exps],
                                                   bool(overrides), False, quick,
@@ -168,6 +176,7 @@ def reproduce(out, jobs, max_work, everything, quiet) -> None:
     folder = out or where.results
     if not quiet:
         click.echo(where.describe(folder), err=True)
+    say_if_compiling(quiet)
     exps = config.load_files(where.configs(everything), max_work=max_work)
     store.ensure_writable(folder)
     if jobs > 1 and len(exps) > 1:

@@ -21,6 +21,29 @@ from estim.util import lazy
 T = TypeVar("T")
 
 
+def kernels_cached() -> bool:
+    """Whether numba has compiled estim's kernels before (an index file ``*.nbi`` in the
+    package's ``__pycache__`` folders, or under ``NUMBA_CACHE_DIR`` when it is set)."""
+    import os
+
+    import estim
+
+    where = os.environ.get("NUMBA_CACHE_DIR") or os.path.dirname(estim.__file__)
+    return any(Path(where).rglob("*.nbi"))
+
+
+COMPILING = ("first run: numba compiles estim's kernels as they are first used (about a "
+             "minute of CPU time on 2 cores, cached for later runs)")
+"""What a run says when no compiled kernel is cached yet (a fresh install)."""
+
+
+def say_if_compiling(quiet: bool) -> None:
+    """:data:`COMPILING` on standard error when no kernel is cached yet; called before the
+    configs are loaded (building a config's models may compile some)."""
+    if not quiet and not kernels_cached():
+        click.echo(COMPILING, err=True)
+
+
 def progress_lines(name: str, total: int, prefix: str = "") -> Callable[[], None]:
     """Without a terminal (CI, cluster logs): one line per finished work unit with the
     elapsed time and an estimate of the time left."""

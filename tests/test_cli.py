@@ -1093,3 +1093,22 @@ def test_check_json_reports_each_config_and_keeps_the_exit_code(tmp_path):
     data = json.loads(moved.stdout)
     assert data["differences"] >= 1 and data["configs"][0]["differences"] >= 1
     assert any("rmse" in line for line in data["configs"][0]["lines"])
+
+
+def test_a_run_with_no_compiled_kernel_cached_says_numba_compiles_first(tmp_path):
+    from estim.cli.output import COMPILING
+
+    path = write(tmp_path, tiny_config())
+    empty = tmp_path / "numba-cache"
+    args = ["validate", str(path)]
+    run = ["run", str(path), "--out", str(tmp_path / "out"), "monte_carlo.runs=2"]
+    fresh = CliRunner().invoke(main, run, env={"NUMBA_CACHE_DIR": str(empty)})
+    assert fresh.exit_code == 0 and COMPILING in fresh.stderr
+    (empty / "sub").mkdir(parents=True)
+    (empty / "sub" / "kernel-1.py311.nbi").write_bytes(b"")
+    cached = CliRunner().invoke(main, run, env={"NUMBA_CACHE_DIR": str(empty)})
+    assert cached.exit_code == 0 and COMPILING not in cached.stderr
+    quiet = CliRunner().invoke(main, [*run, "--quiet"],
+                               env={"NUMBA_CACHE_DIR": str(tmp_path / "none")})
+    assert COMPILING not in quiet.stderr
+    assert COMPILING not in CliRunner().invoke(main, args).output

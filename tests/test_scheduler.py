@@ -10,7 +10,7 @@ import pytest
 import yaml
 from click.testing import CliRunner
 from test_cli import fake_project, tiny_config
-from test_hostile import interruptible
+from test_hostile import interruptible, started
 
 from estim.cli.main import main
 from estim.cli.output import longest_first
@@ -148,7 +148,7 @@ def test_ctrl_c_during_a_shared_reproduce_is_one_line_exit_130_and_stops_the_wor
                             "--out", str(out)], cwd=root, stdout=subprocess.PIPE,
                            stderr=subprocess.PIPE, text=True, preexec_fn=interruptible)
     assert run.stderr.readline().strip().endswith(f"results in {out}/")
-    assert "work units" in run.stderr.readline()       # the computation has started
+    assert "work units" in started(run)       # the computation has started
     time.sleep(1.0)
     run.send_signal(signal.SIGINT)
     assert run.wait(timeout=60) == 130
