@@ -19,8 +19,8 @@ from estim.cli import arguments, project, results
 from estim.cli.group import Group, debug_option, fail
 from estim.cli.options import NamedPath, jobs_option, max_work_option
 from estim.cli.output import (
+    Overall,
     on_shared_pool,
-    progress_lines,
     run_and_report,
     run_together,
     say_if_compiling,
@@ -216,11 +216,13 @@ def check(configs, results, jobs, max_work, everything, as_json) -> None:
     results = results or where.results
     differing = 0
     report: list[dict] = []
+    overall = Overall(exps, results, as_json, "check")
+    overall.start()
     with tempfile.TemporaryDirectory(ignore_cleanup_errors=True) as tmp:
         def one(exp, say, pool=None) -> int:
             return checking.check(exp, results / exp.name, Path(tmp), jobs, say,
                                   same_config=not overrides,
-                                  on_done=progress_lines(exp.name, runner.work_units(exp)),
+                                  on_done=lambda: overall.unit_done(exp),
                                   note=lambda text_: click.echo(text_, err=True), pool=pool)
 
         if jobs > 1 and len(exps) > 1:
@@ -228,23 +230,29 @@ def check(configs, results, jobs, max_work, everything, as_json) -> None:
                 said: list[str] = []                # printed whole once the config is done
                 return one(exp, said.append, pool), said
 
-            for exp, (found, said) in on_shared_pool(exps, jobs, results, said_of):
-                for line in [] if as_json else said:
-                    click.echo(line)
-                report.append({"config": exp.name, "differences": found, "lines": said})
-                differing += found
+            try:
+                for exp, (found, said) in on_shared_pool(exps, jobs, results, said_of):
+                    for line in [] if as_json else said:
+                        overall.echo(line)
+                    report.append({"config": exp.name, "differences": found, "lines": said})
+                    differing += found
+            finally:
+                overall.close(finished=False)
         else:
-            for exp in exps:
-                said = []
+            try:
+                for exp in exps:
+                    said = []
 
-                def say(line: str, said: list = said) -> None:
-                    said.append(line)
-                    if not as_json:
-                        click.echo(line)
+                    def say(line: str, said: list = said) -> None:
+                        said.append(line)
+                        if not as_json:
+                            overall.echo(line)
 
-                found = one(exp, say)
-                report.append({"config": exp.name, "differences": found, "lines": said})
-                differing += found
+                    found = one(exp, say)
+                    report.append({"config": exp.name, "differences": found, "lines": said})
+                    differing += found
+            finally:
+                overall.close(finished=False)
     if as_json:
         import json
 

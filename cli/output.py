@@ -238,6 +238,13 @@ class Overall:
         else:
             click.echo(line)
 
+    def echo(self, text: str) -> None:
+        """A result line on standard output, above the bar when there is one."""
+        if self._bar is not None:
+            self._bar.write(text, file=sys.stdout)
+        else:
+            click.echo(text)
+
     def _say(self, text: str) -> None:
         if self._bar is not None:
             self._bar.write(text, file=sys.stderr)
