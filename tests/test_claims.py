@@ -256,3 +256,23 @@ def test_a_config_claim_margin_reaches_the_claims_table():
         assert (row["verdict"] == "undecided"
                 or row["difference_high"] < -tie or row["difference_low"] > tie)
     assert set(wide.claims["verdict_family"]) <= {"undecided", *set(wide.claims["verdict"])}
+
+
+def test_a_bad_claim_margin_is_one_line_naming_the_file_and_the_key(tmp_path):
+    """claim_margin is a fraction in [0, 1): a word, a negative number or 1 exit 2 before
+    any work, naming the file, the key and what was expected."""
+    import yaml
+    from click.testing import CliRunner
+
+    from estim.cli.main import main
+
+    root = Path(__file__).resolve().parents[1]
+    spec = yaml.safe_load((root / "configs" / "mosfet_saturation.yaml").read_text())
+    for value, expected in (("big", "expected a finite number"), (-0.1, "a number >= 0"),
+                            (1.0, "a number < 1")):
+        path = tmp_path / "margin.yaml"
+        path.write_text(yaml.safe_dump({**spec, "claim_margin": value}))
+        out = CliRunner().invoke(main, ["validate", str(path)])
+        assert out.exit_code == 2
+        (line,) = out.output.strip().splitlines()
+        assert str(path) in line and "claim_margin" in line and expected in line, line
