@@ -169,7 +169,7 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
                 mean, se = float("inf"), float("nan")
             if part in ("real", "imag"):
                 complex_mse.setdefault((v, s, zone, comp), {}).setdefault(name, []).append(
-                    ([p[0] for p in pairs], [p[1] for p in pairs]))
+                    ([p[0] for p in pairs], ref))
             rows.append({"study": study.setting, "value": value, "scenario": scenario,
                          "zone": zone, "beta_r": one.plan.beta_r[zone], "estimator": name,
                          "field_component": comp, "part": part, "rmse": mean, "rmse_se": se,
@@ -177,16 +177,7 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
                          "relative": mean / np.sqrt(ref),
                          "sensors": int(one.plan.sensors.size),
                          "members": int(one.config.filter.members)})
-    for (v, s, zone, comp), by_name in complex_mse.items():
-        losses = {}
-        for name, parts in by_name.items():
-            if len(parts) != 2:
-                continue
-            (mse_re, ref_re), (mse_im, ref_im) = parts
-            values = np.sqrt(np.add(mse_re, mse_im))
-            ref = float(np.mean(ref_re)) + float(np.mean(ref_im))
-            losses[name] = claims.Losses(values,
-                                         ~(values <= field.DIVERGED_RATIO * np.sqrt(ref)))
+    for (v, s, zone, comp), losses in field.phasor_losses(complex_mse).items():
         cells.append((claims.cell(study=study.setting, value=f"{study.values[v]:g}",
                                   scenario=exp.config.scenarios[s].name, zone=zone,
                                   field_component=comp), losses))

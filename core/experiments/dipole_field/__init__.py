@@ -79,7 +79,7 @@ SCHEMA: dict = Config.schema()
 __all__ = ["CLAIMS", "DIVERGED_RATIO", "FIT", "KF", "PLAIN", "QUOTES", "RLS", "SCHEMA",
            "SOURCE_ONLY", "TABLES", "Config", "Plan", "amplitude", "cycle", "field_analysis",
            "fields_of", "levels", "nis_of", "observe", "prepare", "rows_of", "run", "run_errors",
-           "run_point", "sensor_rows", "setup", "smoothed", "source_analysis",
+           "phasor_losses", "run_point", "sensor_rows", "setup", "smoothed", "source_analysis",
            "source_analysis_on_basis", "printout", "tiny", "work_size", "work_units"]
 """The analysis' protocol, and the parts of the cycle that field_study, the tests and the
 DAPPER cross-check use."""
@@ -257,7 +257,7 @@ def _rows(exp, key, reading, level, per_run) -> tuple[list[dict], list]:
     config = exp.config
     scenario = config.scenarios[key[0]].name
     s_no = key[2] + 1
-    rows, losses = [], {}
+    rows = []
     complex_mse: dict[tuple, dict[str, list]] = {}
     for cell in per_run[0]:
         name, zone, comp, part = cell
@@ -279,18 +279,29 @@ def _rows(exp, key, reading, level, per_run) -> tuple[list[dict], list]:
                      "noise_param": level, "estimator": name, "field_component": comp,
                      "part": part, "rmse": mean, "rmse_se": se, "runs": len(values),
                      "field_rms": np.sqrt(ref), "relative": mean / np.sqrt(ref)})
-    for (zone, comp), by_name in complex_mse.items():
-        for name, parts in by_name.items():
-            if len(parts) != 2:
-                continue
-            (mse_re, ref_re), (mse_im, ref_im) = parts
-            values = np.sqrt(mse_re + mse_im)
-            broke = ~(values <= DIVERGED_RATIO * np.sqrt(ref_re + ref_im))
-            losses.setdefault((zone, comp), {})[name] = claims.Losses(values, broke)
+    losses = phasor_losses(complex_mse)
     cells = [(claims.cell(scenario=scenario, zone=zone, noise_reading=reading,
                           noise_param=level, field_component=comp), cell_losses)
              for (zone, comp), cell_losses in losses.items()]
     return rows, cells
+
+
+def phasor_losses(parts: dict) -> dict:
+    """The claims' per-run losses of the complex phasor: for each key and estimator of
+    ``parts`` (``{key: {name: [(mse_real, ref_real), (mse_imag, ref_imag)]}}``, each ``mse``
+    per run and ``ref`` the mean square truth) ``sqrt(MSE_real + MSE_imag)``, a run diverged
+    above :data:`DIVERGED_RATIO` times ``sqrt(ref_real + ref_imag)``. An estimator without
+    both parts is left out."""
+    out: dict = {}
+    for key, by_name in parts.items():
+        for name, pair in by_name.items():
+            if len(pair) != 2:
+                continue
+            (mse_re, ref_re), (mse_im, ref_im) = pair
+            values = np.sqrt(np.add(mse_re, mse_im))
+            broke = ~(values <= DIVERGED_RATIO * np.sqrt(ref_re + ref_im))
+            out.setdefault(key, {})[name] = claims.Losses(values, broke)
+    return out
 
 
 def _run_point_args(args):
