@@ -63,8 +63,8 @@ class Progress:
     work unit otherwise. :meth:`start` once the run's folder is open (a run refused before
     any work prints none of it), :meth:`done` per finished unit, :meth:`close` at the end."""
 
-    def __init__(self, exp: Experiment, quiet: bool, bar: bool = True) -> None:
-        self.exp, self.quiet, self.bar = exp, quiet, bar
+    def __init__(self, exp: Experiment, quiet: bool) -> None:
+        self.exp, self.quiet = exp, quiet
         self._bar = None
         self._line: Callable[[], None] | None = None
 
@@ -72,7 +72,7 @@ class Progress:
         if self.quiet:
             return
         total = runner.work_units(self.exp)
-        if self.bar and sys.stderr.isatty():
+        if sys.stderr.isatty():
             self._bar = click.progressbar(length=total, label=self.exp.name, file=sys.stderr)
             self._bar.__enter__()
         else:
