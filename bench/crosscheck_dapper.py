@@ -100,7 +100,8 @@ def _field_setup(n: int = 16):
     spec.pop("check", None)
     spec["grid"]["n"] = n
     exp = parse_data(spec, "dipole_field.yaml", "dipole_field")
-    return exp, dipole_field.setup(exp.config, exp.plan)
+    return exp, dipole_field.setup(exp.config, exp.plan,
+                                   dipole_field.layout(exp.config, exp.plan, 0))
 
 
 def check_local_analysis() -> list[tuple[str, float, float]]:
@@ -109,7 +110,7 @@ def check_local_analysis() -> list[tuple[str, float, float]]:
     from estim.fields import letkf, model_error
 
     exp, su = _field_setup()
-    grid, plan = exp.plan.grid, exp.plan
+    grid = exp.plan.grid
     m = exp.spec["filter"]["members"]
     rng = np.random.default_rng(31)
     amps = 1 + 0.3 * (rng.standard_normal(m) + 1j * rng.standard_normal(m)) / np.sqrt(2)
@@ -121,7 +122,7 @@ def check_local_analysis() -> list[tuple[str, float, float]]:
     after = su.sim.step(state, t, amps)
     jitter = 0.01 * model_error.smooth_noise(rng, 2 * m, grid.n, su.smoother)
     after = model_error.perturb(after, su.dipole.omega * su.dt, jitter[:m], jitter[m:])
-    Y = df.sensor_rows(grid, state, after, su.dt, su.dipole.mu0, plan.sensor_ops)
+    Y = df.sensor_rows(grid, state, after, su.dt, su.dipole.mu0, su.layout.ops)
     y = Y.mean(axis=0) + 0.05 * rng.standard_normal(Y.shape[1:])
     R = rng.uniform(0.5, 2.0, y.shape) * 1e-3
     X = df.rows_of(state, after)

@@ -189,6 +189,26 @@ def test_a_family_keeps_only_the_verdicts_holm_rejects(tmp_path):
     assert claims.counts(df, "verdict").loc[0, "holds"] == 12
 
 
+def test_a_family_of_24_cells_needs_10_runs_that_all_agree():
+    """docs/claims.md: over 24 cells Holm judges the first at 0.05 / 24; all 10 runs better
+    (p = 2^-9) clear it, all 9 (p = 2^-8) do not, nor do 9 of 10."""
+    def family(runs: int, better_runs: int):
+        rng = np.random.default_rng(runs)
+        cells = []
+        for i in range(24):
+            worse = rng.uniform(1.0, 2.0, runs)
+            sign = np.where(np.arange(runs) < better_runs, -0.5, 0.5)
+            cells.append((claims.cell(s_no=i), {"a": Losses(worse + sign),
+                                                 "b": Losses(worse)}))
+        return claims.table(cells, [("a", "b")], "RMSE")
+
+    assert (family(10, 10)["verdict_family"] == "holds").all()
+    assert family(10, 10)["p_value"].iloc[0] == pytest.approx(2.0 ** -9)
+    assert (family(9, 9)["verdict_family"] == "undecided").all()
+    assert (family(9, 9)["verdict"] == "holds").all()
+    assert (family(10, 9)["verdict_family"] == "undecided").all()
+
+
 def test_a_margin_of_practical_significance_makes_a_tiny_difference_a_tie():
     """A difference of about 0.15 % of the loss, better in every run, holds with no margin and
     is undecided with a 1 % margin; a 20 % difference holds with either."""
@@ -218,8 +238,9 @@ def test_p_values_match_scipy_stats_exact_sign_test():
 
 
 def test_the_stored_tables_follow_the_thin_evidence_rule_the_docs_state():
-    """docs/claims.md: fewer than six runs decide nothing; dipole_field runs 3 per cell and
-    every cell of it is undecided; image_kalman runs 10. Read from results/."""
+    """docs/claims.md: fewer than six runs decide nothing; dipole_field and image_kalman run
+    10 per cell, and a family verdict of dipole_field's means all 10 runs agreed. Read from
+    results/."""
     import pandas as pd
 
     root = Path(__file__).resolve().parents[1] / "results"
@@ -229,7 +250,10 @@ def test_the_stored_tables_follow_the_thin_evidence_rule_the_docs_state():
         assert (thin["verdict"] == "undecided").all(), path
         assert set(df["method"]) <= {"sign", "exact"}, path
     field = pd.read_csv(root / "dipole_field" / "claims.csv")
-    assert set(field["runs"]) == {3} and (field["verdict"] == "undecided").all()
+    assert set(field["runs"]) == {10}
+    decided = field[field["verdict_family"] != "undecided"]
+    unanimous = np.isclose(decided["p_value"], 2.0 ** -9, rtol=1e-12, atol=0)
+    assert len(decided) == 114 and unanimous.sum() == 113
     assert set(pd.read_csv(root / "image_kalman" / "claims.csv")["runs"]) == {10}
 
 

@@ -19,26 +19,64 @@ def _below_fit(name: str, value=None, part: str = "real") -> set:
     return {cell for cell, below in (p[KF] < p[FIT]).items() if below}
 
 
-def test_at_2_percent_the_field_filter_is_below_the_fit_only_in_near_E_r():
-    """D61: with 3 runs per cell no verdict is decided; the 3-run mean RMSE of the field
-    filter is below the fit's in all 12 near E_r cells and in two of the other 60 (one
-    near H_phi, one far H_phi); near E_theta and far E_r are above in every cell."""
+def test_over_per_run_layouts_the_field_filter_fails_against_the_fit_in_the_far_zone():
+    """D61 and the README: 10 runs per cell, each with its own layout. Family verdicts: the
+    field filter against the fit fails in 9 cells (every far E_r, 3 far E_theta, 2 far
+    H_phi), holds in none, and the 12 near-zone cells are undecided; against the open loop
+    it holds in 19, fails in the 4 far E_r cells, and one (true source, near E_theta, sigma
+    row 1) is undecided; against RLS and the raw sensor it holds in all 24; RLS against the
+    raw sensor holds in 16 and fails in the 8 near E_theta and H_phi cells."""
     claims = pd.read_csv(RESULTS / "dipole_field" / "claims.csv")
-    assert (claims["verdict"] == "undecided").all() and set(claims["runs"]) == {3}
+    assert set(claims["runs"]) == {10}
+    keys = claims["cell"].str.extract(r"zone=(\w+).*field_component=(\w+)")
+    claims["where"] = keys[0] + " " + keys[1]
+
+    def verdicts(claim: str) -> dict:
+        c = claims[claims["claim"] == claim]
+        return c.groupby(["verdict_family", "where"]).size().to_dict()
+
+    assert verdicts("KF RMSE < amplitude-only fit RMSE") == {
+        ("fails", "far E_r"): 4, ("fails", "far E_theta"): 3, ("fails", "far H_phi"): 2,
+        ("undecided", "far E_theta"): 1, ("undecided", "far H_phi"): 2,
+        ("undecided", "near E_r"): 4, ("undecided", "near E_theta"): 4,
+        ("undecided", "near H_phi"): 4}
+    plain = claims[claims["claim"] == "KF RMSE < plain simulation RMSE"]
+    assert plain["verdict_family"].value_counts().to_dict() == {"holds": 19, "fails": 4,
+                                                                "undecided": 1}
+    assert set(plain[plain["verdict_family"] == "fails"]["where"]) == {"far E_r"}
+    assert plain[plain["verdict_family"] == "undecided"]["cell"].item() == (
+        "scenario=true source; zone=near; noise_reading=sigma; noise_param=0.00025; "
+        "field_component=E_theta")
+    for worse in ("RLS", "measurement"):
+        assert (claims[claims["claim"] == f"KF RMSE < {worse} RMSE"]["verdict_family"]
+                == "holds").all()
+    rls = claims[claims["claim"] == "RLS RMSE < measurement RMSE"]
+    assert rls["verdict_family"].value_counts().to_dict() == {"holds": 16, "fails": 8}
+    assert set(rls[rls["verdict_family"] == "fails"]["where"]) == {"near E_theta",
+                                                                   "near H_phi"}
+
+
+def test_by_the_means_the_field_filter_is_below_the_fit_near_the_source_and_above_far():
+    """D61: in the real part of rmse.csv the field filter is below the fit in near E_theta
+    and near H_phi in every row (by 0.004-0.009 of the field RMS), within 0.003 of it in
+    near E_r, above it in every far-zone row; below RLS and the raw sensor in all 72 rows;
+    the source-only filter within 0.002 of the fit in all 72 (below it in some, above in
+    others)."""
     df = _rmse()
     keys = ["scenario", "zone", "noise_reading", "noise_param", "field_component", "part"]
-    p = df[df["estimator"].isin([KF, FIT])].pivot_table(index=keys, columns="estimator",
-                                                        values="rmse").reset_index()
+    p = df.pivot_table(index=keys, columns="estimator", values="relative").reset_index()
     assert len(p) == 72
-    below = p[p[KF] < p[FIT]]
-    near_e_r = (below["zone"] == "near") & (below["field_component"] == "E_r")
-    assert near_e_r.sum() == 12
-    others = below[~near_e_r]
-    assert sorted(others["zone"]) == ["far", "near"]
-    assert set(others["field_component"]) == {"H_phi"}
-    above = p[p[KF] > p[FIT]]
-    for zone, component in (("near", "E_theta"), ("far", "E_r")):
-        assert ((above["zone"] == zone) & (above["field_component"] == component)).sum() == 12
+    real = p[p["part"] == "real"]
+    gap = real[KF] - real[FIT]
+    near = real["zone"] == "near"
+    for comp in ("E_theta", "H_phi"):
+        assert (gap[near & (real["field_component"] == comp)] < 0).all()
+    assert _span(-gap[near & (real["field_component"] != "E_r")], "0.004", "0.009")
+    assert (gap[near & (real["field_component"] == "E_r")].abs() <= 0.003).all()
+    assert (gap[~near] > 0).all()
+    assert (p[KF] < p["RLS"]).all() and (p[KF] < p["measurement"]).all()
+    so = p["KF (source only)"] - p[FIT]
+    assert (so.abs() <= 0.002).all() and (so < 0).any() and (so > 0).any()
 
 
 def test_at_10_percent_sensors_the_field_filter_is_below_the_fit_but_in_far_E_r():
@@ -123,22 +161,18 @@ def test_d59_to_d61_quoted_numbers():
     kf, so = (health[health["estimator"] == e] for e in (KF, "KF (source only)"))
     assert set(kf["effective_rank_min"]) == set(kf["effective_rank_max"]) == {49}
     assert set(so["effective_rank_min"]) == set(so["effective_rank_max"]) == {2}
-    assert _span(kf["nis"], "1.00", "1.07") and _span(so["nis"], "0.198", "0.215")
+    assert _span(kf["nis"], "1.00", "1.05") and _span(so["nis"], "0.200", "0.210")
     not_far_er = real[~((real["zone"] == "far") & (real["field_component"] == "E_r"))]
-    assert _span(not_far_er[not_far_er["estimator"] == "RLS"]["relative"], "0.60", "0.91")
-    assert _span(not_far_er[not_far_er["estimator"] == "measurement"]["relative"], "0.59",
-                 "0.95")
+    assert _span(not_far_er[not_far_er["estimator"] == "RLS"]["relative"], "0.63", "0.91")
+    assert _span(not_far_er[not_far_er["estimator"] == "measurement"]["relative"], "0.62",
+                 "0.94")
     assert all(_close(v, "1.8") for v in rel(real, "RLS", "far", "E_r"))
     assert all(_close(v, "3.3") for v in rel(real, "measurement", "far", "E_r"))
     # D61: words around the claims
-    assert _span(rel(real, KF, "near", "E_r"), "0.18", "0.19")
-    assert _span(rel(real, FIT, "near", "E_r"), "0.23", "0.23")
-    assert _close(rel(true1, KF, "near", "E_theta").item(), "0.188")
-    assert _close(rel(true1, floor, "near", "E_theta").item(), "0.164")
     wrong = real[real["scenario"] == "wrong source"]
     assert _span(wrong[wrong["estimator"] == floor]["relative"], "0.37", "0.50")
     far1 = true1[true1["zone"] == "far"]
-    assert _span(far1[far1["estimator"] == FIT]["rmse"], "0.0013", "0.0018")
+    assert _span(far1[far1["estimator"] == FIT]["rmse"], "0.0014", "0.0019")
     assert _span(far1[far1["estimator"] == floor]["rmse"], "0.0014", "0.0043")
     near1 = true1[(true1["zone"] == "near") & true1["estimator"].isin([FIT, floor])]
     assert _span(near1["rmse"], "0.008", "0.023")
@@ -180,3 +214,9 @@ def test_d61_study_numbers():
     assert _close(spread.xs("real", level="part").max(), "0.013")
     for value in (20, 100):
         assert _below_fit("field_members", value) <= _below_fit("field_members", 50)
+    near = m[(m["part"] == "real") & (m["zone"] == "near")].pivot_table(
+        index=["value", "field_component"], columns="estimator", values="relative")
+    gap = (near[KF] - near[FIT]).unstack()
+    assert (gap["E_r"] < 0).all() and (gap["E_theta"] > 0).all() and (gap["H_phi"] > 0).all()
+    e_r = near.xs("E_r", level="field_component")
+    assert _span(e_r[KF], "0.18", "0.19") and _span(e_r[FIT], "0.23", "0.23")

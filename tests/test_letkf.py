@@ -113,8 +113,8 @@ def test_letkf_without_localisation_and_a_large_ensemble_is_the_dense_kf_with_it
     ``1/sqrt(m)``: measured 8.5 %, 5.6 %, 3.1 % at 300, 1000, 3000 members; tolerance 6 %.
     (With the ensemble's own mean and covariance the two agree to 1e-11.)"""
     exp = _spec()
-    su = df.setup(exp.config, exp.plan)
-    grid, sensors = exp.plan.grid, exp.plan.sensors
+    su = df.setup(exp.config, exp.plan, df.layout(exp.config, exp.plan, 0))
+    grid, sensors = exp.plan.grid, su.layout.sensors
     m, size = MEMBERS, 0.01
     state = np.zeros((1, 2, 2, grid.size))
     t = 0.0
@@ -137,7 +137,7 @@ def test_letkf_without_localisation_and_a_large_ensemble_is_the_dense_kf_with_it
     first = np.zeros((len(basis), 2, 2, grid.size))
     first[:, 0, 0] = basis[:, 0]                               # only A(t - dt) is read
     H = df.sensor_rows(grid, first, df.levels(basis), su.dt, su.dipole.mu0,
-                        exp.plan.sensor_ops).reshape(5 * grid.size, -1).T
+                        su.layout.ops).reshape(5 * grid.size, -1).T
     Y = (X.reshape(m, -1) @ H.T).reshape(m, sensors.size, 6)
     x0 = x0.ravel()
     truth = x0 + 0.5 * np.sqrt(np.diag(np.pad(Q, ((grid.size, 0), (grid.size, 0))))) \
@@ -165,14 +165,14 @@ def twin():
     exp = _spec(n=16, length=2.0, fraction=0.06, members=20, sensors_r=(0.2, 0.9))
     sensors = dataclasses.replace(exp.config.sensors, measurement_sigma=1e-3)
     exp = dataclasses.replace(exp, config=dataclasses.replace(exp.config, sensors=sensors))
-    su = df.setup(exp.config, exp.plan)
+    su = df.setup(exp.config, exp.plan, df.layout(exp.config, exp.plan, 0))
     su.R_field[:] = 1e-6
     su.R_source[:] = 1e-6 + 0.02**2
     return exp, su
 
 
 def _twin_run(exp, su, bump: float, nominal: complex, steps: int = 8):
-    grid, plan = exp.plan.grid, exp.plan
+    grid = exp.plan.grid
     sim, dt, mu0 = su.sim, su.dt, su.dipole.mu0
     m = exp.spec["filter"]["members"]
     rng = np.random.default_rng(5)
@@ -202,9 +202,9 @@ def _twin_run(exp, su, bump: float, nominal: complex, steps: int = 8):
         jit = model_error.smooth_noise(rng, 2 * m, grid.n, su.smoother)
         field_next = model_error.perturb(field_next, su.dipole.omega * dt, jit[:m], jit[m:],
                                          su.error_scale)
-        y = df.sensor_rows(grid, truth, truth_next, dt, mu0, plan.sensor_ops)[0]
+        y = df.sensor_rows(grid, truth, truth_next, dt, mu0, su.layout.ops)[0]
         y = y + 1e-3 * rng.standard_normal(y.shape)
-        Y = df.sensor_rows(grid, field, field_next, dt, mu0, plan.sensor_ops)
+        Y = df.sensor_rows(grid, field, field_next, dt, mu0, su.layout.ops)
         forecast_before = field
         field, af, X, _, _ = df.field_analysis(su, field, field_next, af, y, Y, 1.0)
         if k == 0:
@@ -213,7 +213,7 @@ def _twin_run(exp, su, bump: float, nominal: complex, steps: int = 8):
             mixed = (X[3] - forecast_before[:, 0, 0].mean(0)) / (2 * dt)
             out["first"] = (np.linalg.norm(ours - exact) / np.linalg.norm(exact),
                             np.linalg.norm(mixed - exact) / np.linalg.norm(exact))
-        Ys = df.sensor_rows(grid, src, src_next, dt, mu0, plan.sensor_ops)
+        Ys = df.sensor_rows(grid, src, src_next, dt, mu0, su.layout.ops)
         src, asrc, _, _, _ = df.source_analysis(su, src, src_next, asrc, y, Ys, 1.0)
         truth = truth_next
         t += dt
@@ -266,7 +266,7 @@ def test_the_truncation_profile_is_the_leapfrogs_own_error_per_step():
     spec.pop("check", None)
     spec["filter"]["field_error_profile"] = "truncation"
     exp = parse_data(spec, "t.yaml", "t")
-    su = df.setup(exp.config, exp.plan)
+    su = df.setup(exp.config, exp.plan, df.layout(exp.config, exp.plan, 0))
     assert len(su.local.points) == su.local.cubes == 512     # every cube has a sensor in reach
     r = exp.plan.grid.r
     far = (r >= 1.2) & (r < 1.9)
@@ -275,7 +275,8 @@ def test_the_truncation_profile_is_the_leapfrogs_own_error_per_step():
     A, Phi = su.error_scale[:, near].mean(axis=1)
     assert 0.006 < A < 0.012 and 0.025 < Phi < 0.045, (A, Phi)
     spec["filter"]["field_error_profile"] = "uniform"
-    su = df.setup(parse_data(spec, "t.yaml", "t").config, exp.plan)
+    su = df.setup(parse_data(spec, "t.yaml", "t").config, exp.plan,
+                  df.layout(exp.config, exp.plan, 0))
     assert np.all(su.error_scale == spec["filter"]["field_error"])
 
 
@@ -299,7 +300,7 @@ def test_the_source_only_filter_on_its_amplitudes_equals_it_on_the_stepped_membe
     the analysed mean's E and H, the rank and the NIS agree to rounding. Told the wrong
     source, so the analyses move the amplitudes a long way."""
     exp, su = twin
-    grid, ops = exp.plan.grid, exp.plan.sensor_ops
+    grid, ops = exp.plan.grid, su.layout.ops
     sim, dt, mu0 = su.sim, su.dt, su.dipole.mu0
     m = exp.spec["filter"]["members"]
     rng = np.random.default_rng(3)
@@ -339,3 +340,22 @@ def test_the_source_only_filter_on_its_amplitudes_equals_it_on_the_stepped_membe
         basis, truth = basis_next, truth_next
         t += dt
     assert moved > 0.05, moved
+
+
+def test_each_run_draws_its_own_sensor_layout_and_a_seed_fixes_one():
+    """D60: without ``sensors.seed`` a Monte Carlo run's sensors come from its own generator
+    (the same run, the same layout, wherever it runs; another run, another layout, of the
+    same count and within the sensor radii); with the seed every run shares one."""
+    exp = _spec(n=16, length=2.0, fraction=0.05, sensors_r=(0.2, 0.9))
+    config, plan = exp.config, exp.plan
+    layouts = [df.layout(config, plan, run) for run in range(3)]
+    assert all(lay.sensors.size == plan.count for lay in layouts)
+    assert all(np.isin(lay.sensors, plan.candidates).all() for lay in layouts)
+    assert not np.array_equal(layouts[0].sensors, layouts[1].sensors)
+    assert np.array_equal(layouts[1].sensors, df.layout(config, plan, 1).sensors)
+    r = plan.grid.r[layouts[2].sensors]
+    assert r.min() >= 0.2 and r.max() <= 0.9
+    spec = dict(exp.spec, sensors={**exp.spec["sensors"], "seed": 5})
+    fixed = parse_data(spec, "t.yaml", "t")
+    one, other = (df.layout(fixed.config, fixed.plan, run).sensors for run in (0, 7))
+    assert np.array_equal(one, other)

@@ -135,12 +135,12 @@ def _one(args) -> dict:
     error and the mean squared truth."""
     exp, v, s, run = args
     one = exp.plan.experiments[v]
-    su = field.setup(one.config, one.plan)
+    su = field.setup(one.config, one.plan, field.layout(one.config, one.plan, run))
     scenario = one.config.scenarios[s]
     rng = exp.config.monte_carlo.rng(v, s, run)
     out = field.cycle(one, su, field.amplitude(scenario.nominal_amplitude), rng)
     smooth = field.smoothed(out["measured"], out["times"], su.dipole.omega, one.config.rls)
-    return field.run_errors(one, one.plan.grid, out["phasors"], su.dipole, one.plan.sensors,
+    return field.run_errors(one, one.plan.grid, out["phasors"], su.dipole, su.layout.sensors,
                          out["times"], out["traces"], out["measured"], smooth, su.quarter)
 
 
@@ -175,7 +175,7 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
                          "field_component": comp, "part": part, "rmse": mean, "rmse_se": se,
                          "runs": len(values), "field_rms": np.sqrt(ref),
                          "relative": mean / np.sqrt(ref),
-                         "sensors": int(one.plan.sensors.size),
+                         "sensors": int(one.plan.count),
                          "members": int(one.config.filter.members)})
     for (v, s, zone, comp), losses in field.phasor_losses(complex_mse).items():
         cells.append((claims.cell(study=study.setting, value=f"{study.values[v]:g}",

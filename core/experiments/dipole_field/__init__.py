@@ -7,9 +7,10 @@ Per scenario (the source the filter is told) and noise row:
 * truth: the analytic field of the dipole (``estim.fields.dipole``) with the true current
   ``I0 = 1``; the thesis' "noise at the driving source" (2.5e-4, 5e-4 of the current) is
   three orders below the grid's own error and does not enter it (docs/deviations.md);
-* sensors: a fixed random ``fraction`` of the grid points between ``sensor_r`` radii
-  measure all six components of E and H every step, with white noise
-  ``measurement_sigma``;
+* sensors: a random ``fraction`` of the grid points between the ``sensors.r`` radii,
+  drawn anew for each Monte Carlo run (one layout for all runs when ``sensors.seed`` is
+  given, :func:`~estim.experiments.dipole_field.filtering.layout`), measure all six
+  components of E and H every step, with white noise ``measurement_sigma``;
 * ``plain simulation``: the leapfrog/Mur simulation (``estim.fields.fdtd``) driven by the
   nominal source, no data: the open loop, and with the true source the grid's floor;
 * ``KF`` (the ensemble filter, ETKF of ``estim.fields.etkf``): ``members`` simulations whose
@@ -49,11 +50,14 @@ from estim.experiments.dipole_field.config import (
     Config,
 )
 from estim.experiments.dipole_field.filtering import (
+    Layout,
     Plan,
     amplitude,
     cycle,
+    draw_layout,
     field_analysis,
     fields_of,
+    layout,
     levels,
     nis_of,
     observe,
@@ -77,7 +81,8 @@ grids = lazy.load("estim.fields.grid")
 SCHEMA: dict = Config.schema()
 
 __all__ = ["CLAIMS", "DIVERGED_RATIO", "FIT", "KF", "PLAIN", "QUOTES", "RLS", "SCHEMA",
-           "SOURCE_ONLY", "TABLES", "Config", "Plan", "amplitude", "cycle", "field_analysis",
+           "SOURCE_ONLY", "TABLES", "Config", "Layout", "Plan", "amplitude", "draw_layout",
+           "layout", "sensor_operators", "cycle", "field_analysis",
            "fields_of", "levels", "nis_of", "observe", "prepare", "rows_of", "run", "run_errors",
            "phasor_losses", "run_point", "sensor_rows", "setup", "smoothed", "source_analysis",
            "source_analysis_on_basis", "printout", "tiny", "work_size", "work_units"]
@@ -137,14 +142,14 @@ def prepare(config: Config, source: str) -> Plan:
                               "expected [magnitude, phase in degrees]")
         if s.name in names[:i]:
             raise ConfigError(source, f"scenarios[{i}].name", f"repeats {s.name!r}")
-    rng = np.random.default_rng(config.sensors.seed)
     lo, hi = config.sensors.r
     candidates = np.flatnonzero((grid.r >= lo) & (grid.r <= hi))
     count = max(1, int(round(config.sensors.fraction * grid.size)))
     if count > candidates.size:
         raise ConfigError(source, "sensors.fraction", f"asks for {count} sensors; only "
                           f"{candidates.size} grid points lie between the sensor radii")
-    sensors = np.sort(rng.choice(candidates, count, replace=False))
+    fixed = (None if config.sensors.seed is None else
+             draw_layout(grid, candidates, count, np.random.default_rng(config.sensors.seed)))
     zones = {}
     for z in config.zones:
         th = np.degrees(grid.theta)
@@ -156,16 +161,18 @@ def prepare(config: Config, source: str) -> Plan:
     wavelength = config.source.c / config.source.frequency
     beta_r = {z.name: "{:.2f}-{:.2f}".format(*(2 * np.pi * np.array(z.r) / wavelength))
               for z in config.zones}
-    return Plan(grid=grid, sensors=sensors, zones=zones,
-                sensor_ops=sensor_operators(grid, sensors), beta_r=beta_r)
+    return Plan(grid=grid, zones=zones, beta_r=beta_r, candidates=candidates, count=count,
+                fixed=fixed)
 
 
-FIELD_COST_RATIO = 1000
+FIELD_COST_RATIO = 2000
 """``--max-work`` bounds cost in the currency of the other analyses, state-samples of the
-stiff integrator. One grid-point update of the vectorised leapfrog costs far less: measured
-on the development machine, 6.4e8 of them (one run of this config: 4 n^3 states x 51
-members x 96 steps) took 21 s, where ``mosfet_saturation``'s 4.3e5 state-samples take about
-20 s, a ratio near 1500. Grid-point updates are divided by this (rounded-down) ratio."""
+stiff integrator. One grid-point update of the vectorised leapfrog costs far less. Measured
+from the manifests of the stored results (one machine, the same ``--jobs``), at the earlier
+ratio of 1000: ``mosfet_saturation`` did 9.7e3 state-samples per second of wall time,
+``dipole_field`` 9.1e4 of these units and ``field_members`` (up to 200 members) 2.0e4. The
+ratio is doubled so that the dearest field config costs about what the integrator does per
+unit; grid-point updates are divided by it."""
 
 
 def work_size(config: Config) -> int:
@@ -208,15 +215,16 @@ def run_point(exp: Experiment, key: tuple) -> tuple[list[dict], list, dict, list
     scenario, the figure's slices from run 1 at the last recorded step; and the filters'
     health over time (effective rank, NIS)."""
     config, plan = exp.config, exp.plan
-    grid, sensors = plan.grid, plan.sensors
+    grid = plan.grid
     s_idx, r_idx, l_idx = key
     scenario = config.scenarios[s_idx]
     reading = config.noise.readings[r_idx]
     level = float(config.noise.source_levels[l_idx])
-    su = setup(config, plan)
     nominal = amplitude(scenario.nominal_amplitude)
     per_run, health = {}, []
     for run in range(config.monte_carlo.runs):
+        su = setup(config, plan, layout(config, plan, run))
+        sensors = su.layout.sensors
         rng = exp.config.monte_carlo.rng(*key, run)
         out = cycle(exp, su, nominal, rng, euler=run == 0)
         health += [{**h, "run": run} for h in out["health"]]

@@ -72,7 +72,10 @@ class Sensors(Settings):
                       doc="[low, high] radius the sensors are drawn from")
     measurement_sigma: float = setting(0.01, number(positive=True, maximum=1e3),
                                        doc="white noise on every measured component")
-    seed: int = setting(5, integer(0, 2**63 - 1), doc="seed of the sensors' positions")
+    seed: int | None = setting(None, integer(0, 2**63 - 1),
+                               doc="absent: the sensors are drawn anew for each Monte Carlo "
+                                   "run (from monte_carlo.seed); a seed: one layout, drawn "
+                                   "from it, for every run")
 
 
 @settings_class

@@ -25,15 +25,42 @@ model_error = lazy.load("estim.fields.model_error")
 
 
 @dataclass(frozen=True)
+class Layout:
+    """The sensors of a run (grid indices) and their rows of the operators
+    (:func:`sensor_operators`)."""
+
+    sensors: np.ndarray
+    ops: tuple
+
+
+@dataclass(frozen=True)
 class Plan:
-    """The grid, the sensors (grid indices) and their rows of the operators, and each
-    zone's grid points, built once."""
+    """The grid, each zone's grid points, the points sensors are drawn from and how many,
+    built once; ``fixed``, the one layout of every run when ``sensors.seed`` is given."""
 
     grid: grids.Grid
-    sensors: np.ndarray
     zones: dict
-    sensor_ops: tuple
     beta_r: dict
+    candidates: np.ndarray
+    count: int
+    fixed: Layout | None
+
+
+def draw_layout(grid: grids.Grid, candidates: np.ndarray, count: int,
+                rng: np.random.Generator) -> Layout:
+    """``count`` sensors drawn without replacement from the grid points ``candidates``."""
+    sensors = np.sort(rng.choice(candidates, count, replace=False))
+    return Layout(sensors, sensor_operators(grid, sensors))
+
+
+def layout(config: Config, plan: Plan, run: int) -> Layout:
+    """The sensors of Monte Carlo run ``run``: drawn from the run's own generator (key
+    ``(run,)`` of ``monte_carlo.seed``, shared by every scenario and noise row of the run,
+    so their comparisons stay paired), or the one layout of ``sensors.seed`` when it is
+    given. A claim about the filters is then judged over layouts, not on one."""
+    if plan.fixed is not None:
+        return plan.fixed
+    return draw_layout(plan.grid, plan.candidates, plan.count, config.monte_carlo.rng(run))
 
 
 def amplitude(pair: list[float]) -> complex:
@@ -81,10 +108,11 @@ def sensor_operators(grid: grids.Grid, sensors: np.ndarray) -> tuple:
 
 @dataclass
 class Setup:
-    """What one case's runs share: the simulation, its step, the record's length, the
-    localisation and the observation variances."""
+    """What one run's cycle needs: the simulation, its step, the record's length, the
+    sensors, the localisation around them and the observation variances."""
 
     sim: fdtd.Simulation
+    layout: Layout
     dipole: Dipole
     dt: float
     per: int
@@ -102,7 +130,7 @@ class Setup:
     R_source: np.ndarray
 
 
-def setup(config: Config, plan: Plan) -> Setup:
+def setup(config: Config, plan: Plan, sensors: Layout) -> Setup:
     grid, src = plan.grid, config.source
     dipole = Dipole(I0=1.0, dl=grid.spacing, omega=2 * np.pi * src.frequency, c=src.c,
                     mu0=src.mu0)
@@ -114,11 +142,11 @@ def setup(config: Config, plan: Plan) -> Setup:
     quarter = max(1, per // 4)
     f, so = config.filter, config.source_only
     wavelength = src.c / src.frequency
-    where = grid.xyz[plan.sensors]
+    where = grid.xyz[sensors.sensors]
     local = letkf.localisation(grid.n, grid.xyz, where, f.block,
                                f.localisation * wavelength)
     sigma2 = config.sensors.measurement_sigma ** 2
-    shape = (plan.sensors.size, 6)
+    shape = (sensors.sensors.size, 6)
     distances = np.linalg.norm(where, axis=1)
     scale = np.full((2, grid.size), f.field_error)
     if f.field_error_profile == "truncation":
@@ -128,7 +156,7 @@ def setup(config: Config, plan: Plan) -> Setup:
         profile = model_error.truncation_profile(sim, (A_z, ph["Phi"]), bins)
         scale = np.clip(profile, f.field_error, ERROR_CAP)
     amplitude_half_width = f.amplitude_localisation * wavelength
-    return Setup(sim=sim, dipole=dipole, dt=dt, per=per, quarter=quarter,
+    return Setup(sim=sim, layout=sensors, dipole=dipole, dt=dt, per=per, quarter=quarter,
                   spin=config.time.spinup_periods * per - quarter,
                   record=config.time.periods * per + quarter, local=local,
                   local_half_width=f.localisation * wavelength,
@@ -291,14 +319,14 @@ def cycle_steps(exp: Experiment, su: Setup, nominal: complex, rng: np.random.Gen
             run_euler.step(k * dt)
     traces = {name: [] for name in (KF, SOURCE_ONLY, PLAIN, EULER)}
     basis_traces, basis_sensors, measured, times, health = [], [], [], [], []
-    mu0, ops = dipole.mu0, plan.sensor_ops
+    mu0, ops, sensors = dipole.mu0, su.layout.ops, su.layout.sensors
     for step in range(su.record):
         free_next = sim.step(free, t, free_amps)
         field_next = sim.step(field, t, amp_field)
         jitter = model_error.smooth_noise(rng, 2 * m, grid.n, su.smoother)
         field_next = model_error.perturb(field_next, omega_dt, jitter[:m], jitter[m:],
                                          su.error_scale)
-        truth = analytic_cartesian(grid, phasors, np.exp(1j * dipole.omega * t), plan.sensors)
+        truth = analytic_cartesian(grid, phasors, np.exp(1j * dipole.omega * t), sensors)
         y = truth + sigma_obs * rng.standard_normal(truth.shape)
         y_rows = y.reshape(6, -1).T                      # (sensors, 6)
         Y = sensor_rows(grid, field, field_next, dt, mu0, ops)
