@@ -105,11 +105,13 @@ def load(folder: str | Path) -> Result:
                          f"{str(config.get('analysis'))[:60]!r}")
     tables = {}
     for metric, spec in analysis.TABLES.items():
-        path = folder / spec.file
-        if path.is_file():
+        path = store.stored_table_path(folder, spec)
+        if path is not None:
             tables[metric] = view(store.read_table(path, spec), spec)
-    figures = {p.stem: p for p in sorted((folder / "figures").glob("*"))
+    figures = {p.stem: p for where in (folder, folder / store.MACHINE_DIR)
+               for p in sorted((where / "figures").glob("*"))
                if p.suffix in (".png", ".svg", ".pdf")}
+    seconds = store.read_run_record(folder).get("wall_time_s")
     return Result(tables, figures, name=folder.name, config=config,
                   models=manifest.get("models") or {},
-                  wall_time_s=float(manifest.get("wall_time_s") or 0.0))
+                  wall_time_s=float(seconds) if isinstance(seconds, int | float) else 0.0)

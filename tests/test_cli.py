@@ -438,7 +438,12 @@ def test_key_path_overrides_on_run_validate_and_check(tmp_path, monkeypatch):
     assert ok.exit_code == 0, ok.output
     manifest = json.loads((root / "scratch/tiny/manifest.json").read_text())
     assert manifest["overrides"] == {"simulation.rtol": 1e-6, "monte_carlo.runs": 2}
-    assert "git_commit" in manifest and "command" in manifest
+    assert "git_commit" not in manifest and "command" not in manifest
+    record = json.loads((root / "scratch/tiny/run.json").read_text())
+    assert "git_commit" in record and record["command"].startswith("estim")
+    assert record["wall_time_s"] > 0 and set(manifest["files"]) == {
+        str(p.relative_to(root / "scratch/tiny")) for p in (root / "scratch/tiny").rglob("*")
+        if p.is_file() and p.name not in ("manifest.json", "run.json")}
     assert manifest["config"]["simulation"]["rtol"] == 1e-6
     assert manifest["config"]["monte_carlo"]["runs"] == 2
     listed = runner.invoke(main, ["run", config, "input.frequencies_hz=[1000]", "--quick",
@@ -551,7 +556,7 @@ def test_report_is_one_page_with_every_table_and_figure(tmp_path, fmt, media):
 
         def handle_starttag(self, tag, attrs):
             a = dict(attrs)
-            self.tables += tag == "table" and a.get("class") != "summary"
+            self.tables += tag == "table" and a.get("class") == "data"
             self.failing += tag == "tr" and a.get("class") == "fail"
             if tag == "img":
                 self.images.append(a.get("alt"))
@@ -590,9 +595,10 @@ def test_a_dask_run_writes_the_same_bytes_as_jobs_1(tmp_path):
     assert local.exit_code == 0 and dask.exit_code == 0, dask.output
     a, b = tmp_path / "a" / "tiny", tmp_path / "b" / "tiny"
     files = sorted(p.relative_to(a) for p in a.rglob("*") if p.is_file()
-                   and p.name != "manifest.json")
+                   and p.name != "run.json")
     assert files and files == sorted(p.relative_to(b) for p in b.rglob("*") if p.is_file()
-                                     and p.name != "manifest.json")
+                                     and p.name != "run.json")
+    assert Path("manifest.json") in files           # the tracked record too: no wall time
     for f in files:
         assert (a / f).read_bytes() == (b / f).read_bytes(), f
     refused = runner.invoke(main, ["run", str(path), "--scheduler", "tcp://x:1"])
@@ -982,7 +988,7 @@ def test_the_readme_counts_the_rows_table_rmse_formats():
     assert result.exit_code == 0
     rows = len(result.output.strip().splitlines()) - 1
     assert f"{rows:,}" == "3,138"
-    assert "`table rmse` formats 3,138 rows" in (ROOT / "README.md").read_text()
+    assert "`table rmse` formats 3,138 rows" in (ROOT / "docs" / "speed.md").read_text()
 
 
 def test_an_unexpected_error_is_one_line_and_debug_shows_its_traceback(monkeypatch, tmp_path):

@@ -1,3 +1,5 @@
+from pathlib import Path
+
 import pandas as pd
 import pytest
 
@@ -94,3 +96,18 @@ def test_an_atomic_write_never_replaces_a_fifo_a_device_or_a_folder(tmp_path):
     (tmp_path / "link.yaml").symlink_to(tmp_path / "real.yaml")
     store.atomic_write_bytes(tmp_path / "link.yaml", b"new")          # written through the link
     assert (tmp_path / "link.yaml").is_symlink() and (tmp_path / "real.yaml").read_text() == "new"
+
+
+def test_git_ignores_the_run_record_and_the_machine_files_but_not_the_manifest():
+    """A reproduce on the machine kind that made results/ leaves git clean: what changes from
+    run to run (run.json, machine/) is ignored; the manifest and the tables are tracked."""
+    import subprocess
+
+    root = Path(__file__).resolve().parents[1]
+    if not (root / ".git").exists():
+        pytest.skip("not a git checkout")
+    paths = ["results/kronecker_burden/run.json", "results/kronecker_burden/machine/timing.csv",
+             "results/kronecker_burden/manifest.json", "results/kronecker_burden/slopes.csv"]
+    out = subprocess.run(["git", "-C", str(root), "check-ignore", "--no-index", *paths],
+                         capture_output=True, text=True, check=False)
+    assert out.stdout.split() == paths[:2]

@@ -92,9 +92,14 @@ def test_longest_first_follows_the_recorded_wall_times(tmp_path):
         exps.append(load_file(path))
         if seconds is not None:
             (tmp_path / "res" / name).mkdir(parents=True)
-            (tmp_path / "res" / name / "manifest.json").write_text(
+            (tmp_path / "res" / name / "run.json").write_text(
                 json.dumps({"wall_time_s": seconds}))
     assert [e.name for e in longest_first(exps, tmp_path / "res")] == ["new", "long", "mid",
+                                                                      "short"]
+    # a fresh clone has no run records: the stored wall_times.csv stands in for them
+    (tmp_path / "res" / "new").mkdir()
+    (tmp_path / "res" / "wall_times.csv").write_text("name,wall_time_s\nnew,10.0\nmid,95.0\n")
+    assert [e.name for e in longest_first(exps, tmp_path / "res")] == ["long", "mid", "new",
                                                                       "short"]
 
 

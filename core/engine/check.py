@@ -61,8 +61,14 @@ def check(exp: Experiment, stored_dir: Path, tmp: Path, jobs: int, say: Callable
     for column in sorted(c for c, t in tol.items() if t.get("skip")):
         say(f"{exp.name}: column {column} not compared ({tol[column]['skip']})")
     analysis = ANALYSES[exp.analysis]
+    machine = runner.machine_outputs(exp)
+    if machine:
+        say(f"{exp.name}: {', '.join(machine)} not compared (they measure the machine; "
+            "written under machine/)")
     differing = 0
     for metric, new in result.tables.items():
+        if metric in machine:
+            continue
         path = stored_dir / f"{metric}.csv"
         if not path.exists():
             say(f"{exp.name}/{metric}.csv: missing from the stored results")
@@ -89,7 +95,7 @@ def check(exp: Experiment, stored_dir: Path, tmp: Path, jobs: int, say: Callable
         if not diffs:
             say(f"{exp.name}/{metric}.csv: {len(new)} rows match")
     recorded = manifest.get("files") if isinstance(manifest.get("files"), dict) else {}
-    for name in sorted(result.figures):
+    for name in sorted(n for n in result.figures if n not in machine):
         stored_as = [stored_dir / "figures" / f"{name}.{fmt}" for fmt in ("png", "svg", "pdf")]
         present = [f for f in stored_as if f.is_file() and f.stat().st_size > 0]
         if not present:

@@ -13,6 +13,7 @@ from estim.config.experiment import Experiment
 from estim.config.loading import sweep_cells
 from estim.config.registry import ANALYSES
 from estim.engine import cells
+from estim.errors import UsageError
 from estim.experiments.base import Result
 from estim.experiments.shared import claims
 from estim.reference import SWEEP_PREFIX
@@ -121,11 +122,14 @@ def run_to_folder(exp: Experiment, out: Path, jobs: int = 1,
     if not resume:
         done.clear()
     written: dict[str, None] = {}
+    machine = machine_outputs(exp)
     with store.ResultFolder(Path(out), exp.name) as folder, execution(executor, done,
                                                                     pool=pool):
         def write_figures(figures: dict) -> None:
             for name, fig in figures.items():
-                store.write_figure(fig, folder.path / "figures" / f"{name}.{figure_format}")
+                path = store.figure_path(folder.path, name, figure_format, machine)
+                path.parent.mkdir(parents=True, exist_ok=True)
+                store.write_figure(fig, path)
                 written[name] = None
 
         if on_start is not None:
@@ -133,19 +137,34 @@ def run_to_folder(exp: Experiment, out: Path, jobs: int = 1,
         result = execute(exp, jobs, on_done, write_figures)
         store.write_tables_and_manifest(folder.path, result.tables, exp.spec,
                                      time.perf_counter() - start, command=command,
-                                     overrides=overrides, models=exp.models)
+                                     overrides=overrides, models=exp.models,
+                                     machine=machine)
         folder.commit()
     resumed = done.hits
     done.clear()
     return Result(tables=result.tables, figures=written), resumed
 
 
+def machine_outputs(exp: Experiment) -> tuple[str, ...]:
+    """The tables and figures of ``exp``'s analysis that measure the machine (its
+    ``MACHINE``), written under ``machine/`` and never compared."""
+    return tuple(getattr(ANALYSES[exp.analysis], "MACHINE", ()))
+
+
+WALL_TIMES = "wall_times.csv"
+"""Beside the result folders: each config's wall time on the machine that made the stored
+results (``bench/record_wall_times.py`` writes it from their run records), for a checkout
+that has no run records of its own yet (a fresh clone)."""
+
+
 def recorded_seconds(folder: Path) -> float:
-    """The wall time the manifest in ``folder`` records (how long the config's last run
-    took), or infinity when there is none: the longest-first order of
-    :mod:`estim.engine.scheduler`, which starts a config it knows nothing of early."""
-    manifest = store.read_manifest(folder) or {}
-    seconds = manifest.get("wall_time_s")
+    """How long the config of result ``folder`` took: the wall time its run record
+    (``run.json``) gives, else the one :data:`WALL_TIMES` beside it gives, else infinity:
+    the longest-first order of :mod:`estim.engine.scheduler`, which starts a config it
+    knows nothing of early, and the progress' weights."""
+    seconds = store.read_run_record(folder).get("wall_time_s")
+    if seconds is None:
+        seconds = _reference_seconds(Path(folder).parent).get(Path(folder).name)
     return float(seconds) if isinstance(seconds, int | float) and seconds >= 0 else float("inf")
 
 
@@ -178,3 +197,16 @@ def gather_cells(exp: Experiment, out: Path, sources: list[Path]) -> int:
                 store.atomic_write_bytes(target.folder / cell.name, cell.read_bytes())
             found_cells += 1
     return found_cells
+
+
+def _reference_seconds(results: Path) -> dict[str, float]:
+    """``{config name: seconds}`` of :data:`WALL_TIMES` in ``results`` (empty when there is
+    none or it cannot be read)."""
+    path = results / WALL_TIMES
+    if not path.is_file():
+        return {}
+    try:
+        df = store.read_table(path)
+        return {str(k): float(v) for k, v in zip(df["name"], df["wall_time_s"], strict=True)}
+    except (UsageError, KeyError, ValueError):
+        return {}

@@ -20,6 +20,10 @@ An analysis is a module registered by one line in :data:`estim.config.registry.A
                                     contract tests), as key path -> value
 ``RUNS_ALONE``  optional, True for an analysis whose tables are timings: run with no other
                 config's work beside it (:mod:`estim.engine.scheduler`)
+``MACHINE``     optional: the names of the tables and figures that measure the machine
+                running it (wall times): written under ``machine/`` in the result folder,
+                which git ignores; left out of the manifest and never compared by
+                ``estim check``
 """
 
 from __future__ import annotations
@@ -76,21 +80,29 @@ class Result:
         out = Path(folder)
         store.ensure_writable(out)
         stored = store.read_manifest(out / self.name) if self.quick else None
-        if stored is not None and "quick" not in str(stored.get("command", "")):
+        made_by = store.read_run_record(out / self.name).get("command", "") if stored else ""
+        if stored is not None and "quick" not in str(made_by):
             raise UsageError(f"{out / self.name} holds a full run's results; a quick result "
                              "does not replace them (save it elsewhere)")
         command = "estim.run(quick=True)" if self.quick else "estim.run"
+        from estim.config.registry import ANALYSES
+
+        analysis = ANALYSES.get(self.config.get("analysis", "estimation"))
+        machine = tuple(getattr(analysis, "MACHINE", ()))
         with store.ResultFolder(out, self.name) as target:
             for name, fig in self.figures.items():
                 if isinstance(fig, (str, Path)):
-                    dest = target.path / "figures" / Path(fig).name
+                    dest = store.figure_path(target.path, Path(fig).stem,
+                                             Path(fig).suffix.lstrip("."), machine)
                     dest.parent.mkdir(parents=True, exist_ok=True)
                     store.atomic_write_bytes(dest, Path(fig).read_bytes())
                 else:
-                    store.write_figure(fig, target.path / "figures" / f"{name}.{figure_format}")
+                    dest = store.figure_path(target.path, name, figure_format, machine)
+                    dest.parent.mkdir(parents=True, exist_ok=True)
+                    store.write_figure(fig, dest)
             store.write_tables_and_manifest(target.path, self.tables, self.config,
                                          self.wall_time_s, command=command,
-                                         models=self.models)
+                                         models=self.models, machine=machine)
             target.commit()
         return out / self.name
 

@@ -12,11 +12,12 @@ three numbers stand beside each printed row:
               coefficients, ``C`` the detail coefficients of every level, ``taps`` the
               wavelet's filter length.
 
-and ``timing.csv`` holds the measured wall time per step (median of ``repeats``, in this
-process) of one run, and per run of ``batch_runs`` runs filtered together (the way the
-tables run: there the per-step interpreter overhead is shared), with the fitted log-log
-slopes against ``n_x`` in ``slopes.csv``. Wall times
-depend on the machine; ``estim check`` skips them and checks the counts exactly.
+``slopes.csv`` holds the log-log slopes of the counts against ``n_x``. ``timing.csv`` holds
+the measured wall time per step (median of ``repeats``, in this process) of one run, and per
+run of ``batch_runs`` runs filtered together (the way the tables run: there the per-step
+interpreter overhead is shared), with its slopes in ``timing_slopes.csv`` and the figure
+``burden_timing``: they measure the machine (:data:`MACHINE`), so they are written under
+``machine/``, untracked, and ``estim check`` compares the counts only.
 """
 
 from __future__ import annotations
@@ -127,7 +128,10 @@ TABLES = {
                         ("seconds_per_step", "counted_per_step"),
                         title="measured wall time per step (this machine)"),
     "slopes": TableSpec("slopes.csv", ("estimator", "quantity"), ("slope",),
-                        title="log-log slope against n_x"),
+                        title="log-log slope of the counted multiplications against n_x"),
+    "timing_slopes": TableSpec("timing_slopes.csv", ("estimator", "quantity"), ("slope",),
+                               title="log-log slope of the wall time against n_x (this "
+                                     "machine)"),
     "crossover": TableSpec("crossover.csv", ("n_x",),
                            ("ekf_per_sample", "lms_fixed_per_sample", "lms_per_pass_per_sample",
                             "crossover_passes", "claim_passes", "lms_at_claim_passes"),
@@ -290,6 +294,12 @@ def _measure_wavelet(est: WaveletLMS, model, samples: int, repeats: int, dt: flo
     return tally, round(fit["kept_fraction"] * samples), float(np.median(seconds))
 
 
+TIMING_FIGURE = "burden_timing"
+"""The figure of the wall times (the counts' figure is named by ``figures.name``)."""
+
+MACHINE = ("timing", "timing_slopes", TIMING_FIGURE)
+"""What measures the machine: written under ``machine/`` (untracked), never compared."""
+
 RUNS_ALONE = True
 """Its tables are timings: ``estim reproduce``, ``estim check`` and ``estim run`` of several
 configs run it after every other config, with no other work on the machine's cores
@@ -377,7 +387,8 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
         "burden_wt": pd.DataFrame(wt_rows)[TABLES["burden_wt"].columns],
         "timing": pd.DataFrame(timing)[TABLES["timing"].columns],
     })
-    out.tables["slopes"] = slopes(out.tables["timing"])
+    out.tables["slopes"] = slopes(out.tables["timing"], "counted")
+    out.tables["timing_slopes"] = slopes(out.tables["timing"], "seconds")
     out.tables["crossover"] = pd.DataFrame(crossover_rows)[TABLES["crossover"].columns]
     wavelet = wavelet_label(config.claim_passes)
     cells = [(claims.cell(n_x=int(row["n_x"])),
@@ -388,19 +399,22 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
                                          exact=True)
     out.figures[config.figures.name] = plots.burden(out.tables["timing"],
                                                         out.tables["slopes"])
+    out.figures[TIMING_FIGURE] = plots.burden_timing(out.tables["timing"],
+                                                     out.tables["timing_slopes"])
     return out
 
 
-def slopes(timing: pd.DataFrame) -> pd.DataFrame:
-    """Least-squares slope of ``log`` seconds and ``log`` counts against ``log n_x``."""
+def slopes(timing: pd.DataFrame, quantity: str) -> pd.DataFrame:
+    """Least-squares slope of ``log`` counts (``quantity`` ``"counted"``) or ``log`` seconds
+    (``"seconds"``) per step against ``log n_x``."""
+    column = {"counted": "counted_per_step", "seconds": "seconds_per_step"}[quantity]
     rows = []
     for est, part in timing.groupby("estimator", sort=False):
         if len(part) < 2:
             continue
         logn = np.log(part["n_x"].to_numpy(float))
-        for quantity, column in (("counted", "counted_per_step"), ("seconds", "seconds_per_step")):
-            slope = float(np.polyfit(logn, np.log(part[column].to_numpy(float)), 1)[0])
-            rows.append({"estimator": est, "quantity": quantity, "slope": slope})
+        slope = float(np.polyfit(logn, np.log(part[column].to_numpy(float)), 1)[0])
+        rows.append({"estimator": est, "quantity": quantity, "slope": slope})
     return pd.DataFrame(rows, columns=TABLES["slopes"].columns)
 
 
@@ -409,4 +423,7 @@ def printout(result: Result) -> str:
     view = ekf.pivot_table(index=["row_order", "row_label_printed"], columns="n_x",
                            values=["printed", "counted"], sort=False)
     return (view.to_string(float_format=lambda v: f"{v:.4g}") + "\n\n"
-            + result.tables["slopes"].to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+            + result.tables["slopes"].to_string(index=False, float_format=lambda v: f"{v:.3g}")
+            + "\n\nwall time per step on this machine, log-log slopes:\n"
+            + result.tables["timing_slopes"].to_string(index=False,
+                                                       float_format=lambda v: f"{v:.3g}"))

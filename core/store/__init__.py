@@ -1,6 +1,6 @@
-"""Stored results: result folders written as a unit (:mod:`.folders`), the tables, figures and
-manifest written into them (:mod:`.writing`) and the bounded reading of what is stored
-(:mod:`.read`).
+"""Stored results: result folders written as a unit (:mod:`.folders`), the tables, figures,
+manifest and run record written into them (:mod:`.writing`) and the bounded reading of what
+is stored (:mod:`.read`).
 
 The names below are the layer's face: ``from estim import store; store.read_table(...)``.
 """
@@ -10,6 +10,7 @@ from estim.store.read import (
     MAX_MANIFEST_BYTES,
     MAX_TABLE_BYTES,
     read_manifest,
+    read_run_record,
     read_stored,
     read_table,
     stored_table_path,
@@ -17,8 +18,12 @@ from estim.store.read import (
 )
 from estim.store.writing import (
     FIGURE_FORMATS,
+    MACHINE_DIR,
+    RUN_RECORD,
+    figure_path,
     git_commit,
     spec_hash,
+    table_path,
     versions,
     write_csv,
     write_figure,
@@ -26,7 +31,9 @@ from estim.store.writing import (
     write_tables_and_manifest,
 )
 
-__all__ = ["FIGURE_FORMATS", "MAX_MANIFEST_BYTES", "MAX_TABLE_BYTES", "ResultFolder",
-           "atomic_write_bytes", "ensure_writable", "git_commit", "read_manifest", "read_stored",
-           "read_table", "sha256", "spec_hash", "stored_table_path", "stored_tables", "versions",
-           "write_csv", "write_figure", "write_manifest", "write_tables_and_manifest"]
+__all__ = ["FIGURE_FORMATS", "MACHINE_DIR", "MAX_MANIFEST_BYTES", "MAX_TABLE_BYTES",
+           "RUN_RECORD", "ResultFolder", "atomic_write_bytes", "ensure_writable", "figure_path",
+           "git_commit", "read_manifest", "read_run_record", "read_stored", "read_table",
+           "sha256", "spec_hash", "stored_table_path", "stored_tables", "table_path",
+           "versions", "write_csv", "write_figure", "write_manifest",
+           "write_tables_and_manifest"]

@@ -11,6 +11,7 @@ import stat
 from pathlib import Path
 
 from estim.errors import UsageError
+from estim.store.writing import MACHINE_DIR, RUN_RECORD
 from estim.util import lazy
 
 pd = lazy.load("pandas")
@@ -48,9 +49,12 @@ def read_stored(path: Path, limit: int, what: str) -> bytes:
 
 
 def stored_table_path(folder: Path, spec) -> Path | None:
-    """``folder``'s file of the table ``spec``: None when there is none; a
+    """``folder``'s file of the table ``spec`` (beside the manifest, or under ``machine/``
+    for one that measures the machine): None when there is none; a
     :class:`UsageError` when something that is not a regular file stands in its place."""
     path = Path(folder) / spec.file
+    if not os.path.lexists(path):
+        path = Path(folder) / MACHINE_DIR / spec.file      # a table measuring the machine
     if not os.path.lexists(path):
         return None
     try:
@@ -134,3 +138,14 @@ def read_manifest(folder: Path) -> dict | None:
     except (UsageError, ValueError, RecursionError):
         return None
     return manifest if isinstance(manifest, dict) else None
+
+
+def read_run_record(folder: Path) -> dict:
+    """``folder``'s untracked run record (``run.json``: command, commit, wall time, host) as
+    a mapping; empty when there is none (a fresh clone's results) or it cannot be read."""
+    try:
+        data = read_stored(Path(folder) / RUN_RECORD, MAX_MANIFEST_BYTES, "run record")
+        record = json.loads(data.decode("utf-8"))
+    except (UsageError, ValueError, RecursionError):
+        return {}
+    return record if isinstance(record, dict) else {}

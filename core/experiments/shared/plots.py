@@ -258,22 +258,31 @@ def perturbation(trace: dict, title: str) -> Figure:
 
 @_one_at_a_time
 def burden(timing, slopes) -> Figure:
-    """Multiplications counted and wall time per step against ``n_x``, log-log (Tables 4.3,
-    4.4), with the fitted slopes in the legend."""
-    fig, (ax_c, ax_t) = subplots(1, 2, figsize=(10.0, 4.5))
+    """Multiplications counted per step against ``n_x``, log-log (Tables 4.3, 4.4), with the
+    fitted slopes in the legend."""
+    return _burden_panel(timing, slopes, "counted_per_step", "multiplications per step "
+                         "(counted)", "multiplications")
+
+
+@_one_at_a_time
+def burden_timing(timing, slopes) -> Figure:
+    """Wall time per step against ``n_x`` on the machine that ran it, log-log, with the
+    fitted slopes in the legend."""
+    return _burden_panel(timing, slopes, "seconds_per_step", "wall time per step (this "
+                         "machine)", "seconds")
+
+
+def _burden_panel(timing, slopes, column: str, title: str, label: str) -> Figure:
+    fig, ax = subplots(1, 1, figsize=(6.0, 4.5))
     for est, part in timing.groupby("estimator", sort=False):
-        fit = slopes[slopes["estimator"] == est].set_index("quantity")["slope"]
-        ax_c.loglog(part["n_x"], part["counted_per_step"], "o-",
-                    label=f"{est} (slope {fit.get('counted', float('nan')):.2f})")
-        ax_t.loglog(part["n_x"], part["seconds_per_step"], "o-",
-                    label=f"{est} (slope {fit.get('seconds', float('nan')):.2f})")
-    ax_c.set_title("(a) multiplications per step (counted)")
-    ax_t.set_title("(b) wall time per step (this machine)")
-    for ax, label in ((ax_c, "multiplications"), (ax_t, "seconds")):
-        ax.set_xlabel("n_x (states)")
-        ax.set_ylabel(label)
-        ax.legend(fontsize=8, loc="upper left")
-        ax.grid(True, which="both", lw=0.3)
+        fit = slopes[slopes["estimator"] == est]["slope"]
+        ax.loglog(part["n_x"], part[column], "o-",
+                  label=f"{est} (slope {fit.iloc[0] if len(fit) else float('nan'):.2f})")
+    ax.set_title(title)
+    ax.set_xlabel("n_x (states)")
+    ax.set_ylabel(label)
+    ax.legend(fontsize=8, loc="upper left")
+    ax.grid(True, which="both", lw=0.3)
     _tight_layout(fig)
     return fig
 
