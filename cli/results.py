@@ -31,20 +31,30 @@ from estim.report import tables
                    "experiments with no printed table are left out, named in one line.")
 @click.option("--partial", is_flag=True,
               help="With --thesis: allow thesis rows that the results do not cover.")
-def table(metric, experiments, results, fmt, thesis, partial) -> None:
+@click.option("--width", type=click.IntRange(min=0), default=None,
+              help="Text: fit each table to this many characters [default: the terminal's "
+                   "width, 100 when not a terminal; 0: every column, wrapped].")
+def table(metric, experiments, results, fmt, thesis, partial, width) -> None:
     """Print the METRIC tables of the EXPERIMENTS named (result folder names, e.g.
     mosfet_saturation), or of every experiment found under RESULTS.
 
     csv gives one CSV over all experiments (an "experiment" column first); markdown and
-    latex (booktabs, escaped) one table per experiment under its name; text wraps a table's
-    columns at 100 characters (a title or a long cell stays whole). RESULTS' experiment
-    folders are its direct subfolders.
+    latex (booktabs, escaped) one table per experiment under its name. text fits each table
+    to the width: a column with one value in every row is said once above it, then come the
+    keys, the printed value beside ours with the ratio, and as many other columns as fit; a
+    note names the ones left out. RESULTS' experiment folders are its direct subfolders.
     """
     if partial and not thesis:
         fail("--partial applies only with --thesis")
     results = results or project.locate().results
+    if width is None:
+        import shutil
+        import sys
+
+        width = (shutil.get_terminal_size((tables.TEXT_WIDTH, 24)).columns
+                 if sys.stdout.isatty() else tables.TEXT_WIDTH)
     text_ = tables.stored(results, metric, fmt, thesis, partial, ANALYSES,
-                          only=tuple(experiments))
+                          only=tuple(experiments), width=width)
     click.echo(text_, nl=not text_.endswith("\n"))
 
 
@@ -107,7 +117,7 @@ def summary(results, readme, check_only, as_json) -> None:
     from estim.report import summary as summaries
 
     if check_only and readme is None:
-        fail("--check applies only with --readme (it checks the README's generated blocks)")
+        fail("--check applies only with --readme (it checks that file's generated blocks)")
     if as_json and readme is not None:
         fail("--json and --readme are two outputs; give one")
     results = results or project.locate().results

@@ -1,6 +1,6 @@
 """Adding an analysis is one module and no other edit: a module dropped into
 estim/experiments/ is found by the registry, validated, run, written and listed like the
-shipped ones (the README's "Adding an analysis")."""
+shipped ones (docs/extending.md, "Adding an analysis")."""
 
 from pathlib import Path
 

@@ -1,4 +1,4 @@
-"""The sentences on the Chapter 5 field filter in the README and in docs/deviations.md
+"""The sentences on the Chapter 5 field filter in docs/results.md and docs/deviations.md
 D59-D61, checked against the stored tables (results/dipole_field and the studies of
 configs/studies/)."""
 
@@ -20,7 +20,7 @@ def _below_fit(name: str, value=None, part: str = "real") -> set:
 
 
 def test_over_per_run_layouts_the_field_filter_fails_against_the_fit_in_the_far_zone():
-    """D61 and the README: 10 runs per cell, each with its own layout. Family verdicts: the
+    """D61 and docs/results.md: 10 runs per cell, each with its own layout. Family verdicts: the
     field filter against the fit fails in 9 cells (every far E_r, 3 far E_theta, 2 far
     H_phi), holds in none, and the 12 near-zone cells are undecided; against the open loop
     it holds in 19, fails in the 4 far E_r cells, and one (true source, near E_theta, sigma

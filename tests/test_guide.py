@@ -1,6 +1,6 @@
-"""The README's guide, followed as written: its model, estimator and config files are taken
-from the README's code blocks, run through the CLI, and seen in the tables; its Python
-example runs as written from another folder."""
+"""The docs' guides (docs/extending.md, docs/your-circuit.md), followed as written: the
+model, estimator and config files are taken from their code blocks, run through the CLI,
+and seen in the tables; the Python example runs as written from another folder."""
 
 import json
 import re
@@ -19,11 +19,23 @@ from estim.cli.main import main
 ROOT = Path(__file__).resolve().parents[1]
 
 
+GUIDES = ("extending.md", "your-circuit.md")
+"""The docs pages whose guides this follows."""
+
+
 def section(title: str) -> str:
-    text = (ROOT / "README.md").read_text()
-    start = text.index(title)
-    end = text.find("\n### ", start + len(title))
-    return text[start:end if end > 0 else None]
+    """The part of a guide page from the heading ``title`` to the next heading of its
+    level (the page's end for a page's own title)."""
+    for page in GUIDES:
+        text = (ROOT / "docs" / page).read_text()
+        if title in text:
+            start = text.index(title)
+            level = title.split(" ")[0]
+            if level == "#":
+                return text[start:]
+            end = text.find(f"\n{level} ", start + len(title))
+            return text[start:end if end > 0 else None]
+    raise AssertionError(f"no guide in docs/ has the heading {title!r}")
 
 
 def blocks(text: str) -> list[str]:
@@ -34,7 +46,7 @@ def guide_files(tmp_path: Path) -> Path:
     """Write every code block of the guide that starts with ``# <file name>``; return the
     config's path."""
     config = None
-    for block in blocks(section("### Adding a model or an estimator")):
+    for block in blocks(section("## Adding a model or an estimator")):
         first = block.splitlines()[0]
         match = re.fullmatch(r"# ([\w.-]+\.(?:py|yaml))", first)
         assert match, f"a guide block without its file name: {first!r}"
@@ -128,20 +140,20 @@ def test_a_bad_plugin_is_one_line_naming_the_config_and_the_file(tmp_path):
 
 
 def test_the_python_example_runs_as_written_from_another_folder(tmp_path):
-    code = next(b for b in blocks(section("### From Python")) if "import estim" in b)
+    code = next(b for b in blocks(section("## From Python")) if "import estim" in b)
     done = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True,
                           text=True, timeout=600)
     assert done.returncode == 0, done.stderr
     assert "rmse" in done.stdout and "exponential" in done.stdout
 
 
-@pytest.mark.parametrize("title", ["### Adding a model or an estimator", "### From Python"])
+@pytest.mark.parametrize("title", ["## Adding a model or an estimator", "## From Python"])
 def test_the_guide_sections_exist(title):
     assert blocks(section(title))
 
 
 def saved_files(title: str, folder: Path) -> dict[str, Path]:
-    """Write every block of a README section introduced by "Save as `NAME`"."""
+    """Write every block of a guide section introduced by "Save as `NAME`"."""
     found = {}
     for name, body in re.findall(r"Save as `([\w.-]+)`[^\n]*\n(?:[^\n]*\n)*?\n```\w+\n(.*?)```",
                                  section(title), re.S):
@@ -151,10 +163,10 @@ def saved_files(title: str, folder: Path) -> dict[str, Path]:
 
 
 def test_your_own_circuit_runs_as_written(tmp_path, monkeypatch):
-    """The README's netlist guide, step by step: the netlist and the config from its blocks,
-    `estim run`, `estim table rmse --results scratch`, and (where ngspice is installed)
-    `estim spice`."""
-    files = saved_files("### Your own circuit", tmp_path)
+    """The netlist guide (docs/your-circuit.md), step by step: the netlist and the config
+    from its blocks, `estim run`, `estim table rmse --results scratch`, and (where ngspice
+    is installed) `estim spice`."""
+    files = saved_files("# Your own circuit", tmp_path)
     assert set(files) == {"rectifier.cir", "rectifier_spice.yaml"}
     monkeypatch.chdir(tmp_path)
     runner = CliRunner()

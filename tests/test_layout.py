@@ -1,4 +1,4 @@
-"""The package's shape: the README's Layout names every top-level folder and module of
+"""The package's shape: docs/layout.md names every top-level folder and module of
 core/ (the estim package), in the order of the layers contract that lint-imports checks."""
 
 import re
@@ -12,8 +12,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def layout_entries() -> list[str]:
-    text = (ROOT / "README.md").read_text()
-    block = text[text.index("## Layout"):]
+    text = (ROOT / "docs" / "layout.md").read_text()
+    block = text[text.index("# Layout"):]
     block = block[block.index("```\n") + 4:]
     block = block[:block.index("```")]
     names = []

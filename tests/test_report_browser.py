@@ -97,3 +97,35 @@ def test_the_summary_counts_are_those_of_claims_csv(page_file):
             int(counts.get(v, 0)) for v in ("holds", "fails", "undecided")], name
         checked += 1
     assert checked >= 20
+
+
+def test_the_headline_is_in_view_and_every_wide_table_scrolls_in_its_own_box(page_file):
+    """At 1,400 x 900: the headline table (one row per thesis or paper table, its counts
+    those of claims.csv after Holm) is on screen before any scrolling, and no data table
+    makes the page wider: each sits in a box of the page's width that scrolls it."""
+    def look(page):
+        head = page.evaluate("(() => { const r = document.querySelector('table.headline')"
+                             ".getBoundingClientRect(); return [r.top, r.bottom]; })()")
+        rows = page.evaluate("[...document.querySelectorAll('table.headline tbody tr')]"
+                             ".map(r => [...r.cells].map(c => c.textContent))")
+        widths = page.evaluate(
+            "[...document.querySelectorAll('table.data')].map(t => [t.parentElement"
+            ".className, t.parentElement.getBoundingClientRect().right, t.scrollWidth, "
+            "t.parentElement.clientWidth])")
+        page_width = page.evaluate("document.documentElement.scrollWidth")
+        return head, rows, widths, page_width
+
+    (head, rows, widths, page_width), errors = _browse(page_file, look)
+    assert not errors, errors
+    assert 0 <= head[0] and head[1] <= 900, head
+    from estim.report.summary import HEADLINE
+
+    assert len(rows) == len(HEADLINE)
+    table, name, claim, holds, fails, undecided, cells, _ = rows[5]
+    df = pd.read_csv(ROOT / "results" / name / "claims.csv")
+    family = df[df["claim"] == claim]["verdict_family"]
+    assert [int(holds), int(fails), int(undecided), int(cells)] == [
+        int((family == v).sum()) for v in ("holds", "fails", "undecided")] + [len(family)]
+    assert page_width <= 1400
+    assert widths and all(cls == "scroll" and right <= 1400 for cls, right, _, _ in widths)
+    assert any(inner > box for _, _, inner, box in widths)      # some do scroll, inside

@@ -126,3 +126,34 @@ def test_table_of_named_experiments_and_the_thesis_view_leaves_out_unprinted_one
         "mosfet_input_derivative; leave out --thesis to see them)"]
     typo = CliRunner().invoke(main, ["table", "rmse", "mosfet_saturaton", "--results", results])
     assert typo.exit_code == 2 and "did you mean 'mosfet_saturation'" in typo.output
+
+
+def test_a_text_table_fits_the_width_with_the_thesis_value_beside_the_keys():
+    """estim table rmse mosfet_saturation --thesis in 100 columns: every line fits; the
+    columns with one value are said once, the keys the others determine are left out,
+    ours, the thesis' value and the ratio stand beside the keys, and the columns that did
+    not fit are named. --width 0 keeps every column."""
+    from pathlib import Path
+
+    from click.testing import CliRunner
+
+    from estim.cli.main import main
+
+    results = str(Path(__file__).resolve().parents[1] / "results")
+    args = ["table", "rmse", "mosfet_saturation", "--thesis", "--results", results]
+    out = CliRunner().invoke(main, [*args, "--width", "100"])
+    assert out.exit_code == 0
+    lines = out.output.splitlines()
+    assert max(map(len, lines)) <= 100
+    header = next(line for line in lines if "estimator" in line and "thesis_rmse" in line)
+    names = header.split()
+    assert names.index("rmse") + 1 == names.index("thesis_rmse")
+    assert names.index("thesis_rmse") + 1 == names.index("ratio_rmse")
+    text = " ".join(out.output.split())
+    assert "(in every row: table_id = 3.2," in text and "left out for a width of 100:" in text
+    ekf = next(line for line in lines if " EKF " in line and " 0.4024 " in line)
+    assert ekf.split()[-len(names):][names.index("thesis_rmse")] == "0.4024"
+    full = CliRunner().invoke(main, [*args, "--width", "0"])
+    assert full.exit_code == 0 and "regime_fraction" in full.output
+    assert "left out" not in full.output.split("==")[1]
+

@@ -14,11 +14,11 @@ noisy measurement ``z_k`` as the desired signal ``d_k`` (eq 1.12). Per step, bat
 
 This is the variable-forgetting RLS of Fortescue, Kershenbaum and Ydstie (1981), the form
 the thesis prints: the forgetting enters ``P`` after the update (1.17), so the gain's
-denominator is ``1 + phi^T P phi`` as printed. Fixes to the printed form (notes.md item 17):
-``W_{k-1}`` in 1.13, ``M`` taps in both the weights and the regressor, and ``lambda_k``
-bounded to ``[lambda_min, 1]``. The regressor is the filter's input ``u`` (for the MOSFET,
-the slope of the nominal source on each interval). The estimate is the a posteriori output
-``phi_k^T W_k``; the residual is ``zeta_k``.
+denominator is ``1 + phi^T P phi`` as printed. Fixes to the printed form
+(docs/thesis-notes.md, note 17): ``W_{k-1}`` in 1.13, ``M`` taps in both the weights and the
+regressor, and ``lambda_k`` bounded to ``[lambda_min, 1]``. The regressor is the filter's
+input ``u`` (for the MOSFET, the slope of the nominal source on each interval). The estimate
+is the a posteriori output ``phi_k^T W_k``; the residual is ``zeta_k``.
 
 Eq 1.16 computes every ``lambda_k`` from that step's error, so an initial forgetting factor
 has no role in it: ``lambda0`` is the constant factor of ``forgetting: fixed``

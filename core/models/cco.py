@@ -1,6 +1,6 @@
 """BJT cross-coupled oscillator with Ebers-Moll transistors (thesis §2.1, eqs 2.1-2.42).
 
-The printed equations 2.1-2.5 do not describe one circuit (notes.md item 1: Z_2 and Z_4
+The printed equations 2.1-2.5 do not describe one circuit (docs/thesis-notes.md, note 1: Z_2 and Z_4
 swap roles, eq 2.4 carries I_B2 where 2.20 has I_B1, and nothing couples a collector to
 the other base although the text says so). This model is the cross-coupled pair the text
 and Table 2.1 describe, built from KCL (docs/deviations.md):

@@ -5,7 +5,8 @@ States ``x = [v_E, q_L, v_C1, v_C2]`` (eq 3.60), inputs the base voltages
 
 The printed circuit (Fig 3.8) has one capacitor, C_L, so v_E, v_C1 and v_C2 are fixed by
 KCL (3.44-3.46) at every instant; the thesis differentiates those constraints to obtain
-ODEs driven by v_1', v_2' (3.52-3.55, whose r-coefficients carry typos, notes.md item 8).
+ODEs driven by v_1', v_2' (3.52-3.55, whose r-coefficients carry typos: docs/thesis-notes.md,
+note 8).
 Here each of the three nodes carries a small parasitic capacitance ``C_par`` to ground
 (the junction and wiring capacitance every real node has), which turns the index-1 DAE
 into a stiff ODE with the same four states; as ``C_par -> 0`` it tends to the DAE. The
@@ -17,10 +18,10 @@ drift and its Jacobian come from the circuit equations directly:
     C_par v_C2' = (V_CC - v_C2)/R_C2 - I_C2 + i_L          (3.46)
 
 with the Ebers-Moll terminal currents of eqs 3.48-3.51 (into the terminals) and
-``V_EE = -12 V`` as a signed supply voltage (notes.md item 3).
+``V_EE = -12 V`` as a signed supply voltage (docs/thesis-notes.md, note 3).
 
 Variants: ``completed`` (default) biases the pair where it amplifies, ``R_E = 48.3 kΩ``
-(circuit-facts.md: tail current about 0.25 mA, differential gain about 23.5 dB with R_L);
+(tail current about 0.25 mA, differential gain about 23.5 dB with R_L: tests/test_diffamp.py);
 ``thesis_printed`` keeps the printed ``R_E = 100 Ω`` of §3.2.3, with which both transistors
 saturate.
 """

@@ -8,7 +8,7 @@ Eqs 2.48-2.51 model each transistor by its base-emitter diode alone,
 
 with ``beta = alpha/(1 - alpha)``, so the base-collector junction never conducts and the
 transistor cannot saturate. ``I_E`` here is the current into the emitter terminal, i.e.
-minus eq 2.49 (notes.md item 3: the printed sign differs from the Ebers-Moll eq 2.7).
+minus eq 2.49 (docs/thesis-notes.md, note 3: the printed sign differs from the Ebers-Moll eq 2.7).
 The default ``I_0 = (1 - alpha) I_ES`` gives the same forward collector current as the
 Ebers-Moll model's default, so both amplifiers share an operating point.
 """

@@ -13,7 +13,7 @@ Variants
 --------
 ``thesis_literal``
     The network exactly as printed (eqs 3.1-3.4): drain, source and bulk reach the rest of
-    the circuit only through capacitors, so no DC current can flow (circuit-facts.md).
+    the circuit only through capacitors, so no DC current can flow (D1, tested).
 ``completed`` (default)
     The same network plus what it needs to work as an amplifier: a load ``R_D`` from
     ``V_DD`` to the drain, ``R_S`` and ``R_B`` returning source and bulk to ground, and a

@@ -4,8 +4,8 @@
 Carlo runs under other x86-64 arithmetic (OpenBLAS's Zen and Haswell kernels, numpy without
 AVX-512) and writes every (config, claim, cell) whose ``verdict`` or ``verdict_family``
 moved to ``results/fragile_verdicts.csv``. Such a verdict is rounding, not a finding:
-``estim summary``, the README's blocks and the report count it as fragile beside the claim
-(docs/claims.md).
+``estim summary``, the generated blocks of docs/results.md and the report count it as
+fragile beside the claim (docs/claims.md).
 """
 
 from __future__ import annotations

@@ -42,6 +42,13 @@ th { background: #f0f0f0; } td.t, td.text { text-align: left; }
 tr.fail td { background: #f8d0d0; } .meta { color: #555; font-size: 0.85em; }
 figure { display: inline-block; margin: 0.5em; } figure img { max-width: 46em; }
 figcaption { font-size: 0.8em; color: #555; } pre { white-space: pre-wrap; font-size: 0.85em; }
+div.scroll { overflow: auto; max-width: 100%; max-height: 36em; margin: 0.6em 0 1.2em; }
+div.scroll table { margin: 0; }
+table.data thead th { position: sticky; top: 0; z-index: 1; }
+table.data td:first-child, table.data th:first-child { position: sticky; left: 0;
+  background: #fafafa; }
+table.data thead th:first-child { z-index: 2; background: #f0f0f0; }
+table.headline td.bad { background: #f8d0d0; } table.headline td.good { background: #d8efd8; }
 """
 
 FIGURE_WIDTH = 560
@@ -70,14 +77,18 @@ class Section:
     """Captions of the tables with no value in any cell (keys alone): named, not drawn."""
     fragile: int = 0
     """Claim cells whose verdict another machine's arithmetic moves (:mod:`.fragility`)."""
+    fragile_cells: pd.DataFrame | None = None
+    """The fragile verdicts' table (:func:`estim.report.fragility.read`) of the results."""
 
 
 def deviation_entries(markdown: str) -> dict[str, str]:
     """``{"D12": text}`` from docs/deviations.md: each entry runs from its bold ``**D12.``
-    to the next entry or heading."""
+    to the next entry or heading (the anchor line before each entry left out)."""
     out: dict[str, str] = {}
     current, lines = None, []
     for line in markdown.splitlines():
+        if re.fullmatch(r'<a id="d\d+"></a>', line):       # the docs site's anchor
+            continue
         match = re.match(r"\*\*(D\d+)\.", line)
         if match or line.startswith("#"):
             if current:
@@ -123,8 +134,8 @@ def _table(caption: str, df: pd.DataFrame, source: str = "", rows_max: int | Non
                         + html.escape(tables.number(v)) + "</td>" for v in row)
         cls = ' class="fail"' if failing is not None and bool(failing.iloc[i]) else ""
         rows.append(f"<tr{cls}>{cells}</tr>")
-    return (f"<h3>{html.escape(caption)}</h3><table><thead><tr>{head}</tr></thead>"
-            f"<tbody>{''.join(rows)}</tbody></table>{note}")
+    return (f'<h3>{html.escape(caption)}</h3><div class="scroll"><table class="data"><thead>'
+            f"<tr>{head}</tr></thead><tbody>{''.join(rows)}</tbody></table></div>{note}")
 
 
 def _meta(manifest: dict) -> str:
@@ -256,6 +267,44 @@ def summary(section: Section) -> dict:
     return out
 
 
+def _headline(sections: list[Section]) -> str:
+    """The headline table, first on the page: per row of :data:`estim.report.summary.HEADLINE`
+    (a thesis or paper table) its headline claim and that claim's verdicts after Holm's
+    correction, as the README's generated table gives them."""
+    from estim.experiments.shared import claims as judged
+    from estim.report.summary import HEADLINE
+
+    by_name = {s.name: s for s in sections}
+    rows = []
+    for table, name, claim in HEADLINE:
+        s = by_name.get(name)
+        df = next((d for m, _, d in s.tables if m == "claims"), None) if s else None
+        if df is None or "verdict_family" not in df:
+            continue
+        found = judged.counts(df)
+        row = found.iloc[0] if claim is None else found[found["claim"] == claim].iloc[0]
+        moved = fragility.cells(s.fragile_cells, name).get(row["claim"], set()) \
+            if s.fragile_cells is not None else set()
+        link = f'<a href="#{html.escape(name)}">{html.escape(name)}</a>'
+        rows.append(f'<tr><td class="text">{html.escape(table)}</td><td class="text">{link}'
+                    f'</td><td class="text">{html.escape(str(row["claim"]))}</td>'
+                    f'<td class="{"good" if row["holds"] else "num"}">{row["holds"]}</td>'
+                    f'<td class="{"bad" if row["fails"] else "num"}">{row["fails"]}</td>'
+                    f'<td class="num">{row["undecided"]}</td><td class="num">{row["cells"]}'
+                    f'</td><td class="num">{len(moved)}</td></tr>')
+    if not rows:
+        return ""
+    head = ("<tr><th>thesis</th><th>experiment</th><th>headline claim</th><th>holds</th>"
+            "<th>fails</th><th>undecided</th><th>of cells</th><th>fragile</th></tr>")
+    return ('<h2 id="headline">What holds</h2><p class="meta">The headline claim of each '
+            "thesis and paper table, judged over its cells (a row of the printed table) by "
+            "the paired runs of both estimators, at 95 % with Holm's correction within the "
+            "claim; a fragile cell's verdict moves under another x86-64 machine's rounding. "
+            "The summary below gives every experiment; each section every claim.</p>"
+            f'<table class="headline"><thead>{head}</thead><tbody>{"".join(rows)}</tbody>'
+            "</table>")
+
+
 def _summary_table(sections: list[Section]) -> str:
     head = ("<tr><th>experiment</th><th>claims hold</th><th>fail</th><th>undecided</th>"
             "<th>cells beside a printed value</th><th>ratio ours/printed</th>"
@@ -286,10 +335,13 @@ def _summary_table(sections: list[Section]) -> str:
 def page(title: str, sections: list[Section], full: bool = False) -> str:
     """The whole page as one string (UTF-8 HTML5, no external resources); with ``full``
     every PNG as stored, else shrunk (:func:`shrink_png`)."""
-    toc = ['<nav id="toc"><strong>Contents</strong><a href="#summary">Summary</a>']
+    headline = _headline(sections)
+    toc = ['<nav id="toc"><strong>Contents</strong>'
+           + ('<a href="#headline">What holds</a>' if headline else "")
+           + '<a href="#summary">Summary</a>']
     toc += [f'<a href="#{html.escape(s.name)}">{html.escape(s.name)}</a>' for s in sections]
     toc.append("</nav>")
-    body = [_summary_table(sections)]
+    body = [headline, _summary_table(sections)]
     for s in sections:
         part = [f'<h2 id="{html.escape(s.name)}">{html.escape(s.name)}: '
                 f"{html.escape(s.title)}</h2>", _meta(s.manifest)]
@@ -343,7 +395,13 @@ def sections(results, deviations_text: str, config_dir, analyses: dict) -> list[
     from pathlib import Path
 
     from estim.errors import ReferenceJoinError
-    from estim.store import read_manifest, read_stored, read_table, stored_table_path
+    from estim.store import (
+        read_manifest,
+        read_run_record,
+        read_stored,
+        read_table,
+        stored_table_path,
+    )
 
     entries = deviation_entries(deviations_text) if deviations_text else {}
     fragile = fragility.read(Path(results))
@@ -358,8 +416,10 @@ def sections(results, deviations_text: str, config_dir, analyses: dict) -> list[
         analysis = analyses.get(name) if isinstance(name, str) else None
         if analysis is None:
             raise UsageError(f"{manifest_path}: names an unknown analysis {str(name)[:60]!r}")
-        section = Section(folder.name, str(config.get("title") or ""), manifest,
-                          fragile=sum(map(len, fragility.cells(fragile, folder.name).values())))
+        section = Section(folder.name, str(config.get("title") or ""),
+                          {**manifest, **read_run_record(folder)},
+                          fragile=sum(map(len, fragility.cells(fragile, folder.name).values())),
+                          fragile_cells=fragile)
         for metric, spec in analysis.TABLES.items():
             path = stored_table_path(folder, spec)
             if path is None:

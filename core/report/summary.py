@@ -3,7 +3,7 @@
 For every stored experiment: each claim's verdict counts (holds / fails / undecided out of
 the cells it was judged in, :mod:`estim.experiments.shared.claims`) with the range of the ratio of
 the losses, and the ranges of the quantities its analysis quotes (:class:`Quote`, declared in the
-analysis module as ``QUOTES``). The README's results sections embed these blocks between
+analysis module as ``QUOTES``). docs/results.md's results sections embed these blocks between
 markers (:func:`refresh`), and a test fails when one of them no longer matches the stored
 tables.
 """
@@ -202,6 +202,49 @@ def as_data(results: Path, analyses: dict) -> list[dict]:
     return out
 
 
+HEADLINE = (
+    ("2.1", "cco_distortion", None), ("2.2", "diffamp_distortion", None),
+    ("2.3", "diffamp_em_distortion", None), ("2.4", "mosfet_distortion", None),
+    ("3.1, 3.3", "mosfet_conduction", None), ("3.2, 3.4", "mosfet_saturation", None),
+    ("3.5", "diffamp_ekf", None), ("4.1", "kronecker_table_4_1", None),
+    ("4.2", "kronecker_table_4_2", None), ("4.3, 4.4", "kronecker_burden", None),
+    ("5.1-5.12", "dipole_literal", None), ("5.1-5.12 (on the field)", "dipole_field",
+                                           "KF RMSE < RLS RMSE"),
+    ("FIR paper, Table II", "fir_differentiator", None),
+    ("Kalman differentiator paper", "kalman_differentiator", None),
+    ("passive-network paper", "passive_network", None),
+    ("image papers", "image_kalman", "NSHP Kalman, adaptive MSE < NSHP Kalman MSE"),
+)
+"""The headline table's rows: the thesis or paper table, the experiment, and the claim that
+is its headline (``None``: the experiment's first claim)."""
+
+
+def headline(results: Path) -> list[str]:
+    """The headline table (Markdown): per row of :data:`HEADLINE`, the claim and its
+    family-corrected verdict counts from the stored claims table, with the fragile cells
+    and how many other claims the experiment judges."""
+    lines = ["| thesis | experiment | headline claim | holds | fails | undecided | of cells "
+             "| fragile | other claims |", "|---|---|---|---|---|---|---|---|---|"]
+    fragile = fragility.read(results)
+    for table, name, claim in HEADLINE:
+        path = results / name / claims.TABLE.file
+        if not path.is_file():
+            lines.append(f"| {table} | {name} | (no stored results) | | | | | | |")
+            continue
+        found = claims.counts(read_table(path, claims.TABLE))
+        row = found.iloc[0] if claim is None else found[found["claim"] == claim].iloc[0]
+        moved = len(fragility.cells(fragile, name).get(row["claim"], set()))
+        said = str(row["claim"]).replace("|", "\\|")
+        lines.append(f"| {table} | `{name}` | {said} | {row[claims.HOLDS]} | "
+                     f"{row[claims.FAILS]} | {row[claims.UNDECIDED]} | {row['cells']} | "
+                     f"{moved} | {len(found) - 1} |")
+    return lines
+
+
+HEADLINE_BLOCK = re.compile(r"(<!-- headline -->\n)(?P<body>.*?)(<!-- /headline -->)", re.S)
+"""The headline table's generated block in a Markdown file."""
+
+
 BLOCK = re.compile(r"(<!-- summary: (?P<name>[A-Za-z0-9_.-]+) -->\n)(?P<body>.*?)"
                    r"(<!-- /summary -->)", re.S)
 """A generated block in a Markdown file: ``<!-- summary: NAME -->`` ... ``<!-- /summary -->``."""
@@ -209,7 +252,7 @@ BLOCK = re.compile(r"(<!-- summary: (?P<name>[A-Za-z0-9_.-]+) -->\n)(?P<body>.*?
 
 def refresh(text: str, results: Path, analyses: dict) -> tuple[str, list[str]]:
     """``text`` with every summary block re-generated from ``results``, and the names of
-    the blocks whose content changed (a stale README names them)."""
+    the blocks whose content changed (a stale file names them)."""
     stale = []
 
     def fill(match: re.Match) -> str:
@@ -220,4 +263,11 @@ def refresh(text: str, results: Path, analyses: dict) -> tuple[str, list[str]]:
             stale.append(name)
         return match.group(1) + body + match.group(4)
 
+    def fill_headline(match: re.Match) -> str:
+        body = "\n".join(headline(results)) + "\n"
+        if body != match.group("body"):
+            stale.append("headline")
+        return match.group(1) + body + match.group(3)
+
+    text = HEADLINE_BLOCK.sub(fill_headline, text)
     return BLOCK.sub(fill, text), stale

@@ -5,6 +5,7 @@ beside ours (:mod:`estim.reference` joins them).
 from __future__ import annotations
 
 import math
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -101,13 +102,99 @@ def render(df: pd.DataFrame, fmt: str) -> str:
     return cells.to_string(index=False, line_width=TEXT_WIDTH)
 
 
+def fit(df: pd.DataFrame, spec, width: int) -> tuple[pd.DataFrame, list[str]]:
+    """``df`` cut to ``width`` characters of text, and the notes saying how: a column with
+    one value in every row is said once in a note, a key the other keys determine (a
+    table id, a zone's βr) is left out; then the table's keys, each printed value with the
+    thesis' value and the ratio beside it, the words (a verdict), and the other values in
+    their order, as many as fit (a text cell as :func:`number` writes it, one space apart); the
+    values left out are named in a note. The keys stay even where they alone are wider
+    (:func:`text_blocks` then wraps). ``width`` 0: nothing is cut."""
+    if width <= 0 or not len(df):
+        return df, []
+    notes = []
+    same = [c for c in df.columns if df[c].nunique(dropna=False) <= 1]
+    if same and len(df) > 1:
+        notes.append("in every row: " + ", ".join(f"{c} = {number(df[c].iloc[0])}"
+                                                   for c in same))
+        df = df.drop(columns=same)
+    keys = [c for c in df.columns if c in spec.keys or c.startswith(("sweep:",))]
+    implied = []
+    for k in list(keys):
+        others = [c for c in keys if c != k and c not in implied]
+        if others and (df.groupby(others, sort=False, dropna=False)[k]
+                       .nunique(dropna=False).max() <= 1):
+            implied.append(k)
+    if implied:
+        notes.append(f"{', '.join(implied)}: given by the other keys, left out")
+        df = df.drop(columns=implied)
+        keys = [k for k in keys if k not in implied]
+    df, shortened = _shorten_keys(df, keys, KEYS_SHARE * width)
+    if shortened:
+        notes.append(f"long cells of {', '.join(shortened)} shortened (…)")
+    printed = [c for r in spec.reference for c in (r, f"thesis_{r}", f"ratio_{r}")
+               if c in df.columns]
+    words = [c for c in spec.text if c in df.columns]
+    first = keys + printed + words
+    order = first + [c for c in df.columns if c not in first]
+
+    def cost(c: str) -> int:
+        return max(len(str(c)), *(len(number(v)) for v in df[c].tolist())) + 1
+    used, shown, dropped = 0, [], []
+    for c in order:
+        if c in keys or used + cost(c) <= width:
+            shown.append(c)
+            used += cost(c)
+        else:
+            dropped.append(c)
+    if dropped:
+        notes.append(f"left out for a width of {width}: {', '.join(dropped)} "
+                     "(--width 0 or --format csv shows every column)")
+    return df[shown], [textwrap.fill(n, width - 2, break_on_hyphens=False) for n in notes]
+
+
+KEYS_SHARE = 0.6
+"""The share of the width the keys may take before their longest text cells are shortened."""
+
+SHORTEST = 12
+"""No text cell is shortened below this many characters."""
+
+
+def _shorten_keys(df: pd.DataFrame, keys: list[str], room: float) -> tuple[pd.DataFrame, list]:
+    """``df`` with the text cells of its widest key columns cut (ending in "…") until the
+    keys take at most ``room`` characters or no column can be cut further (none is cut so
+    far that two of its cells would read the same); the columns cut."""
+    cut, whole = [], set()
+    while True:
+        cells = {k: max(len(number(v)) for v in df[k].tolist()) for k in keys}
+        widths = {k: max(len(k), cells[k]) + 1 for k in keys}
+        if sum(widths.values()) <= room:
+            return df, cut
+        floor = {k: max(len(k), SHORTEST) for k in keys}
+        text_keys = [k for k in keys if not pd.api.types.is_numeric_dtype(df[k])
+                     and cells[k] > floor[k] and k not in whole]
+        if not text_keys:
+            return df, cut
+        k = max(text_keys, key=cells.get)
+        limit = max(floor[k], cells[k] - (sum(widths.values()) - int(room)))
+        short = [v if len(str(v)) <= limit else str(v)[:limit - 1] + "…"
+                 for v in df[k].tolist()]
+        if len(set(short)) < df[k].nunique():          # two cells would read the same
+            whole.add(k)
+            continue
+        df = df.assign(**{k: short})
+        if k not in cut:
+            cut.append(k)
+
+
 def stored(results, metric: str, fmt: str, thesis: bool, partial: bool,
-           analyses: dict, only: tuple[str, ...] = ()) -> str:
+           analyses: dict, only: tuple[str, ...] = (), width: int = 0) -> str:
     """What ``estim table`` prints: the ``metric`` tables of every experiment stored under
     ``results`` in ``fmt`` (text, csv, markdown, latex), with the printed values and the
     ratios beside ours when ``thesis``. csv is one table over all experiments (an
     ``experiment`` column first); the others one table per experiment under its title.
-    ``only``: just these experiments (folder names). With ``thesis``, the experiments with
+    ``only``: just these experiments (folder names); ``width``: text cut to it
+    (:func:`fit`). With ``thesis``, the experiments with
     no printed table are left out and named in one closing line (the only line when no
     experiment has one). A thesis join that fails, an experiment of ``only`` that holds no
     such table, or no values at all, is a ``UsageError``."""
@@ -142,12 +229,20 @@ def stored(results, metric: str, fmt: str, thesis: bool, partial: bool,
         if fmt == "csv":
             frames.append(df.assign(experiment=folder.name)[["experiment", *df.columns]])
             continue
-        ids = ", ".join(sorted({str(t) for t in df.get("table_id", []) if t}))
+        ids = ", ".join(sorted({str(t) for t in df.get("table_id", []) if t},
+                               key=lambda t: [int(x) if x.isdigit() else x
+                                              for x in t.split(".")]))
         note = f" (thesis Table {ids})" if ids else ""
         title = f"{folder.name}: {spec.title}" if spec.title else folder.name
         head = {"text": f"== {title}{note}", "markdown": f"### {title}{note}\n"}.get(
             fmt, f"% {latex_escape(title + note)}")
-        parts.append(f"{head}\n{render(df, fmt)}")
+        notes: list[str] = []
+        if fmt == "text":
+            df, notes = fit(df, spec, width)
+            if width > 0:
+                head = textwrap.fill(head, width, subsequent_indent="   ",
+                                     break_on_hyphens=False)
+        parts.append(f"{head}\n" + "".join(f"({n})\n" for n in notes) + render(df, fmt))
     if frames:
         parts.append(render(pd.concat(frames, ignore_index=True), "csv").rstrip("\n"))
     if unprinted and (parts or not frames) and fmt != "csv":

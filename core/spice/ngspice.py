@@ -4,8 +4,8 @@
 given samples, estim's device models in SPICE's terms), runs ``ngspice -b``, and reads the
 node voltages back, resampled on the input's time grid (ngspice's own time points are not
 uniform: ``linearize``). ngspice finds its own DC operating point, so the comparison covers
-the DC point too. Its exit code is unreliable (circuit-facts.md): the log is read for
-"Error", "aborted" and "Timestep too small".
+the DC point too. Its exit code is unreliable (ngspice 39 exits 0 after some failures): the
+log is read for "Error", "aborted" and "Timestep too small".
 
 Translations: an ``npn``/``pnp`` model (``ies alpha_f alpha_r vt``) becomes SPICE's
 transport form, ``IS = alpha_f ies``, ``BF = alpha_f / (1 - alpha_f)``, ``BR = alpha_r /
