@@ -122,5 +122,5 @@ def test_the_quick_start_times_are_the_measured_ones():
         line = next(r for r in block.splitlines() if f"`{row['command']}`" in r)
         cells = [c.strip() for c in line.strip("|").split("|")]
         assert cells[1:] == [_duration(float(row["wall_s"])), _memory(float(row["peak_mb"]))]
-    assert rows[0]["git_status_clean"] == "yes"
+    assert rows[0]["git_status_clean"] == "yes" and rows[0]["exit"] == "0"
     assert f"commit {rows[0]['commit']}" in readme and rows[0]["machine"] in readme

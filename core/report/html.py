@@ -297,7 +297,7 @@ def _headline(sections: list[Section]) -> str:
     head = ("<tr><th>thesis</th><th>experiment</th><th>headline claim</th><th>holds</th>"
             "<th>fails</th><th>undecided</th><th>of cells</th><th>fragile</th></tr>")
     return ('<h2 id="headline">What holds</h2><p class="meta">The headline claim of each '
-            "thesis and paper table, judged over its cells (a row of the printed table) by "
+            "thesis and paper table, judged over its cells (a condition of the printed table) by "
             "the paired runs of both estimators, at 95 % with Holm's correction within the "
             "claim; a fragile cell's verdict moves under another x86-64 machine's rounding. "
             "The summary below gives every experiment; each section every claim.</p>"
