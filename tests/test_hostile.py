@@ -258,6 +258,8 @@ HOSTILE = [
     ("dipole_literal", {"source.frequency": 0}, "source.frequency", "positive number"),
     ("dipole_literal", {"zones.0.points_r": 2}, "zones[0].points_r", "integer from 3"),
     ("dipole_field", {"filter.inflation": 0.5}, "filter.inflation", "number >= 1"),
+    ("dipole_field", {"sensors.seed": -1}, "sensors.seed", "integer"),
+    ("dipole_field", {"sensors.seed": "five"}, "sensors.seed", "integer"),
     ("dipole_field", {"sensors.measurement_sigma": 0}, "sensors.measurement_sigma",
      "positive number"),
     ("dipole_field", {"time.spinup_periods": 0}, "time.spinup_periods", "integer from 1"),

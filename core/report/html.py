@@ -271,8 +271,7 @@ def _headline(sections: list[Section]) -> str:
     """The headline table, first on the page: per row of :data:`estim.report.summary.HEADLINE`
     (a thesis or paper table) its headline claim and that claim's verdicts after Holm's
     correction, as the README's generated table gives them."""
-    from estim.experiments.shared import claims as judged
-    from estim.report.summary import HEADLINE
+    from estim.report.summary import HEADLINE, headline_counts
 
     by_name = {s.name: s for s in sections}
     rows = []
@@ -281,8 +280,7 @@ def _headline(sections: list[Section]) -> str:
         df = next((d for m, _, d in s.tables if m == "claims"), None) if s else None
         if df is None or "verdict_family" not in df:
             continue
-        found = judged.counts(df)
-        row = found.iloc[0] if claim is None else found[found["claim"] == claim].iloc[0]
+        row, _ = headline_counts(df, claim)
         moved = fragility.cells(s.fragile_cells, name).get(row["claim"], set()) \
             if s.fragile_cells is not None else set()
         link = f'<a href="#{html.escape(name)}">{html.escape(name)}</a>'

@@ -219,6 +219,15 @@ HEADLINE = (
 is its headline (``None``: the experiment's first claim)."""
 
 
+def headline_counts(df: pd.DataFrame, claim: str | None) -> tuple[pd.Series, int]:
+    """Of a claims table: the family verdict counts of ``claim`` (``None``: the first
+    claim), as :func:`estim.experiments.shared.claims.counts` gives them, and how many other
+    claims it holds."""
+    found = claims.counts(df)
+    row = found.iloc[0] if claim is None else found[found["claim"] == claim].iloc[0]
+    return row, len(found) - 1
+
+
 def headline(results: Path) -> list[str]:
     """The headline table (Markdown): per row of :data:`HEADLINE`, the claim and its
     family-corrected verdict counts from the stored claims table, with the fragile cells
@@ -231,13 +240,12 @@ def headline(results: Path) -> list[str]:
         if not path.is_file():
             lines.append(f"| {table} | {name} | (no stored results) | | | | | | |")
             continue
-        found = claims.counts(read_table(path, claims.TABLE))
-        row = found.iloc[0] if claim is None else found[found["claim"] == claim].iloc[0]
+        row, others = headline_counts(read_table(path, claims.TABLE), claim)
         moved = len(fragility.cells(fragile, name).get(row["claim"], set()))
         said = str(row["claim"]).replace("|", "\\|")
         lines.append(f"| {table} | `{name}` | {said} | {row[claims.HOLDS]} | "
                      f"{row[claims.FAILS]} | {row[claims.UNDECIDED]} | {row['cells']} | "
-                     f"{moved} | {len(found) - 1} |")
+                     f"{moved} | {others} |")
     return lines
 
 
