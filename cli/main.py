@@ -76,7 +76,12 @@ def main(debug: bool) -> None:
 @click.option("--quiet", is_flag=True, help="No progress and no summary.")
 def run(configs, out, runs, seed, update_baseline, quick, jobs, max_work, executor, scheduler,
         no_resume, figure_format, shard, quiet) -> None:
-    """Run the experiment(s) of CONFIGS and write OUT/<config name>/.
+    """Run the experiment(s) of CONFIGS and write OUT/NAME/ for each config NAME.
+
+    A folder holds its tables (CSV; claims.csv judges the claims), manifest.json (what the
+    tables depend on), run.json (command, commit, wall time, host; git ignores it) and,
+    where the config draws any, figures/ (machine/, git-ignored, holds what measures the
+    machine).
 
     CONFIGS may mix config files and overrides KEY.PATH=VALUE (the value is YAML; list
     items by index), applied to every config before it is validated, e.g.
@@ -274,7 +279,7 @@ def check(configs, results, jobs, max_work, everything, as_json) -> None:
 @click.option("--fit-r", is_flag=True, help="Fit R too (reported as not identifiable when "
                                            "the data cannot tell Q from R).")
 @click.option("--out", type=NamedPath(dir_okay=False, path_type=Path),
-              help="Overlay file [default: fitted/<config name>.yaml beside the config].")
+              help="Overlay file [default: fitted/NAME.yaml beside the config NAME].")
 @max_work_option
 def tune(config, label, new_label, runs, fit_r, out, max_work) -> None:
     """Fit the Q (and R) of one estimator of CONFIG by maximum likelihood and write the
