@@ -147,6 +147,23 @@ def on_shared_pool(exps: list[Experiment], jobs: int, recorded: Path,
                                       on_error=lambda: scheduler.stop(pool))
 
 
+def markdown(text: str, terminal: bool | None = None) -> None:
+    """Print Markdown: rendered by rich on a terminal (bold, bullets, ruled tables), as it is
+    when piped or redirected, so that ``estim summary > file.md`` is still Markdown.
+    ``terminal`` overrides the check of standard output (None: ask it)."""
+    import os
+
+    if terminal is None:
+        terminal = sys.stdout.isatty() and os.environ.get("TERM") != "dumb"
+    if not terminal:
+        click.echo(text, nl=not text.endswith("\n"))
+        return
+    from rich.console import Console
+    from rich.markdown import Markdown
+
+    Console(file=sys.stdout, force_terminal=True).print(Markdown(text))
+
+
 def _duration(seconds: float) -> str:
     seconds = max(0.0, seconds)
     if seconds < 60:
@@ -157,7 +174,7 @@ def _duration(seconds: float) -> str:
 
 class Overall:
     """The progress of several configs run together: one bar over all of them on a terminal
-    (tqdm), else a line per finished config and at most one every :attr:`EVERY` seconds in
+    (rich), else a line per finished config and at most one every :attr:`EVERY` seconds in
     between; then a closing summary. The time left is estimated from the wall time each
     config's stored manifest records (a work unit weighs its config's time over its units),
     not from counts of units whose cost differs a thousandfold between configs."""
@@ -186,12 +203,21 @@ class Overall:
         click.echo(f"{self.verb}: {self.count} configs, {sum(self.units.values())} work "
                    "units ...", err=True)
         if sys.stderr.isatty():
-            from tqdm import tqdm
+            from rich.progress import (
+                BarColumn,
+                Progress,
+                TextColumn,
+                TimeElapsedColumn,
+                TimeRemainingColumn,
+            )
 
-            self._bar = tqdm(total=round(self.total, 1), file=sys.stderr, unit="s",
-                             bar_format="{l_bar}{bar}| {percentage:3.0f}% of the work "
-                                        "[{elapsed} elapsed, {remaining} left]",
-                             desc=self.verb, leave=False)
+            self._bar = Progress(
+                TextColumn("{task.description}"), BarColumn(),
+                TextColumn("{task.percentage:>3.0f}% of the work ["), TimeElapsedColumn(),
+                TextColumn("elapsed,"), TimeRemainingColumn(), TextColumn("left]"),
+                transient=True, redirect_stdout=sys.stdout.isatty(), redirect_stderr=True)
+            self._task = self._bar.add_task(self.verb, total=self.total)
+            self._bar.start()
 
     def _left(self) -> str:
         elapsed = time.perf_counter() - self.start_time
@@ -206,7 +232,7 @@ class Overall:
         if self.quiet:
             return
         if self._bar is not None:
-            self._bar.update(round(weight, 3))
+            self._bar.update(self._task, advance=weight)
             return
         now = time.perf_counter()
         if now - self._last_line >= self.EVERY:
@@ -233,27 +259,19 @@ class Overall:
             self._say(f"{exp.name}: resumed with {resumed} finished cell(s) of an earlier run")
         line = (f"{exp.name} -> {folder / exp.name} ({_duration(seconds)}{said}) "
                 f"[{self.finished}/{self.count}]")
-        if self._bar is not None:
-            self._bar.write(line, file=sys.stdout)
-        else:
-            click.echo(line)
+        click.echo(line)
 
     def echo(self, text: str) -> None:
-        """A result line on standard output, above the bar when there is one."""
-        if self._bar is not None:
-            self._bar.write(text, file=sys.stdout)
-        else:
-            click.echo(text)
+        """A result line on standard output (above the bar when both are one terminal: the
+        bar redirects what is printed there)."""
+        click.echo(text)
 
     def _say(self, text: str) -> None:
-        if self._bar is not None:
-            self._bar.write(text, file=sys.stderr)
-        else:
-            click.echo(text, err=True)
+        click.echo(text, err=True)
 
     def close(self, finished: bool = True) -> None:
         if self._bar is not None:
-            self._bar.close()
+            self._bar.stop()
             self._bar = None
         if self.quiet or not finished:
             return

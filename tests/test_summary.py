@@ -209,3 +209,17 @@ def test_more_runs_do_not_settle_the_fragile_cells_as_docs_claims_says():
     assert ("6 cells of `EKF RMSE < RLS RMSE` still move, 2 in the hand model and 4 in its "
             "twin, against 5 at 30 runs") in text
     assert len(fragility.read(ROOT / "results")) == 5
+
+
+def test_markdown_is_rendered_on_a_terminal_and_kept_when_piped(capsys):
+    """``estim summary`` and ``estim settings`` print Markdown: rich renders it on a terminal
+    (no ``**`` or table rule left), and it stays Markdown when piped."""
+    from estim.cli import output
+
+    text = "**cco**: a title\n- `claim`: holds 2\n\n| key | type |\n|---|---|\n| Q | float |\n"
+    output.markdown(text, terminal=False)
+    assert capsys.readouterr().out == text
+    output.markdown(text, terminal=True)
+    shown = capsys.readouterr().out
+    assert "cco" in shown and "float" in shown
+    assert "**" not in shown and "|---|" not in shown and "\x1b[" in shown

@@ -52,7 +52,7 @@ NUMERIC_PACKAGES = ("numpy", "scipy", "pandas", "matplotlib", "numba", "llvmlite
 """The packages whose versions the tables and figures can depend on: recorded, with
 Python's, in the tracked manifest."""
 
-OTHER_PACKAGES = ("estim", "click", "PyYAML", "tqdm")
+OTHER_PACKAGES = ("estim", "click", "PyYAML", "rich")
 """Recorded in the run record only: they change no number."""
 
 MACHINE_DIR = "machine"
