@@ -33,6 +33,9 @@ pd = lazy.load("pandas")
 
 SETTINGS = {"grid.n": int, "sensors.fraction": float, "filter.members": int}
 """The settings a study may vary, and their type."""
+IN_WORDS = {"grid.n": "grid points per side", "sensors.fraction":
+            "fraction of grid points with a sensor", "filter.members": "ensemble members"}
+"""Each setting of :data:`SETTINGS` as its figure names it."""
 
 
 @settings_class
@@ -183,7 +186,7 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
                                   field_component=comp), losses))
     df = pd.DataFrame(rows)[TABLES["rmse"].columns]
     table = claims.table(cells, CLAIMS, "RMSE")
-    figure = plots.field_study(df, study.setting, (field.KF, field.FIT, field.PLAIN,
+    figure = plots.field_study(df, IN_WORDS[study.setting], (field.KF, field.FIT, field.PLAIN,
                                                       field.SOURCE_ONLY))
     return Result(tables={"rmse": df, "claims": table}, figures={"study": figure})
 

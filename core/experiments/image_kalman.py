@@ -351,13 +351,13 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
             fs = config.figures
             pixels = np.arange(1, fs.pixels + 1)
             where = f"{shown}, row {fs.row}, pixels 1-{fs.pixels} (run 1)"
-            figures[fs.accuracy] = plots.pixel_series(pixels, fig["P_norm"], "||P_a||_F",
-                                                         f"Accuracy: {where}")
-            figures[fs.gain] = plots.pixel_series(pixels, fig["K_norm"], "||K||",
-                                                     f"Gain: {where}")
+            figures[fs.accuracy] = plots.pixel_series(
+                pixels, fig["P_norm"], r"accuracy $\Vert P_a \Vert_F$", f"Accuracy: {where}")
+            figures[fs.gain] = plots.pixel_series(
+                pixels, fig["K_norm"], r"gain $\Vert K \Vert$", f"Gain: {where}")
             traces = {name: trace[:fs.pixels, j] for j, name in enumerate(names)}
             figures[fs.parameters] = plots.pixel_series(
-                pixels, traces, "parameter", f"Adaptive parameters: {where}")
+                pixels, traces, "parameter value", f"Adaptive parameters: {where}")
     tables = {"snr": pd.DataFrame(rows)[TABLES["snr"].columns],
               "claims": claims.table(cells, CLAIMS, "MSE"),
               "parameters": pd.DataFrame(params)[TABLES["parameters"].columns]}

@@ -433,7 +433,7 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     for (_, i, p, wanted), (_, _, trace) in zip(tasks, done, strict=True):
         if wanted:
             c = exp.plan.columns[i]
-            title = (f"W = {c.w_um:g} um, L = {c.l_um:g} um, {p.frequency_hz:g} Hz, "
+            title = (f"W = {c.w_um:g} µm, L = {c.l_um:g} µm, {p.frequency_hz:g} Hz, "
                      f"O.U. input noise {p.level:g} ({p.reading})")
             out.figures[named[(c.w_um, c.l_um)]] = plots.estimates_clipped(trace, title)
     return out

@@ -218,10 +218,10 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
         if fig.signal is not None:
             figures[fig.signal] = plots.noisy_signal(
                 data["t"], data["clean"], data["noisy"],
-                f"x = A e^-t + N, A = {fig.A:g}, sigma = {data['sigma']:g} (run 1)")
+                rf"$x = A e^{{-t}} + N$, $A$ = {fig.A:g}, $\sigma$ = {data['sigma']:g} (run 1)")
         if fig.errors is not None:
             figures[fig.errors] = plots.absolute_errors(data["t"], data["errors"],
-                                                           f"A = {fig.A:g}")
+                                                           f"$A$ = {fig.A:g}")
     if on_done:
         on_done()
     return Result(tables={"errors": df, "claims": table}, figures=figures)

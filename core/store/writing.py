@@ -30,13 +30,19 @@ FIGURE_FORMATS = ("png", "pdf", "svg")
 
 def write_figure(fig, path: Path) -> None:
     """A figure in the format its suffix names (PNG, PDF or SVG), without a timestamp or
-    software tag (the same figure gives the same bytes), written atomically."""
+    software tag (the same figure gives the same bytes), written atomically. Its axes'
+    titles and labels (:func:`estim.experiments.shared.plots.style.described`) go into the
+    file's description (PNG and SVG ``Description``, PDF ``Subject``)."""
     fmt = path.suffix.lstrip(".").lower() or "png"
     if fmt not in FIGURE_FORMATS:
         raise ValueError(f"figure format {fmt!r}: expected one of {FIGURE_FORMATS}")
-    meta = {"png": {"Software": None}, "pdf": {"Creator": None, "Producer": None,
-                                               "CreationDate": None},
-            "svg": {"Creator": None, "Date": None}}[fmt]
+    described = getattr(fig, "estim_description", None)
+    meta = {"png": {"Software": None, "Description": described},
+            "pdf": {"Creator": None, "Producer": None, "CreationDate": None,
+                    "Subject": described},
+            "svg": {"Creator": None, "Date": None, "Description": described}}[fmt]
+    meta = {k: v for k, v in meta.items() if v is not None or k != "Description" and
+            k != "Subject"}
     buf = io.BytesIO()
     import matplotlib
 

@@ -35,8 +35,8 @@ def figures(exp: Experiment, data: dict, f: float, level: float, reading: str) -
     period = 1.0 / f
 
     def noise(level: float, reading: str) -> str:
-        return (f"input noise sigma = {level:g} V" if reading == "sigma"
-                else f"input noise variance = {level:g} V^2")
+        return (f"input noise σ = {level:g} V" if reading == "sigma"
+                else f"input noise variance = {level:g} V²")
 
     where = f"{f:g} Hz, {noise(level, reading)}"
     makers = {
