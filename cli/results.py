@@ -88,9 +88,9 @@ def report_page(results, out, full) -> None:
 
     where = project.locate()
     results = results or where.results
-    notes = where.root / "docs" / "deviations.md" if where.root else None
+    pages = sorted((where.root / "docs" / "deviations").glob("*.md")) if where.root else []
     store.ensure_writable(out.parent)               # before the page is built, not after
-    text_ = notes.read_text() if notes and notes.is_file() else ""
+    text_ = "\n".join(page.read_text() for page in pages if page.is_file())
     sections = html_report.sections(results, text_, where.config_dir, ANALYSES)
     if not sections:
         fail(f"no stored results under {results}/ (run 'estim reproduce')")

@@ -124,3 +124,21 @@ def test_the_quick_start_times_are_the_measured_ones():
         assert cells[1:] == [_duration(float(row["wall_s"])), _memory(float(row["peak_mb"]))]
     assert rows[0]["git_status_clean"] == "yes" and rows[0]["exit"] == "0"
     assert f"commit {rows[0]['commit']}" in readme and rows[0]["machine"] in readme
+
+
+def test_the_deviations_index_lists_every_entry_of_the_pages():
+    """docs/deviations.md is what docs/deviation_index.py makes of the chapter pages: one
+    row per D-number, each linking to its page's anchor; every number is on one page."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("deviation_index",
+                                                  ROOT / "docs" / "deviation_index.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert (ROOT / "docs" / "deviations.md").read_text() == module.index(), (
+        "stale: run python docs/deviation_index.py")
+    numbers = [n for page in module.PAGES for n, _ in module.entries(page)]
+    assert len(numbers) == len(set(numbers)) >= 77
+    anchors = re.findall(r'<a id="d(\d+)"></a>', "".join(
+        (ROOT / "docs" / "deviations" / f"{p}.md").read_text() for p in module.PAGES))
+    assert sorted(map(int, anchors)) == sorted(numbers)

@@ -292,7 +292,7 @@ def _image_table():
     import pandas as pd
 
     root = Path(__file__).resolve().parents[1]
-    doc = (root / "docs" / "deviations.md").read_text()
+    doc = (root / "docs" / "deviations" / "papers.md").read_text()
     snr = pd.read_csv(root / "results" / "image_kalman" / "snr.csv")
     return doc, snr.set_index(["image", "estimator"])
 

@@ -45,7 +45,7 @@ def test_d65_the_flipped_coupling_with_x_fed_overflows_as_the_docs_say():
     from estim import api
 
     root = Path(__file__).resolve().parents[1]
-    doc = " ".join((root / "docs" / "deviations.md").read_text().split())
+    doc = " ".join((root / "docs" / "deviations" / "papers.md").read_text().split())
     assert ("overflows at the 13th–17th step (129 of the config's 200 runs at the 15th)"
             in doc and "13th–16th (115 runs at the 15th)" in doc)
     config = api.experiment(str(root / "configs" / "passive_network.yaml")).config

@@ -174,7 +174,7 @@ def test_d33_quotes_how_much_closer_x0_plus_x1_comes_in_table_2_2():
     x0 in Table 2.2's rows, read from the stored table."""
     import pandas as pd
 
-    text = (ROOT / "docs" / "deviations.md").read_text()
+    text = (ROOT / "docs" / "deviations" / "chapter-2.md").read_text()
     assert "only 11–21 % closer" in text
     df = pd.read_csv(ROOT / "results" / "diffamp_distortion" / "distortion.csv")
     closer = 100 * (1 - df["err_first_order_rms"] / df["err_linear_rms"])

@@ -6,7 +6,8 @@ from pathlib import Path
 import pandas as pd
 
 ROOT = Path(__file__).resolve().parents[1]
-DOC = " ".join((ROOT / "docs" / "deviations.md").read_text().split())
+DOC = " ".join(" ".join(p.read_text() for p in (ROOT / "docs" / "deviations").glob("*.md"))
+               .split())
 CLAIMS_DOC = " ".join((ROOT / "docs" / "claims.md").read_text().split())
 
 

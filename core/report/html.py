@@ -82,8 +82,8 @@ class Section:
 
 
 def deviation_entries(markdown: str) -> dict[str, str]:
-    """``{"D12": text}`` from docs/deviations.md: each entry runs from its bold ``**D12.``
-    to the next entry or heading (the anchor line before each entry left out)."""
+    """``{"D12": text}`` from the pages of docs/deviations/: each entry runs from its bold
+    ``**D12.`` to the next entry or heading (the anchor line before each entry left out)."""
     out: dict[str, str] = {}
     current, lines = None, []
     for line in markdown.splitlines():
@@ -371,7 +371,7 @@ def page(title: str, sections: list[Section], full: bool = False) -> str:
                         "image; re-run with --figure-format png or svg): "
                         + html.escape(", ".join(skipped)) + "</p>")
         if s.deviations:
-            part.append("<h3>Deviations this config cites (docs/deviations.md)</h3>")
+            part.append("<h3>Deviations this config cites (docs/deviations/)</h3>")
             part += [f'<div class="deviation" id="{html.escape(s.name)}-{number}">'
                      f"{markdown(text_)}</div>" for number, text_ in s.deviations]
         body.append("\n".join(part))
