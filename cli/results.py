@@ -77,13 +77,17 @@ def validate(configs, max_work) -> None:
               show_default=True, help="The HTML file to write.")
 @click.option("--full", is_flag=True,
               help="Embed every figure as stored and draw every row (by default PNGs are "
-                   "shrunk to 560 pixels, as 64-colour PNG or WebP, and tables to 40 rows: "
-                   "the page of the shipped results stays under 3 MB).")
+                   "shrunk to 720 pixels, as 64-colour PNG or WebP, a figure that looks the "
+                   "same as its twin's in another experiment is named instead of drawn again, "
+                   "and tables are cut to 30 rows: the page of the shipped results stays under "
+                   "3 MB).")
 def report_page(results, out, full) -> None:
-    """Write one self-contained HTML page of the stored results: a summary of every
-    experiment's claims, printed cells and health at the top, then its tables beside the
-    printed values (failing claims in red), its figures, the deviations its config cites,
-    seeds and versions."""
+    """Write one self-contained HTML page of the stored results: the headline claims and a
+    summary of every experiment by chapter (its claims, with the failures the printed
+    values contradict told apart, printed cells and health, and a legend) at the top, then
+    its tables beside the printed values (failing claims in red; filter and sort in the
+    page), its figures with captions, the deviations its config cites, seeds and
+    versions."""
     from estim.report import html as html_report
 
     where = project.locate()

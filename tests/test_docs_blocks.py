@@ -142,3 +142,17 @@ def test_the_deviations_index_lists_every_entry_of_the_pages():
     anchors = re.findall(r'<a id="d(\d+)"></a>', "".join(
         (ROOT / "docs" / "deviations" / f"{p}.md").read_text() for p in module.PAGES))
     assert sorted(map(int, anchors)) == sorted(numbers)
+
+
+def test_the_speed_page_is_the_benchmarks_output_files():
+    """docs/speed.md is what bench/speed_page.py makes of bench/results/*.csv: every table on
+    it is a benchmark's file, with the command and machine that made it."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("speed_page", ROOT / "bench" / "speed_page.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert (ROOT / "docs" / "speed.md").read_text() == module.page(), (
+        "stale: run python bench/speed_page.py")
+    text = (ROOT / "docs" / "speed.md").read_text()
+    assert text.count("- command: `") == text.count("\n## ") >= 8

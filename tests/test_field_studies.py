@@ -89,7 +89,7 @@ def test_on_a_48_cube_grid_the_field_filter_is_below_the_fit_in_the_near_zone():
     assert len(_below_fit("field_grid", 48)) == 3
 
 
-# ----- docs/deviations/chapter-5.md D59-D61: every number quoted, against the stored tables -----------
+# ----- docs/deviations/chapter-5.md D59-D61: every number quoted, against the stored tables
 
 DOC = (RESULTS.parent / "docs" / "deviations" / "chapter-5.md").read_text()
 D61 = DOC[DOC.index("**D61."):]

@@ -83,11 +83,12 @@ def test_two_in_page_links_land_on_their_sections(page_file):
 
 def test_the_summary_counts_are_those_of_claims_csv(page_file):
     rows, errors = _browse(page_file, lambda page: page.evaluate(
-        "[...document.querySelectorAll('table.summary tbody tr')].map(r => "
-        "[...r.cells].map(c => c.textContent))"))
+        "[...document.querySelectorAll('table.summary tbody tr[data-name]')].map(r => "
+        "[r.dataset.name, ...[...r.cells].slice(1).map(c => c.textContent)])"))
     assert not errors, errors
     checked = 0
-    for name, holds, fails, undecided, *_ in rows:
+    for name, holds, fails, undecided, against, findings, *_ in rows:
+        assert int(against) + int(findings) == int(fails), name
         claims = ROOT / "results" / name / "claims.csv"
         if not claims.is_file():
             assert (holds, fails, undecided) == ("0", "0", "0"), name
@@ -121,7 +122,8 @@ def test_the_headline_is_in_view_and_every_wide_table_scrolls_in_its_own_box(pag
     from estim.report.summary import HEADLINE
 
     assert len(rows) == len(HEADLINE)
-    table, name, claim, holds, fails, undecided, cells, _ = rows[5]
+    table, name, claim, holds, fails, undecided, cells, _, reading = rows[5]
+    assert reading.startswith("holds in")
     df = pd.read_csv(ROOT / "results" / name / "claims.csv")
     family = df[df["claim"] == claim]["verdict_family"]
     assert [int(holds), int(fails), int(undecided), int(cells)] == [
@@ -129,3 +131,47 @@ def test_the_headline_is_in_view_and_every_wide_table_scrolls_in_its_own_box(pag
     assert page_width <= 1400
     assert widths and all(cls == "scroll" and right <= 1400 for cls, right, _, _ in widths)
     assert any(inner > box for _, _, inner, box in widths)      # some do scroll, inside
+
+
+def test_rows_filter_and_sort_in_the_page(page_file):
+    """The filter box above a data table keeps the rows that contain the words typed; a
+    click on the summary's "fails" heading sorts each chapter's rows by it."""
+    def act(page):
+        index = page.evaluate(
+            "[...document.querySelectorAll('input.filter')].findIndex(b => { const rows = "
+            "[...b.nextElementSibling.querySelector('table').tBodies[0].rows]; return "
+            "rows.some(r => r.textContent.includes('RLS')) && "
+            "rows.some(r => !r.textContent.includes('RLS')); })")
+        box = page.locator("input.filter").nth(index)
+        table = (f"document.querySelectorAll('input.filter')[{index}].nextElementSibling"
+                 ".querySelector('table')")
+        before = page.evaluate(f"{table}.tBodies[0].rows.length")
+        box.fill("RLS")
+        shown = page.evaluate(f"[...{table}.tBodies[0].rows].filter(r => !r.hidden)"
+                              ".map(r => r.textContent)")
+        page.click("table.summary thead th:nth-child(3)")
+        fails = page.evaluate(
+            "[...document.querySelectorAll('table.summary tbody')].map(b => [...b.rows]"
+            ".filter(r => r.dataset.name).map(r => parseFloat(r.cells[2].textContent)))")
+        return before, shown, fails
+
+    (before, shown, fails), errors = _browse(page_file, act)
+    assert not errors, errors
+    assert 0 < len(shown) < before and all("rls" in row.lower() for row in shown)
+    assert fails and all(group == sorted(group) for group in fails)
+
+
+def test_figures_are_readable_and_captioned_in_words(page_file):
+    """Every figure is shown at least 600 pixels wide at 1,400 x 900, with a caption that
+    says more than its file name."""
+    def look(page):
+        return page.evaluate(
+            "[...document.querySelectorAll('figure')].map(f => [f.querySelector('img')"
+            ".getBoundingClientRect().width, f.querySelector('figcaption').textContent, "
+            "f.querySelector('figcaption code').textContent])")
+
+    figures, errors = _browse(page_file, look)
+    assert not errors, errors
+    assert len(figures) >= 50
+    assert all(width >= 600 for width, _, _ in figures), [f for f in figures if f[0] < 600]
+    assert all(len(caption.replace(name, "").strip()) > 10 for _, caption, name in figures)

@@ -10,7 +10,7 @@ from click.testing import CliRunner
 
 from estim.cli.main import main
 from estim.config.registry import ANALYSES
-from estim.report import summary
+from estim.report import overview, summary
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "docs" / "results.md"
@@ -96,7 +96,8 @@ def test_a_fragile_verdict_is_counted_beside_its_claim(tmp_path):
     assert len(marked) == 1 and f"`{row['claim']}`" in marked[0]
     assert "fragile in 1 (a verdict another machine's arithmetic moves)" in marked[0]
     (section,) = html.sections(results, "", ROOT / "configs", ANALYSES)
-    assert any("1 fragile claim verdicts" in flag for flag in html.summary(section)["flags"])
+    flags = overview.summary(section)["flags"]
+    assert any("1 fragile claim verdicts" in flag for flag in flags)
 
 
 def test_summary_command_prints_every_experiment():
@@ -223,3 +224,28 @@ def test_markdown_is_rendered_on_a_terminal_and_kept_when_piped(capsys):
     shown = capsys.readouterr().out
     assert "cco" in shown and "float" in shown
     assert "**" not in shown and "|---|" not in shown and "\x1b[" in shown
+
+
+def test_failing_cells_are_told_apart_by_what_was_printed():
+    """A failing claim cell is a disagreement when the printed values of both estimators
+    say the claim holds there, a finding when they fail it too or one side has no printed
+    value; the headline's reading says so."""
+    from estim.report.html import Section
+
+    claims = pd.DataFrame({
+        "claim": ["EKF RMSE < RLS RMSE"] * 3 + ["EKF RMSE < measurement RMSE"],
+        "cell": ["f=1", "f=2", "f=3", "f=1"], "better": ["EKF"] * 4,
+        "worse": ["RLS"] * 3 + ["measurement"], "verdict": ["fails"] * 4,
+        "verdict_family": ["fails", "fails", "holds", "fails"]})
+    rmse = pd.DataFrame({
+        "f": [1, 1, 2, 2, 3, 3, 1], "estimator": ["EKF", "RLS"] * 3 + ["measurement"],
+        "rmse": [0.5] * 7, "thesis_rmse": [0.1, 0.2, 0.3, 0.2, 0.1, 0.2, float("nan")]})
+    section = Section("x", "t", {}, tables=[("rmse", "rmse", rmse), ("claims", "c", claims)])
+    assert overview.fail_kinds(section) == {overview.AGAINST: 1, overview.AS_PRINTED: 1,
+                                            overview.NOT_PRINTED: 1}
+    assert overview.fail_kinds(section, "EKF RMSE < RLS RMSE")[overview.NOT_PRINTED] == 0
+    row = {"holds": 1, "fails": 2, "undecided": 0, "cells": 3}
+    assert overview.reading(row, overview.fail_kinds(section, "EKF RMSE < RLS RMSE")) == (
+        "holds in 1 of 3 cells; fails in 2, 1 of them where the printed values say it holds")
+    assert overview.reading({"holds": 3, "fails": 0, "undecided": 0, "cells": 3}, {}) == (
+        "holds in every cell (3)")

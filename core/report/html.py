@@ -4,8 +4,8 @@ undecided, from claims.csv), how many of its cells sit beside a printed value an
 of their ratios, and its health flags (runs that diverged, filters outside the NEES band),
 each linking to the experiment's section. Per experiment: its tables (ours beside the printed
 values and their ratio; rows where a claim fails in red; a table with no value at all is
-named, not drawn), its figures (PNGs shrunk to :data:`FIGURE_WIDTH` pixels, in
-:data:`FIGURE_COLOURS` colours or as WebP; tables cut to :data:`ROWS_MAX` rows; unless
+named, not drawn), its figures (shrunk, captioned in words, a twin's look-alike named
+instead of drawn again: :mod:`estim.report.figures`; tables cut to :data:`ROWS_MAX` rows; unless
 ``full``: the page of the shipped results stays under 3 MB), the deviations its config cites
 rendered from their markdown, and the seeds and versions of its manifest. A table of
 contents stays in view. :func:`sections` reads a results folder; :func:`page` writes no file.
@@ -15,13 +15,12 @@ from __future__ import annotations
 
 import base64
 import html
-import io
 import re
 from dataclasses import dataclass, field
 
 from estim import reference
 from estim.errors import UsageError
-from estim.report import fragility, tables
+from estim.report import figures, fragility, overview, tables
 from estim.util import lazy
 
 pd = lazy.load("pandas")
@@ -40,8 +39,16 @@ table { border-collapse: collapse; font-size: 0.8em; margin: 0.6em 0 1.2em; }
 th, td { border: 1px solid #ccc; padding: 0.15em 0.45em; text-align: right; }
 th { background: #f0f0f0; } td.t, td.text { text-align: left; }
 tr.fail td { background: #f8d0d0; } .meta { color: #555; font-size: 0.85em; }
-figure { display: inline-block; margin: 0.5em; } figure img { max-width: 46em; }
-figcaption { font-size: 0.8em; color: #555; } pre { white-space: pre-wrap; font-size: 0.85em; }
+figure { display: block; margin: 1em 0; } figure img { max-width: min(100%, 45em); }
+figcaption { font-size: 0.9em; color: #333; max-width: 45em; }
+figcaption code { color: #777; font-size: 0.85em; }
+table.summary tr.group th, table.summary thead th:first-child { text-align: left; }
+table.summary tr.group th { background: #e4e8ee; }
+table.summary span.what { color: #555; font-size: 0.9em; }
+dl.legend { font-size: 0.85em; color: #333; max-width: 62em; }
+dl.legend dt { font-weight: bold; margin-top: 0.4em; } dl.legend dd { margin-left: 1.5em; }
+input.filter { font-size: 0.85em; margin: 0.3em 0; width: 20em; }
+table.sortable thead th { cursor: pointer; } pre { white-space: pre-wrap; font-size: 0.85em; }
 div.scroll { overflow: auto; max-width: 100%; max-height: 36em; margin: 0.6em 0 1.2em; }
 div.scroll table { margin: 0; }
 table.data thead th { position: sticky; top: 0; z-index: 1; }
@@ -51,15 +58,49 @@ table.data thead th:first-child { z-index: 2; background: #f0f0f0; }
 table.headline td.bad { background: #f8d0d0; } table.headline td.good { background: #d8efd8; }
 """
 
-FIGURE_WIDTH = 560
-"""Widest embedded PNG, in pixels, unless ``full`` (the stored figures are 800-1400)."""
-FIGURE_COLOURS = 64
-"""Colours of an embedded PNG unless ``full`` (line plots use a few dozen)."""
-ROWS_MAX = 40
+ROWS_MAX = 30
 """Rows of a table drawn unless ``full``: the CSV holds them all."""
 
 
 MEDIA = {"png": "image/png", "svg": "image/svg+xml"}
+
+SCRIPT = """
+for (const box of document.querySelectorAll('input.filter')) {
+  const table = box.nextElementSibling.querySelector('table');
+  box.addEventListener('input', () => {
+    const words = box.value.toLowerCase();
+    for (const row of table.tBodies[0].rows)
+      row.hidden = words !== '' && !row.textContent.toLowerCase().includes(words);
+  });
+}
+for (const table of document.querySelectorAll('table.sortable')) {
+  table.tHead.rows[0].querySelectorAll('th').forEach((th, col) => {
+    th.title = 'sort by this column';
+    th.addEventListener('click', () => {
+      const up = th.dataset.order !== 'up';
+      th.dataset.order = up ? 'up' : 'down';
+      const key = row => {
+        const text = row.cells[col] ? row.cells[col].textContent.trim() : '';
+        const number = parseFloat(text);
+        return isNaN(number) ? text.toLowerCase() : number;
+      };
+      for (const body of table.tBodies) {
+        const rows = [...body.rows].filter(r => !r.classList.contains('group'));
+        rows.sort((a, b) => {
+          const x = key(a), y = key(b);
+          const order = typeof x === typeof y ? (x < y ? -1 : x > y ? 1 : 0)
+                                              : (typeof x === 'number' ? -1 : 1);
+          return up ? order : -order;
+        });
+        for (const row of rows) body.appendChild(row);
+      }
+    });
+  });
+}
+"""
+"""The page's one script, offline: a filter box above each data table (rows containing
+the words typed stay), and a click on a column heading sorts the rows by it (numbers as
+numbers; the summary within each chapter)."""
 
 
 @dataclass
@@ -134,7 +175,9 @@ def _table(caption: str, df: pd.DataFrame, source: str = "", rows_max: int | Non
                         + html.escape(tables.number(v)) + "</td>" for v in row)
         cls = ' class="fail"' if failing is not None and bool(failing.iloc[i]) else ""
         rows.append(f"<tr{cls}>{cells}</tr>")
-    return (f'<h3>{html.escape(caption)}</h3><div class="scroll"><table class="data"><thead>'
+    return (f'<h3>{html.escape(caption)}</h3><input class="filter" type="search" '
+            'placeholder="show rows containing ..." aria-label="filter rows">'
+            '<div class="scroll"><table class="data sortable"><thead>'
             f"<tr>{head}</tr></thead><tbody>{''.join(rows)}</tbody></table></div>{note}")
 
 
@@ -200,146 +243,23 @@ def markdown(text_: str) -> str:
     return "\n".join(blocks)
 
 
-def shrink_png(data: bytes, width: int = FIGURE_WIDTH,
-               colours: int = FIGURE_COLOURS) -> tuple[str, bytes]:
-    """A stored PNG for the page: at most ``width`` pixels wide, as a PNG of ``colours``
-    colours (line plots lose nothing a reader sees) or a WebP of quality 70 (photographs
-    and colour maps, which a palette would band), whichever is smaller; the original where
-    neither is. Returns the media type and the bytes."""
-    from PIL import Image
-
-    with Image.open(io.BytesIO(data)) as image:
-        image = image.convert("RGB")
-        if image.width > width:
-            image = image.resize((width, round(image.height * width / image.width)),
-                                 Image.Resampling.LANCZOS)
-        png, webp = io.BytesIO(), io.BytesIO()
-        image.quantize(colours).save(png, format="PNG", optimize=True)
-        image.save(webp, format="WEBP", quality=70, method=6)
-    return min((("image/png", data), ("image/png", png.getvalue()),
-                ("image/webp", webp.getvalue())), key=lambda pair: len(pair[1]))
-
-
 def _has_values(df: pd.DataFrame) -> bool:
     """Whether a table holds any value (a cell that is neither missing, empty nor ``--``)."""
     return any(pd.notna(v) and str(v).strip() not in ("", "--")
                for column in df.columns for v in df[column])
 
 
-def summary(section: Section) -> dict:
-    """What the page's summary says of one experiment: its claims' verdict counts, the
-    number of cells beside a printed value and the range of ratio ours/printed, and its
-    health flags (runs that diverged or broke; filter rows inconsistent in NEES)."""
-    frames = {metric: df for metric, _, df in section.tables}
-    out = {"holds": 0, "fails": 0, "undecided": 0, "printed": 0, "ratio": None, "flags": []}
-    claims = frames.get("claims")
-    if claims is not None and "verdict" in claims:
-        column = "verdict_family" if "verdict_family" in claims else "verdict"
-        counts = claims[column].astype(str).value_counts()
-        out.update({k: int(counts.get(k, 0)) for k in ("holds", "fails", "undecided")})
-    ratios = []
-    for df in frames.values():
-        for column in (c for c in df.columns if c.startswith("thesis_")):
-            value = column[len("thesis_"):]
-            printed = pd.to_numeric(df[column], errors="coerce").notna()
-            out["printed"] += int(printed.sum())
-            if f"ratio_{value}" in df:
-                r = pd.to_numeric(df[f"ratio_{value}"], errors="coerce")[printed]
-                ratios += [float(x) for x in r if pd.notna(x) and abs(x) != float("inf")]
-    if ratios:
-        out["ratio"] = (min(ratios), max(ratios))
-    if section.fragile:
-        out["flags"].append(f"{section.fragile} fragile claim verdicts (moved by another "
-                            "machine's arithmetic)")
-    health = frames.get("health")
-    if health is not None:
-        for column, words in (("diverged", "diverged"), ("broken", "broke")):
-            if column in health:
-                n = int(pd.to_numeric(health[column], errors="coerce").fillna(0).sum())
-                if n:
-                    out["flags"].append(f"{n} runs {words} (summed over cells and filters)")
-        if "nees_in_band" in health:
-            band = pd.to_numeric(health["nees_in_band"], errors="coerce")
-            low = int((band < 0.5).sum())
-            if low:
-                out["flags"].append(f"{low} of {int(band.notna().sum())} filter rows with "
-                                    "NEES in its band in under half the runs")
-    return out
-
-
-def _headline(sections: list[Section]) -> str:
-    """The headline table, first on the page: per row of :data:`estim.report.summary.HEADLINE`
-    (a thesis or paper table) its headline claim and that claim's verdicts after Holm's
-    correction, as the README's generated table gives them."""
-    from estim.report.summary import HEADLINE, headline_counts
-
-    by_name = {s.name: s for s in sections}
-    rows = []
-    for table, name, claim in HEADLINE:
-        s = by_name.get(name)
-        df = next((d for m, _, d in s.tables if m == "claims"), None) if s else None
-        if df is None or "verdict_family" not in df:
-            continue
-        row, _ = headline_counts(df, claim)
-        moved = fragility.cells(s.fragile_cells, name).get(row["claim"], set()) \
-            if s.fragile_cells is not None else set()
-        link = f'<a href="#{html.escape(name)}">{html.escape(name)}</a>'
-        rows.append(f'<tr><td class="text">{html.escape(table)}</td><td class="text">{link}'
-                    f'</td><td class="text">{html.escape(str(row["claim"]))}</td>'
-                    f'<td class="{"good" if row["holds"] else "num"}">{row["holds"]}</td>'
-                    f'<td class="{"bad" if row["fails"] else "num"}">{row["fails"]}</td>'
-                    f'<td class="num">{row["undecided"]}</td><td class="num">{row["cells"]}'
-                    f'</td><td class="num">{len(moved)}</td></tr>')
-    if not rows:
-        return ""
-    head = ("<tr><th>thesis</th><th>experiment</th><th>headline claim</th><th>holds</th>"
-            "<th>fails</th><th>undecided</th><th>of cells</th><th>fragile</th></tr>")
-    return ('<h2 id="headline">What holds</h2><p class="meta">The headline claim of each '
-            "thesis and paper table, judged over its cells (a condition of the printed table) by "
-            "the paired runs of both estimators, at 95 % with Holm's correction within the "
-            "claim; a fragile cell's verdict moves under another x86-64 machine's rounding. "
-            "The summary below gives every experiment; each section every claim.</p>"
-            f'<table class="headline"><thead>{head}</thead><tbody>{"".join(rows)}</tbody>'
-            "</table>")
-
-
-def _summary_table(sections: list[Section]) -> str:
-    head = ("<tr><th>experiment</th><th>claims hold</th><th>fail</th><th>undecided</th>"
-            "<th>cells beside a printed value</th><th>ratio ours/printed</th>"
-            "<th>health</th></tr>")
-    rows = []
-    for s in sections:
-        v = summary(s)
-        ratio = (f"{tables.number(v['ratio'][0])} to {tables.number(v['ratio'][1])}"
-                 if v["ratio"] else "--")
-        link = f'<a href="#{html.escape(s.name)}">{html.escape(s.name)}</a>'
-        rows.append(
-            f'<tr><td class="text">{link}</td>'
-            f'<td class="{"good" if v["holds"] else "num"}">{v["holds"]}</td>'
-            f'<td class="{"bad" if v["fails"] else "num"}">{v["fails"]}</td>'
-            f'<td class="num">{v["undecided"]}</td><td class="num">{v["printed"]}</td>'
-            f'<td class="num">{ratio}</td>'
-            f'<td class="text">{html.escape("; ".join(v["flags"]) or "--")}</td></tr>')
-    return ('<h2 id="summary">Summary</h2><p class="meta">Claims are paired comparisons on '
-            "the same noise draws (claims.csv): the median paired difference and its sign-test "
-            "interval, counted after Holm's correction within each claim's cells "
-            "(docs/claims.md; fewer than 6 runs decide nothing); a ratio is our value over "
-            "the printed one. Health: runs that diverged (the estimate broke or ran away) are "
-            "counted, never dropped; a filter row is flagged when its NEES sits in the "
-            'consistency band in under half of its runs.</p><table class="summary"><thead>'
-            f"{head}</thead><tbody>{''.join(rows)}</tbody></table>")
-
-
 def page(title: str, sections: list[Section], full: bool = False) -> str:
     """The whole page as one string (UTF-8 HTML5, no external resources); with ``full``
-    every PNG as stored, else shrunk (:func:`shrink_png`)."""
-    headline = _headline(sections)
+    every PNG as stored, else shrunk (:func:`estim.report.figures.shrink_png`)."""
+    headline = overview.headline(sections)
     toc = ['<nav id="toc"><strong>Contents</strong>'
            + ('<a href="#headline">What holds</a>' if headline else "")
            + '<a href="#summary">Summary</a>']
     toc += [f'<a href="#{html.escape(s.name)}">{html.escape(s.name)}</a>' for s in sections]
     toc.append("</nav>")
-    body = [headline, _summary_table(sections)]
+    body = [headline, overview.summary_table(sections)]
+    shown_as = {} if full else figures.alike([(s.name, s.figures) for s in sections])
     for s in sections:
         part = [f'<h2 id="{html.escape(s.name)}">{html.escape(s.name)}: '
                 f"{html.escape(s.title)}</h2>", _meta(s.manifest)]
@@ -350,22 +270,33 @@ def page(title: str, sections: list[Section], full: bool = False) -> str:
         if empty:
             part.append('<p class="meta">Left out, no values in any cell: '
                         + html.escape("; ".join(empty)) + "</p>")
-        skipped = []
+        skipped, alike = [], []
         for name, data in s.figures:
             kind = MEDIA.get(name.rpartition(".")[2])
             if kind is None:
                 skipped.append(name)
                 continue
+            if (s.name, name) in shown_as:
+                alike.append(f"{name} (as {shown_as[s.name, name]}'s)")
+                continue
+            caption = figures.caption(data) if kind == "image/png" else ""
             if kind == "image/png" and not full:
                 try:
-                    kind, data = shrink_png(data)
+                    kind, data = figures.shrink_png(data)
                 except (OSError, ValueError, SyntaxError):     # PIL's errors for junk
                     raise UsageError(f"{s.name}/figures/{name} (under the results folder): "
                                      "not a readable PNG image") from None
             encoded = base64.b64encode(data).decode("ascii")
-            part.append(f'<figure><img alt="{html.escape(name)}" '
-                        f'src="data:{kind};base64,{encoded}"><figcaption>{html.escape(name)}'
+            part.append(f'<figure><img alt="{html.escape(caption or name)}" '
+                        f'data-file="{html.escape(name)}" '
+                        f'src="data:{kind};base64,{encoded}"><figcaption>'
+                        f"{html.escape(caption)} <code>{html.escape(name)}</code>"
                         "</figcaption></figure>")
+        if alike:
+            part.append('<p class="meta">Not drawn again, the same to the eye as the figure '
+                        "of the same name shown in another section (their images differ by "
+                        f"under {figures.ALIKE:.1%} on average; every figure is drawn with "
+                        "--full): " + html.escape(", ".join(alike)) + "</p>")
         if skipped:
             part.append('<p class="meta">Not shown (a browser page cannot embed PDF as an '
                         "image; re-run with --figure-format png or svg): "
@@ -378,7 +309,7 @@ def page(title: str, sections: list[Section], full: bool = False) -> str:
     return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
             f"<title>{html.escape(title)}</title><style>{STYLE}</style></head><body>"
             + "".join(toc) + f"<main><h1>{html.escape(title)}</h1>\n" + "\n".join(body)
-            + "\n</main></body></html>\n")
+            + f"\n</main><script>{SCRIPT}</script></body></html>\n")
 
 
 MAX_FIGURE_BYTES = 32 << 20
