@@ -27,6 +27,7 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+import record  # noqa: E402
 from bench_reproduce import LAUNCH, checkouts, package_view  # noqa: E402
 
 OLD_LAUNCH = "from cli.main import main; main()"
@@ -92,6 +93,10 @@ def main(argv: list[str] | None = None) -> None:
     print("this checkout: " + ", ".join(f"{t:.2f}" for t in this))
     ratios = [b / t for b, t in zip(base, this, strict=True)]
     print(f"speed-up run by run: {min(ratios):.1f}-{max(ratios):.1f}x")
+    record.save("chapter3_row", [{"run": i + 1, f"baseline {args.baseline} s": b,
+                                  "this checkout s": t, "speed-up": b / t}
+                                 for i, (b, t) in enumerate(zip(base, this, strict=True))],
+                __doc__)
 
 
 if __name__ == "__main__":

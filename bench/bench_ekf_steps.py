@@ -26,6 +26,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+import record  # noqa: E402
 from bench_filters import FLOPS_PER_STEP, PEAK_FLOPS, Q, problem  # noqa: E402
 
 from estim.estimators.base import joseph_update
@@ -97,11 +98,16 @@ def main() -> None:
     names = list(table[sizes[0]])
     print("us per run-step by phase and batch size (runs):")
     print(f"{'phase':<24}" + "".join(f"{n:>10}" for n in sizes) + f"{'fixed us':>11}")
+    rows = []
     for name in [*names, "total"]:
         cells = [sum(table[n].values()) if name == "total" else table[n][name] for n in sizes]
         fixed = cells[0] - (cells[1] - cells[0]) / (sizes[1] - sizes[0]) * sizes[0]
         per_run = "".join(f"{c / n * 1e6:>10.2f}" for c, n in zip(cells, sizes, strict=True))
         print(f"{name:<24}{per_run}{fixed * 1e6:>11.1f}")
+        rows.append({"phase (µs per run-step)": name,
+                     **{f"{n} runs": c / n * 1e6 for c, n in zip(cells, sizes, strict=True)},
+                     "fixed µs per step": fixed * 1e6})
+    record.save("ekf_steps", rows, __doc__)
     one = np.ones(1)
     empty = per_call(lambda: one + one, 20000)
     stack4 = np.random.default_rng(0).standard_normal((args.runs, 4, 4))

@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import record
 import yaml
 
 from estim.config.loading import parse_data
@@ -64,12 +65,18 @@ def case(path: Path) -> dict:
 def main() -> None:
     print(f"{'config':32s} {'steps':>6s} {'|eig|dt':>8s} {'used':>10s} {'integrated s':>12s} "
           f"{'exact s':>9s} {'ratio':>7s} {'max|dy0|':>9s} {'max|dy1|':>9s} {'max|y1|':>9s}")
+    rows = []
     for path in sorted((ROOT / "configs").glob("*distortion.yaml")):
         r = case(path)
         used = "exact" if r["stiffness"] <= EXACT_STIFFNESS_LIMIT else "integrated"
+        rows.append({"config": r["config"], "steps": r["steps"], "|eig| dt": r["stiffness"],
+                     "estim uses": used, "integrated s": r["integrated_s"],
+                     "exact s": r["exact_s"], "ratio": r["ratio"], "max |dy0|": r["max_dy0"],
+                     "max |dy1|": r["max_dy1"], "max |y1|": r["y1_scale"]})
         print(f"{r['config']:32s} {r['steps']:6d} {r['stiffness']:8.1e} {used:>10s} "
               f"{r['integrated_s']:12.3f} {r['exact_s']:9.4f} "
               f"{r['ratio']:7.0f} {r['max_dy0']:9.2e} {r['max_dy1']:9.2e} {r['y1_scale']:9.2e}")
+    record.save("expansion", rows, __doc__)
 
 
 if __name__ == "__main__":

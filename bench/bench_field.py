@@ -16,6 +16,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
+import record
 
 from estim.experiments.dipole_field.filtering import observe, sensor_operators
 from estim.fields import etkf, letkf
@@ -77,6 +78,15 @@ def main() -> None:
               f"{r['ensemble_s'] / base['ensemble_s']:7.1f} {r['etkf_s']:9.2e} "
               f"{r['etkf_s'] / base['etkf_s']:7.1f} {r['letkf_s']:9.2e} "
               f"{r['letkf_s'] / base['letkf_s']:7.1f}")
+    record.save("field", [{"N": r["N"], "states": r["states"],
+                           "plain s/step": r["plain_s"],
+                           "x N=16": r["plain_s"] / base["plain_s"],
+                           "50 members s/step": r["ensemble_s"],
+                           "x N=16 ": r["ensemble_s"] / base["ensemble_s"],
+                           "ETKF s": r["etkf_s"], "x N=16  ": r["etkf_s"] / base["etkf_s"],
+                           "LETKF s": r["letkf_s"],
+                           "x N=16   ": r["letkf_s"] / base["letkf_s"]} for r in rows],
+                __doc__)
 
 
 if __name__ == "__main__":

@@ -10,6 +10,7 @@ compiles and is not timed); the strip filter runs all strips of the image as one
 from __future__ import annotations
 
 import numpy as np
+import record
 from bench_field import timed
 
 
@@ -48,6 +49,8 @@ def main() -> None:
     print(f"{'filter':44s} {'s':>8s} {'pixels/s':>12s} {'x NSHP M=1':>11s}")
     for name, s in seconds.items():
         print(f"{name:44s} {s:8.3f} {y.size / s:12.0f} {base / s:11.2f}")
+    record.save("image", [{"filter": name, "seconds": s, "pixels per s": y.size / s,
+                           "x NSHP M=1": base / s} for name, s in seconds.items()], __doc__)
 
 
 if __name__ == "__main__":

@@ -31,6 +31,10 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import record  # noqa: E402
+
 ROOT = Path(__file__).resolve().parents[1]
 LAUNCH = "from estim.cli.main import main; main()"
 
@@ -142,6 +146,7 @@ def main(argv: list[str] | None = None) -> None:
         print(f"{'config':<28}{'baseline s':>11}{'this s':>9}{'ratio':>8}{'wall s':>9}"
               "  tables (CPU-s, ratio this/baseline, this one's wall)")
         total = {"baseline": 0.0, "this": 0.0}
+        rows = []
         for config in configs:
             cpu, wall = {}, {}
             for side, checkout in sides.items():
@@ -157,8 +162,16 @@ def main(argv: list[str] | None = None) -> None:
             print(f"{name:<28}{cpu['baseline']:>11.1f}{cpu['this']:>9.1f}"
                   f"{cpu['this'] / cpu['baseline']:>8.2f}{wall['this']:>9.1f}  {verdict}",
                   flush=True)
+            rows.append({"config": name, f"baseline {args.baseline} CPU-s": cpu["baseline"],
+                         "this CPU-s": cpu["this"], "ratio": cpu["this"] / cpu["baseline"],
+                         "this wall s": wall["this"], "tables": verdict})
         print(f"{'total':<28}{total['baseline']:>11.1f}{total['this']:>9.1f}"
               f"{total['this'] / total['baseline']:>8.2f}")
+        rows.append({"config": "total", f"baseline {args.baseline} CPU-s": total["baseline"],
+                     "this CPU-s": total["this"], "ratio": total["this"] / total["baseline"],
+                     "this wall s": "", "tables": ""})
+    record.save("reproduce", rows, __doc__, command="python bench/all.py --reproduce "
+                + " ".join(argv if argv is not None else sys.argv[1:]))
 
 
 if __name__ == "__main__":

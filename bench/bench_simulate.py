@@ -21,6 +21,7 @@ import argparse
 from pathlib import Path
 
 import numpy as np
+import record
 import yaml
 from bench_filters import timed
 
@@ -145,9 +146,13 @@ def main() -> None:
     print(f"Chapter 3 row: {args.runs} runs x {u.shape[1]} samples, rtol {rtol:g}, "
           f"atol {atol:g}")
     print(f"{'integrator':42s} {'seconds':>9s} {'speed-up':>9s} {'max error [V]':>14s}")
+    rows = []
     for name, sec, out in results:
         err = np.max(np.abs(model.h(out) - model.h(reference[:out.shape[0]])))
         print(f"{name:42s} {sec:9.2f} {base / sec:8.1f}x {err:14.2e}")
+        rows.append({"integrator": name, "seconds": sec, "speed-up": base / sec,
+                     "max error [V]": float(err)})
+    record.save("simulate", rows, __doc__)
     print()
     print("Parse a shipped netlist and build its model (fastest of 5; issue 26's bar: 50 ms)")
     for stem, ms in build_times():

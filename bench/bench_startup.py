@@ -23,6 +23,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+import record  # noqa: E402
 from bench_reproduce import LAUNCH, ROOT, checkouts, package_view  # noqa: E402
 
 COMMANDS = (("validate", "configs/mosfet_saturation.yaml"),
@@ -56,9 +57,14 @@ def main(argv: list[str] | None = None) -> None:
         envs = {side: {**base, "PYTHONPATH": str(package_view(c, scratch / side))}
                 for side, c in sides.items()}
         print(f"{'command':<48}" + "".join(f"{side + ' s':>12}" for side in sides))
+        rows = []
         for command in COMMANDS:
-            cells = "".join(f"{fastest(command, envs[side]):>12.2f}" for side in sides)
+            seconds = {side: fastest(command, envs[side]) for side in sides}
+            cells = "".join(f"{s:>12.2f}" for s in seconds.values())
             print(f"{'estim ' + ' '.join(command):<48}{cells}", flush=True)
+            rows.append({"command": "estim " + " ".join(command),
+                         **{f"{side} s": s for side, s in seconds.items()}})
+    record.save("startup", rows, __doc__)
 
 
 if __name__ == "__main__":
