@@ -42,7 +42,8 @@ def commit() -> str:
         return done.stdout.strip() if done.returncode == 0 else ""
 
     head = git("rev-parse", "--short", "HEAD") or "unknown"
-    changed = git("status", "--porcelain", "--", "core", "cli", "bench", "configs")
+    changed = git("status", "--porcelain", "--untracked-files=no", "--", "core", "cli", "bench",
+                  "configs")
     return head + ("+changes" if changed else "")
 
 
