@@ -16,11 +16,11 @@ from __future__ import annotations
 import base64
 import html
 import re
-from dataclasses import dataclass, field
 
 from estim import reference
 from estim.errors import UsageError
 from estim.report import figures, fragility, overview, tables
+from estim.report.section import Section
 from estim.util import lazy
 
 pd = lazy.load("pandas")
@@ -101,25 +101,6 @@ for (const table of document.querySelectorAll('table.sortable')) {
 """The page's one script, offline: a filter box above each data table (rows containing
 the words typed stay), and a click on a column heading sorts the rows by it (numbers as
 numbers; the summary within each chapter)."""
-
-
-@dataclass
-class Section:
-    """One experiment's part of the page."""
-
-    name: str
-    title: str
-    manifest: dict
-    tables: list[tuple[str, str, pd.DataFrame]] = field(default_factory=list)
-    """``(metric, caption, table)``, joined to the printed values where there are any."""
-    figures: list[tuple[str, bytes]] = field(default_factory=list)   # (file name, bytes)
-    deviations: list[tuple[str, str]] = field(default_factory=list)
-    empty: list[str] = field(default_factory=list)
-    """Captions of the tables with no value in any cell (keys alone): named, not drawn."""
-    fragile: int = 0
-    """Claim cells whose verdict another machine's arithmetic moves (:mod:`.fragility`)."""
-    fragile_cells: pd.DataFrame | None = None
-    """The fragile verdicts' table (:func:`estim.report.fragility.read`) of the results."""
 
 
 def deviation_entries(markdown: str) -> dict[str, str]:

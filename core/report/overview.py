@@ -13,7 +13,7 @@ from estim.report import fragility, tables
 from estim.util import lazy
 
 if TYPE_CHECKING:
-    from estim.report.html import Section
+    from estim.report.section import Section
 
 pd = lazy.load("pandas")
 

@@ -133,8 +133,3 @@ def tight_layout(fig: Figure) -> None:
     out again), a third of the time of saving it."""
     fig.tight_layout()
     fig.set_layout_engine(None)
-
-
-def legend_outside(ax) -> None:
-    """The legend to the right of the data, where it hides no curve."""
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0))
