@@ -63,5 +63,5 @@ def main(debug: bool) -> None:
     """Reproduce the result tables of Bansal (2019), state estimation in ODE/PDE models.
 
     Exit codes: 0 ok, 1 check found differences, 2 usage or config error, 3 a run failed,
-    130 interrupted.
+    130 interrupted, 143 terminated.
     """

@@ -84,8 +84,10 @@ class Group(click.Group):
         try:
             return super().invoke(ctx)
         except (KeyboardInterrupt, click.Abort):
-            click.echo("error: interrupted", err=True)
-            sys.exit(130)
+            from estim.cli.interrupt import exit_status, interrupt_line
+
+            click.echo(interrupt_line(), err=True)
+            sys.exit(exit_status())
         except (click.exceptions.Exit, click.ClickException, SystemExit, BrokenPipeError):
             raise                   # a closed output pipe (estim table | head): exit 1, quiet
         except (UsageError, ConfigError) as exc:
@@ -98,8 +100,10 @@ class Group(click.Group):
             from estim.cli.interrupt import interrupted
 
             if interrupted():                       # e.g. a worker pool the Ctrl-C broke
-                click.echo("error: interrupted", err=True)
-                sys.exit(130)
+                from estim.cli.interrupt import exit_status, interrupt_line
+
+                click.echo(interrupt_line(), err=True)
+                sys.exit(exit_status())
             debug = bool(ctx.params.get("debug")) or os.environ.get(DEBUG_ENV, "") not in (
                 "", "0")
             report_unexpected(exc, debug)

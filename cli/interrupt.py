@@ -1,17 +1,34 @@
-"""Whether this process has been interrupted: the SIGINT handler the console script installs
-first (:mod:`estim.cli.launch`) records it here, where the commands ask (standard library
-only, so the launcher can import it before anything else)."""
+"""Whether this process has been interrupted: the SIGINT and SIGTERM handler the console
+script installs first (:mod:`estim.cli.launch`) records it here, where the commands ask
+(standard library only, so the launcher can import it before anything else). Both signals
+unwind the command as Ctrl-C does, so what it started (a worker pool, an ngspice run, a
+result folder being written) is stopped or left whole on the way out."""
 
 from __future__ import annotations
 
+import signal
+
 INTERRUPTED = [False]
+SIGNAL = [signal.SIGINT]
+"""The signal that interrupted this process (its exit status is 128 plus its number)."""
 
 
 def on_interrupt(signum, frame) -> None:
     INTERRUPTED[0] = True
+    SIGNAL[0] = signum
     raise KeyboardInterrupt
 
 
 def interrupted() -> bool:
-    """Whether this process has received SIGINT."""
+    """Whether this process has received SIGINT or SIGTERM."""
     return INTERRUPTED[0]
+
+
+def exit_status() -> int:
+    """The exit status of an interrupted run: 130 for SIGINT, 143 for SIGTERM."""
+    return 128 + int(SIGNAL[0])
+
+
+def interrupt_line() -> str:
+    """The one line an interrupted run ends with."""
+    return "error: interrupted" if exit_status() == 130 else "error: terminated"

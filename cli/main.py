@@ -1,7 +1,7 @@
 """``estim``: the commands, and nothing else (the library does the work: :mod:`estim`).
 
 Exit codes: 0 ok, 1 a check found differences, 2 a usage or config error, 3 a run failed,
-130 interrupted.
+130 interrupted, 143 terminated.
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ def main(debug: bool) -> None:
     """Reproduce the result tables of Bansal (2019), state estimation in ODE/PDE models.
 
     Exit codes: 0 ok, 1 check found differences, 2 usage or config error, 3 a run failed,
-    130 interrupted.
+    130 interrupted, 143 terminated.
     """
 
 
@@ -106,6 +106,7 @@ def run(configs, out, runs, seed, update_baseline, quick, jobs, max_work, execut
     store.ensure_writable(folder)
     if shard is not None:
         k, n = arguments.shard(shard)
+        store.ensure_free(folder)                   # the cells are written as they finish
         for exp in exps:
             computed, splits = runner.run_shard(exp, folder, k, n, jobs)
             if not splits:
@@ -156,7 +157,11 @@ def merge(configs, sources, out, runs, seed, quick, jobs, max_work, quiet) -> No
         click.echo(note, err=True)
     store.ensure_writable(folder)
     for exp in exps:
-        found = runner.gather_cells(exp, folder, list(sources))
+        found, refused = runner.gather_cells(exp, folder, list(sources))
+        if refused:
+            click.echo(f"{exp.name}: refused {len(refused)} file(s) of the shards' cell folders, "
+                       f"never loaded: {'; '.join(refused[:5])}"
+                       + (f"; and {len(refused) - 5} more" if len(refused) > 5 else ""), err=True)
         if not found:
             click.echo(f"{exp.name}: no cells of this config in the --from folder(s) (an analysis "
                        "that does not split, or shards run with another config, overrides, "
@@ -295,8 +300,7 @@ def tune(config, label, new_label, runs, fit_r, out, max_work) -> None:
         fail(f"--as {new_label[:60]!r}: expected a new label of 1 to 60 characters, not one of "
              f"{labels}")
     out = out or Path(config).parent / "fitted" / f"{exp.name}.yaml"
-    if out.is_dir():
-        raise UsageError(f"--out {out}: a folder; name the overlay file to write")
+    store.output_file(out, "--out")                 # a path the system takes, not a folder
     store.ensure_writable(out.parent)                       # before the fit, not after it
     start = time.perf_counter()
     entry, fit = tuning.tune(exp, analysis.training, label, runs, fit_r)
@@ -371,5 +375,7 @@ for _command in (results.table, results.validate, results.report_page, results.s
     main.add_command(_command)
 
 
-if __name__ == "__main__":
-    main()
+if __name__ == "__main__":            # as the console script: launch's signals and errors
+    from estim.cli.launch import main as launch
+
+    launch()

@@ -18,6 +18,9 @@ from estim.engine import runner
 from estim.errors import UsageError
 from estim.report import tables
 
+MAX_README_BYTES = 16 << 20
+"""The largest file ``summary --readme`` reads."""
+
 
 @click.command(cls=LazyEpilog, epilog_from=arguments.metrics_help)
 @click.argument("metric", type=LazyChoice(lambda: sorted(runner.table_specs())))
@@ -93,13 +96,17 @@ def report_page(results, out, full) -> None:
     where = project.locate()
     results = results or where.results
     pages = sorted((where.root / "docs" / "deviations").glob("*.md")) if where.root else []
+    store.output_file(out, "--out")
     store.ensure_writable(out.parent)               # before the page is built, not after
     text_ = "\n".join(page.read_text() for page in pages if page.is_file())
     sections = html_report.sections(results, text_, where.config_dir, ANALYSES)
     if not sections:
         fail(f"no stored results under {results}/ (run 'estim reproduce')")
     page = html_report.page("estim: stored results", sections, full=full)
-    store.atomic_write_bytes(out, page.encode("utf-8"))
+    try:
+        store.atomic_write_bytes(out, page.encode("utf-8"))
+    except OSError as exc:
+        fail(f"cannot write {out} ({exc.strerror or exc})")
     click.echo(f"report: {len(sections)} experiments -> {out}")
 
 
@@ -139,6 +146,11 @@ def summary(results, readme, check_only, as_json) -> None:
             fail(f"no stored results under {results}/ (run 'estim reproduce')")
         output.markdown("\n\n".join("\n".join(lines) for lines in found.values()))
         return
+    store.output_file(readme, "--readme")
+    if not readme.is_file():
+        fail(f"--readme {readme}: no such file")
+    if readme.stat().st_size > MAX_README_BYTES:
+        fail(f"--readme {readme}: larger than {MAX_README_BYTES >> 20} MB, not a README")
     try:
         text_ = readme.read_text()
     except (OSError, UnicodeDecodeError) as exc:
@@ -152,7 +164,10 @@ def summary(results, readme, check_only, as_json) -> None:
         click.echo(f"{readme}: every summary block matches {results}/")
         return
     if stale:
-        store.atomic_write_bytes(readme, new.encode())
+        try:
+            store.atomic_write_bytes(readme, new.encode())
+        except OSError as exc:
+            fail(f"cannot write {readme} ({exc.strerror or exc})")
     click.echo(f"{readme}: {len(stale)} block(s) re-generated" + (
         f" ({', '.join(stale)})" if stale else ""))
 

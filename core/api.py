@@ -33,14 +33,28 @@ pd = lazy.load("pandas")
 
 def _overrides(keys: dict, overrides: dict | None) -> dict:
     """``runs`` and ``seed`` as ``monte_carlo.*``; other keywords with ``__`` for ``.``
-    (``simulation__rtol=1e-6``); ``overrides`` as key paths."""
-    out = dict(overrides or {})
+    (``simulation__rtol=1e-6``); ``overrides`` as key paths (list items by index, as on the
+    command line: ``estimators[0].settings.Q`` or ``estimators.0.settings.Q``). Values as a
+    config holds them (numpy numbers and arrays as plain ones); a key that is not a key
+    path is a ``UsageError`` naming it."""
+    from estim.config.overrides import OVERRIDE_KEY, key_path
+    from estim.config.settings import plain, shown
+
+    if overrides is not None and not isinstance(overrides, dict):
+        raise UsageError(f"overrides: expected a mapping of key paths to values, got "
+                         f"{type(overrides).__name__}")
+    out = {}
+    for key, value in (overrides or {}).items():
+        if not isinstance(key, str) or not OVERRIDE_KEY.fullmatch(key.strip()):
+            raise UsageError(f"overrides: key {shown(key)} is not a key path such as "
+                             "'monte_carlo.runs' or 'estimators[0].settings.Q'")
+        out[key_path(key.strip())] = plain(value)
     for key, value in keys.items():
         if key in ("runs", "seed") and value is None:          # None: the config's own
             continue
         path = {"runs": "monte_carlo.runs", "seed": "monte_carlo.seed"}.get(
             key, key.replace("__", "."))
-        out[path] = value
+        out[path] = plain(value)
     return out
 
 
@@ -63,6 +77,9 @@ def experiment(config: str | Path | dict, overrides: dict | None = None, quick: 
     :func:`run`); a mistake is a :class:`estim.errors.ConfigError` naming the key path."""
     given = _overrides(keys, overrides)
     if isinstance(config, dict):
+        from estim.config.settings import plain
+
+        config = plain(config)
         return load_data(config, "<config>", str(config.get("name") or "experiment"), given,
                          max_work, quick)
     return load_file(config_path(config), given, max_work, quick)
@@ -76,11 +93,14 @@ def run(config: str | Path | dict, overrides: dict | None = None, *, jobs: int =
     ``runs=3``, ``seed=7`` set the Monte Carlo runs and seed; any other key path as a
     keyword with ``__`` for ``.`` (``simulation__rtol=1e-6``) or in ``overrides``
     (``{"estimators.0.settings.Q": [...]}``). ``quick``: the analysis' quick profile."""
+    import numpy as np
+
     from estim.engine import runner
 
     for name, value, least in (("jobs", jobs, 1), ("max_work", max_work, 1)):
-        if isinstance(value, bool) or not isinstance(value, int) or value < least:
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
             raise ValueError(f"{name}: expected an integer >= {least}, got {value!r}")
+    jobs, max_work = int(jobs), int(max_work)
     exp = experiment(config, overrides, quick, max_work, **keys)
     start = time.perf_counter()
     out = runner.execute(exp, jobs)
@@ -95,19 +115,15 @@ def load(folder: str | Path) -> Result:
     from estim.config.registry import ANALYSES
 
     folder = Path(folder)
-    manifest = store.read_manifest(folder)
-    if manifest is None or not isinstance(manifest.get("config"), dict):
+    if not (folder / "manifest.json").exists():
         raise UsageError(f"{folder}: no readable manifest.json (not an estim results folder)")
-    config = manifest["config"]
-    analysis = ANALYSES.get(config.get("analysis", "estimation"))
-    if analysis is None:
-        raise UsageError(f"{folder}: its manifest names an unknown analysis "
-                         f"{str(config.get('analysis'))[:60]!r}")
+    stored = store.open_stored(folder, ANALYSES)
+    config, manifest = stored.config, stored.manifest
     tables = {}
-    for metric, spec in analysis.TABLES.items():
-        path = store.stored_table_path(folder, spec)
-        if path is not None:
-            tables[metric] = view(store.read_table(path, spec), spec)
+    for metric, spec in stored.analysis.TABLES.items():
+        df = stored.table(spec)
+        if df is not None:
+            tables[metric] = view(df, spec)
     figures = {p.stem: p for where in (folder, folder / store.MACHINE_DIR)
                for p in sorted((where / "figures").glob("*"))
                if p.suffix in (".png", ".svg", ".pdf")}

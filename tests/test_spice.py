@@ -33,7 +33,7 @@ def test_values_take_si_suffixes_units_and_expressions():
         evaluate("2*zz", {}, where)
     with pytest.raises(NetlistError, match=r"^t.cir:2: .include is not supported"):
         parse("* t\n.include models.lib\nr1 a 0 1k\nv1 a 0 1\n.end\n", "t.cir")
-    for beyond in ("1e400", "1e-400", "-2e999k"):           # float() gives inf or 0 silently
+    for beyond in ("1e400", "1e-400", "-2e999", "1" + "0" * 400 + "k"):   # float(): inf, 0
         with pytest.raises(NetlistError, match="beyond the range of a double"):
             evaluate(beyond, {}, where)
     assert evaluate("0.0e5", {}, where) == 0.0

@@ -48,7 +48,7 @@ def test_the_headline_table_names_every_row_and_counts_the_stored_family_verdict
         str(len(ekf))]
 
 
-def test_changing_one_stored_number_makes_its_block_stale(tmp_path):
+def test_changing_one_stored_number_makes_its_block_stale(tmp_path, rehash):
     results = tmp_path / "results"
     shutil.copytree(ROOT / "results", results, ignore=shutil.ignore_patterns("*.png", "*.svg"))
     text = README.read_text()
@@ -57,6 +57,7 @@ def test_changing_one_stored_number_makes_its_block_stale(tmp_path):
     df = pd.read_csv(path)
     df.loc[0, "ratio"] = df["ratio"].max() * 1.5          # one number, outside the range
     df.to_csv(path, index=False)
+    rehash(path.parent)
     _, stale = summary.refresh(text, results, ANALYSES)
     assert stale == ["mosfet_saturation"]
     out = CliRunner().invoke(main, ["summary", "--results", str(results), "--readme",
@@ -64,7 +65,7 @@ def test_changing_one_stored_number_makes_its_block_stale(tmp_path):
     assert out.exit_code == 1 and "mosfet_saturation" in out.output
 
 
-def test_a_flipped_verdict_changes_the_counts(tmp_path):
+def test_a_flipped_verdict_changes_the_counts(tmp_path, rehash):
     results = tmp_path / "results"
     shutil.copytree(ROOT / "results" / "dipole_literal", results / "dipole_literal")
     before = summary.experiment(results / "dipole_literal", ANALYSES)
@@ -73,6 +74,7 @@ def test_a_flipped_verdict_changes_the_counts(tmp_path):
     for column in ("verdict", "verdict_family"):
         df.loc[0, column] = "fails" if df.loc[0, column] != "fails" else "holds"
     df.to_csv(path, index=False)
+    rehash(path.parent)
     after = summary.experiment(results / "dipole_literal", ANALYSES)
     assert before[1] != after[1]
 

@@ -10,7 +10,7 @@ from contextvars import ContextVar
 
 import numpy as np
 
-from estim.config.settings import MAX_VOLTS, PARAM_RANGE, checked, number, shown, validate
+from estim.config.settings import checked, parameter_problem, shown, validate
 from estim.errors import ConfigError, ParameterError, SettingError
 
 _BUILT: ContextVar[dict | None] = ContextVar("estim_models_built", default=None)
@@ -39,17 +39,9 @@ def build_model(model_cls, variant, params: dict, source: str, path: str):
             raise ConfigError(source, f"{path}.{key}",
                               f"unknown parameter of {model_cls.name}; expected one of "
                               f"{sorted(fields)}{where}")
-        default = fields[key].default
-        expected = type(default)
-        if expected is float:
-            limit = PARAM_RANGE * abs(default) if default else MAX_VOLTS
-            problem = number(minimum=-limit, maximum=limit)(value)
-            if problem:
-                raise ConfigError(source, f"{path}.{key}", f"expected {problem} (at most "
-                                  f"{PARAM_RANGE:g} times the default {default:g}), "
-                                  f"got {shown(value)}")
-        if expected is str and not isinstance(value, str):
-            raise ConfigError(source, f"{path}.{key}", f"expected a string, got {shown(value)}")
+        problem = parameter_problem(fields[key].default, value)
+        if problem:
+            raise ConfigError(source, f"{path}.{key}", problem)
     try:
         model = model_cls(variant, **params)
     except (ParameterError, ValueError, TypeError) as exc:

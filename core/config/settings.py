@@ -51,6 +51,30 @@ MAX_VOLTS = 1e3
 what overflows the device laws."""
 
 
+def parameter_problem(default: Any, value: Any) -> str | None:
+    """What is wrong with ``value`` for a model parameter whose default is ``default`` (None
+    when nothing): a float parameter is a finite number within :data:`PARAM_RANGE` times its
+    default (:data:`MAX_VOLTS` for a default of 0), a text parameter text. One check for a
+    config's ``model.params`` and a model made in code."""
+    if isinstance(value, np.generic):
+        value = value.item()
+    if type(default) is float:
+        limit = PARAM_RANGE * abs(default) if default else MAX_VOLTS
+        problem = number(minimum=-limit, maximum=limit)(value)
+        if problem:
+            return (f"expected {problem} (at most {PARAM_RANGE:g} times the default "
+                    f"{default:g}), got {shown(value)}")
+    if type(default) is str and not isinstance(value, str):
+        return f"expected a string, got {shown(value)}"
+    return None
+
+
+MIN_NOISE = 1e-12
+"""The smallest measurement noise level (a standard deviation) a config accepts: with none,
+every ratio to the raw measurement is infinite and a filter's ``R`` is singular (a level whose
+square underflows is the same); 1e-12 is far below any level of the thesis or a circuit."""
+
+
 def number(positive: bool = False, minimum: float | None = None, below: float | None = None,
            maximum: float | None = None):
     """A finite number (not a boolean), optionally positive, ``>= minimum``, ``< below``,
@@ -146,6 +170,29 @@ def matrix(v):
                and all(ok(x) is None for x in r) for r in v):
             return None
     return "a finite number, a list of finite numbers or a list of equal-length rows"
+
+
+def covariance(definite: bool = False):
+    """A :func:`matrix` that is a covariance: symmetric and positive semidefinite (positive
+    definite with ``definite``): a number ``>= 0`` (``> 0``), a diagonal of such numbers, or
+    a symmetric matrix whose smallest eigenvalue is so (to rounding)."""
+    kind = "positive definite" if definite else "positive semidefinite"
+
+    def check(v):
+        problem = matrix(v)
+        if problem:
+            return problem
+        a = np.asarray(v, float)
+        if a.ndim == 2 and (a.shape[0] != a.shape[1] or not np.allclose(a, a.T, rtol=1e-12,
+                                                                         atol=0.0)):
+            return f"a symmetric {kind} matrix"
+        lowest = float(np.min(a) if a.ndim < 2 else np.linalg.eigvalsh(a)[0])
+        scale = float(np.max(np.abs(a), initial=0.0))
+        if lowest < -1e-12 * scale or (definite and not lowest > 0):
+            return f"a {kind} covariance (" + ("a number > 0" if definite else
+                                              "a number >= 0") + " or such a matrix)"
+        return None
+    return check
 
 
 def vector(max_length: int = 256):
@@ -351,10 +398,15 @@ class Settings:
         for f in _declared(type(self)):
             value = getattr(self, f.name)
             kind = f.metadata[_KIND]
-            if value is REQUIRED:
-                raise TypeError(f"{type(self).__name__}: missing required setting {f.name!r}")
+            if value is REQUIRED or (value is None and kind == "value"
+                                     and f.metadata["default"] is REQUIRED):
+                raise TypeError(f"{type(self).__name__}: missing required setting {f.name!r}"
+                                + (" (None given)" if value is None else ""))
             if kind == "value":
                 check = f.metadata["check"]
+                if isinstance(value, (np.ndarray, np.generic)):   # numpy's numbers as plain
+                    value = plain(value)
+                    object.__setattr__(self, f.name, value)
                 if check is not None and value is not None and not _CHECKED.get():
                     _check_value(check, plain(value), f.name)
             elif kind == "block" and isinstance(value, dict):

@@ -13,7 +13,7 @@ from estim.config.experiment import Experiment
 from estim.config.registry import ANALYSES
 from estim.engine import compare, runner
 from estim.errors import ReferenceJoinError, UsageError
-from estim.store import read_manifest, read_table
+from estim.store import read_table
 
 
 def config_differences(stored: dict, current: dict, path: str = "") -> list[str]:
@@ -41,10 +41,17 @@ def check(exp: Experiment, stored_dir: Path, tmp: Path, jobs: int, say: Callable
     if not stored_dir.is_dir():
         say(f"{exp.name}: no stored results in {stored_dir}")
         return 1
-    manifest = read_manifest(stored_dir)
-    if manifest is None:
-        say(f"{exp.name}: {stored_dir / 'manifest.json'} is missing or not JSON")
+    try:                    # the whole manifest and every file it lists, before any work
+        stored = store.open_stored(stored_dir, ANALYSES)
+    except UsageError as exc:
+        say(f"{exp.name}: {exc}")
         return 1
+    damaged = stored.file_problems()
+    for problem in damaged:
+        say(f"{exp.name}: {problem}")
+    if damaged:
+        return len(damaged)
+    manifest = stored.manifest
     if same_config and manifest.get("config_sha256") != store.spec_hash(exp.spec):
         changes = config_differences(manifest.get("config"), exp.spec)
         shown = "; ".join(changes[:5]) + (f"; and {len(changes) - 5} more" if
@@ -69,26 +76,25 @@ def check(exp: Experiment, stored_dir: Path, tmp: Path, jobs: int, say: Callable
     for metric, new in result.tables.items():
         if metric in machine:
             continue
-        path = stored_dir / f"{metric}.csv"
-        if not path.exists():
-            say(f"{exp.name}/{metric}.csv: missing from the stored results")
-            differing += 1
-            continue
+        spec = analysis.TABLES.get(metric)
         try:
-            stored = read_table(path, analysis.TABLES.get(metric))
+            old = stored.table(spec) if spec is not None else None
         except UsageError as exc:
             say(f"{exp.name}/{metric}.csv: {exc}")
             differing += 1
             continue
-        diffs = compare.compare_tables(stored, read_table(tmp / exp.name / f"{metric}.csv"), tol)
+        if old is None:
+            say(f"{exp.name}/{metric}.csv: missing from the stored results")
+            differing += 1
+            continue
+        diffs = compare.compare_tables(old, read_table(tmp / exp.name / f"{metric}.csv"), tol)
         for d in diffs:
             say(f"{exp.name}/{metric}.csv row {d['row']} {d['column']}: obtained "
                 f"{d['obtained']}, expected {d['expected']}, difference {d['difference']}")
         differing += len(diffs)
-        spec = analysis.TABLES.get(metric)
-        if spec is not None and spec.join:
+        if spec.join:
             try:
-                reference.with_reference(reference.view(stored, spec), spec, allow_unmatched=True)
+                reference.with_reference(reference.view(old, spec), spec, allow_unmatched=True)
             except ReferenceJoinError as exc:
                 say(f"{exp.name}/{metric}.csv: {exc}")
                 differing += 1

@@ -95,9 +95,10 @@ def table_specs() -> dict[str, dict]:
 
 def cell_store(exp: Experiment, out: Path) -> cells.CellStore:
     """Where the finished cells of ``exp`` wait in ``out`` (keyed by config and source)."""
-    key = store.spec_hash(exp.spec) + cells.code_fingerprint()
-    key = hashlib.sha256(key.encode()).hexdigest()
-    return cells.CellStore(Path(out) / f".{exp.name}.cells-{key[:16]}")
+    config, source = store.spec_hash(exp.spec), cells.code_fingerprint()
+    key = hashlib.sha256((config + source).encode()).hexdigest()
+    return cells.CellStore(Path(out) / f".{exp.name}.cells-{key[:16]}",
+                           {"config": config, "source": source})
 
 
 def run_to_folder(exp: Experiment, out: Path, jobs: int = 1,
@@ -182,21 +183,28 @@ def run_shard(exp: Experiment, out: Path, k: int, n: int, jobs: int = 1) -> tupl
     return ctx.computed, bool(ctx.offsets)
 
 
-def gather_cells(exp: Experiment, out: Path, sources: list[Path]) -> int:
+def gather_cells(exp: Experiment, out: Path, sources: list[Path]) -> tuple[int, list[str]]:
     """Copy the cells shards of ``exp`` left in ``sources`` into its cell store in ``out``:
-    the number of cells found. Only a regular file whose name is a cell's is taken."""
+    the number of cells taken, and every other file of the shards' cell folders, named with
+    why it was refused (not a regular file, not a cell, a cell of another config or estim:
+    :meth:`estim.engine.cells.CellStore.read`; nothing in it is run)."""
     target = cell_store(exp, out)
-    found_cells = 0
+    found_cells, refused = 0, []
     for source in sources:
         found = cell_store(exp, source).folder
-        for cell in sorted(found.glob("cell-*.pkl")) if found.is_dir() else []:
-            if not cell.is_file():
+        for cell in sorted(found.iterdir()) if found.is_dir() else []:
+            try:
+                if not cell.name.startswith("cell-") or cell.suffix != cells.SUFFIX:
+                    raise cells.CellError("not a cell file's name")
+                target.read(cell)
+            except cells.CellError as exc:
+                refused.append(f"{cell} ({exc})")
                 continue
             if found != target.folder:
                 target.folder.mkdir(parents=True, exist_ok=True)
                 store.atomic_write_bytes(target.folder / cell.name, cell.read_bytes())
             found_cells += 1
-    return found_cells
+    return found_cells, refused
 
 
 def _reference_seconds(results: Path) -> dict[str, float]:

@@ -17,6 +17,8 @@ size); ``example(model)`` gives a working instance for a test model.
 
 from __future__ import annotations
 
+import functools
+import math
 from dataclasses import dataclass, field
 from typing import ClassVar
 
@@ -26,7 +28,7 @@ from estim.config import registry
 from estim.config.settings import (
     REQUIRED,
     Settings,
-    matrix,
+    covariance,
     number,
     setting,
     settings_class,
@@ -43,6 +45,8 @@ class Estimator(Settings):
 
     def __init_subclass__(cls, name: str | None = None, **kwargs) -> None:
         super().__init_subclass__(**kwargs)
+        if "run" in cls.__dict__:               # a plugin's run is checked the same way
+            cls.run = _checked_run(cls.__dict__["run"])
         if name is not None:
             cls.name = name
             registry.ESTIMATORS.register(name, cls)
@@ -50,6 +54,10 @@ class Estimator(Settings):
     def validate(self, model) -> None:
         """Raise ``ValueError`` (``"setting: why"``) for settings that cannot run with
         ``model``; the settings' own checks ran when the estimator was made."""
+
+    def measured(self, model) -> int | None:
+        """How many measured values each step of ``z`` holds for ``model`` (None: any)."""
+        return None
 
     def run(self, model, z: np.ndarray, u: np.ndarray, dt: float,
             x0: np.ndarray | None = None) -> Estimate:
@@ -62,16 +70,58 @@ class Estimator(Settings):
         raise NotImplementedError(f"{cls.__name__} gives no example")
 
 
+def check_inputs(estimator: Estimator, model, z, u, dt, x0) -> tuple[np.ndarray, np.ndarray]:
+    """``z`` and ``u`` as float arrays, after the checks every ``run`` gets before any work
+    (the settings against ``model``: :meth:`Estimator.validate`; ``z`` of shape ``(runs,
+    steps, m)``, ``u`` of ``(steps, p)`` or ``(runs, steps, p)`` with as many steps, ``dt``
+    a positive finite number, ``x0`` finite): a :class:`SettingError` naming the argument."""
+    estimator.validate(model)
+    try:
+        z = np.asarray(z, float)
+        u = np.asarray(u, float)
+    except (TypeError, ValueError):
+        raise SettingError("z", "z and u must be arrays of numbers") from None
+    if z.ndim != 3 or 0 in z.shape:
+        raise SettingError("z", f"expected shape (runs, steps, m), got {z.shape}")
+    m = estimator.measured(model)
+    if m is not None and z.shape[2] != m:
+        raise SettingError("z", f"{z.shape[2]} values per step, but {m} are measured")
+    if u.ndim not in (2, 3) or u.shape[-2] != z.shape[1] or (
+            u.ndim == 3 and u.shape[0] not in (1, z.shape[0])):
+        raise SettingError("u", f"expected shape ({z.shape[1]}, p) or ({z.shape[0]}, "
+                           f"{z.shape[1]}, p) for z of shape {z.shape}, got {u.shape}")
+    n_inputs = getattr(model, "n_inputs", None)
+    if isinstance(n_inputs, int) and u.shape[-1] != n_inputs and u.shape[-1] != 0:
+        raise SettingError("u", f"{u.shape[-1]} inputs per step, but the model has {n_inputs}")
+    if not (np.all(np.isfinite(z)) and np.all(np.isfinite(u))):
+        raise SettingError("z", "z and u must be finite")
+    if dt is not None and (isinstance(dt, bool) or not isinstance(dt, (int, float, np.number))
+                           or not math.isfinite(dt) or not dt > 0):
+        raise SettingError("dt", f"expected a positive finite number, got {dt!r}")
+    if x0 is not None and not np.all(np.isfinite(np.asarray(x0, float))):
+        raise SettingError("x0", "must be finite")
+    return z, u
+
+
+def _checked_run(run):
+    """``run`` with :func:`check_inputs` first."""
+    @functools.wraps(run)
+    def checked(self, model, z, u, dt=None, x0=None, **kwargs):
+        z, u = check_inputs(self, model, z, u, dt, x0)
+        return run(self, model, z, u, dt, x0, **kwargs)
+    return checked
+
+
 @settings_class
 class NoiseCovariances(Estimator):
     """The settings every Kalman-type filter shares (not registered itself): additive noise
     covariances and the initial estimate."""
 
-    Q: float | list = setting(REQUIRED, matrix, unit="state^2",
+    Q: float | list = setting(REQUIRED, covariance(), unit="state^2",
                      doc="process noise covariance per step: a number, a diagonal or a matrix")
-    R: float | list = setting(REQUIRED, matrix, unit="output^2",
+    R: float | list = setting(REQUIRED, covariance(definite=True), unit="output^2",
                      doc="measurement noise covariance: a number, a diagonal or a matrix")
-    P0: float | list = setting(REQUIRED, matrix, unit="state^2",
+    P0: float | list = setting(REQUIRED, covariance(), unit="state^2",
                                doc="covariance of the initial estimate")
     x0: list | None = setting(None, vector(), unit="state",
                               doc="initial estimate; none: the x0 the analysis passes (the "
@@ -90,6 +140,9 @@ class GaussianFilter(NoiseCovariances):
     @classmethod
     def example(cls, model) -> GaussianFilter:
         return cls(Q=0.01, R=0.1, P0=1.0, x0=[0.0] * model.n_states)
+
+    def measured(self, model) -> int | None:
+        return model.n_outputs
 
     def validate(self, model) -> None:
         """The covariances and ``x0`` against the model's size."""

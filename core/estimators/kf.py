@@ -58,6 +58,9 @@ class KalmanFilter(NoiseCovariances, name="kf"):
         return (A, B, C, as_matrix(self.Q, n, "Q"), as_matrix(self.R, C.shape[0], "R"),
                 as_matrix(self.P0, n, "P0"))
 
+    def measured(self, model) -> int | None:
+        return self.matrices()[2].shape[0]
+
     def validate(self, model) -> None:
         """The covariances: finite, symmetric, positive (semi)definite; and, where the
         analysis gives the filter a model, the matrices' sizes against it: the estimate is
@@ -92,12 +95,21 @@ class KalmanFilter(NoiseCovariances, name="kf"):
         P_hist = np.empty((runs, steps, n, n))
         S_hist = np.empty((runs, steps, m, m))
         innovation = np.empty((runs, steps, m))
-        for k in range(steps):
-            x = x @ A.T + u[:, k, :] @ B.T
-            P = A @ P @ A.T + Q
-            innovation[:, k] = z[:, k] - x @ C.T
-            x, P, S_hist[:, k] = joseph_update(x, P, innovation[:, k], H, R)
-            x_hat[:, k] = x
-            P_hist[:, k] = P
-        return Estimate(y_hat=x_hat @ C.T, innovation=innovation,
-                        broken=np.zeros(runs, bool), x_hat=x_hat, P=P_hist, S=S_hist)
+        with np.errstate(all="ignore"):     # an overflowing run is marked broken below
+            for k in range(steps):
+                x = x @ A.T + u[:, k, :] @ B.T
+                P = A @ P @ A.T + Q
+                innovation[:, k] = z[:, k] - x @ C.T
+                x, P, S_hist[:, k] = joseph_update(x, P, innovation[:, k], H, R)
+                x_hat[:, k] = x
+                P_hist[:, k] = P
+        with np.errstate(all="ignore"):
+            y_hat = x_hat @ C.T
+        # a run whose estimate overflowed is broken from its first non-finite step on
+        bad = ~(np.all(np.isfinite(x_hat), axis=2) & np.all(np.isfinite(P_hist), axis=(2, 3)))
+        bad = np.cumsum(bad, axis=1) > 0
+        for a in (x_hat, y_hat, innovation):
+            a[bad] = np.nan
+        P_hist[bad], S_hist[bad] = np.nan, np.nan
+        return Estimate(y_hat=y_hat, innovation=innovation, broken=bad[:, -1], x_hat=x_hat,
+                        P=P_hist, S=S_hist)

@@ -195,6 +195,9 @@ class WaveletLMS(Estimator, name="wavelet_lms"):
                 out[:, k] = x
         return out, ~alive
 
+    def measured(self, model) -> int | None:
+        return len(self.measured_states(model))
+
     def run(self, model, z: np.ndarray, u: np.ndarray, dt: float,
             x0: np.ndarray | None = None) -> Estimate:
         """``z (runs, steps, q)``: measurements of :meth:`measured_states`, in that order."""

@@ -37,6 +37,7 @@ import numpy as np
 from estim.config.builders import check_interval
 from estim.config.experiment import Experiment
 from estim.config.settings import (
+    MIN_NOISE,
     REQUIRED,
     Settings,
     block,
@@ -127,7 +128,7 @@ class SourceNoise(Readings):
 class Noise(SourceNoise):
     """Noise at the source (as printed) and on the measured potentials."""
 
-    measurement_sigma: float = setting(0.1, number(positive=True, maximum=1e3),
+    measurement_sigma: float = setting(0.1, number(minimum=MIN_NOISE, maximum=1e3),
                                        doc="white noise on every measured potential")
 
 

@@ -16,6 +16,7 @@ import numpy as np
 
 from estim.config.experiment import Experiment
 from estim.config.settings import (
+    MIN_NOISE,
     REQUIRED,
     Settings,
     block,
@@ -43,7 +44,7 @@ class Signal(Settings):
     """``x = A e^-t + N`` (eqs 25-26)."""
 
     A: float = setting(REQUIRED, number(minimum=-1e6, maximum=1e6), doc="amplitude")
-    sigma: float = setting(REQUIRED, number(minimum=0.0, maximum=1e6),
+    sigma: float = setting(REQUIRED, number(minimum=MIN_NOISE, maximum=1e6),
                            doc="standard deviation of N")
 
 

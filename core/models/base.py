@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from estim.config import registry
+from estim.config.settings import parameter_problem
 from estim.errors import ParameterError, SimulationError
 from estim.numerics.simulate import simulate
 from estim.util import lazy
@@ -64,13 +65,17 @@ class Model:
                 f"unknown variant {variant!r}; expected one of {sorted(self.variants)}"
             )
         values = dict(self.variants.get(variant, {}))
-        known = {f.name for f in dataclasses.fields(self.Params)}
+        defaults = {f.name: f.default for f in dataclasses.fields(self.Params)}
+        known = set(defaults)
         for key, value in overrides.items():
             if key not in known:
                 raise ParameterError(
                     f"unknown parameter {key!r}; expected one of {sorted(known)}"
                 )
-            values[key] = value
+            problem = parameter_problem(defaults[key], value)
+            if problem:
+                raise ParameterError(f"{key}: {problem}")
+            values[key] = value.item() if isinstance(value, np.generic) else value
         self.variant = variant
         self.params = self.Params(**values)
 

@@ -293,10 +293,6 @@ def page(title: str, sections: list[Section], full: bool = False) -> str:
             + f"\n</main><script>{SCRIPT}</script></body></html>\n")
 
 
-MAX_FIGURE_BYTES = 32 << 20
-"""Largest stored figure embedded (the shipped PNGs are under 1 MB)."""
-
-
 def sections(results, deviations_text: str, config_dir, analyses: dict) -> list[Section]:
     """One :class:`Section` per experiment stored under ``results``: its tables (joined to
     the printed values where there are any), figures, and the deviations (from the text of
@@ -305,36 +301,22 @@ def sections(results, deviations_text: str, config_dir, analyses: dict) -> list[
     from pathlib import Path
 
     from estim.errors import ReferenceJoinError
-    from estim.store import (
-        read_manifest,
-        read_run_record,
-        read_stored,
-        read_table,
-        stored_table_path,
-    )
+    from estim.store import MAX_FIGURE_BYTES, read_run_record, stored_folders
 
     entries = deviation_entries(deviations_text) if deviations_text else {}
     fragile = fragility.read(Path(results))
     out = []
-    for manifest_path in sorted(Path(results).glob("*/manifest.json")):
-        folder = manifest_path.parent
-        manifest = read_manifest(folder)
-        if manifest is None or not isinstance(manifest.get("config"), dict):
-            raise UsageError(f"{manifest_path}: not a readable estim manifest")
-        config = manifest["config"]
-        name = config.get("analysis", "estimation")
-        analysis = analyses.get(name) if isinstance(name, str) else None
-        if analysis is None:
-            raise UsageError(f"{manifest_path}: names an unknown analysis {str(name)[:60]!r}")
+    for stored in stored_folders(Path(results), analyses):
+        folder, config, manifest = stored.folder, stored.config, stored.manifest
         section = Section(folder.name, str(config.get("title") or ""),
                           {**manifest, **read_run_record(folder)},
                           fragile=sum(map(len, fragility.cells(fragile, folder.name).values())),
                           fragile_cells=fragile)
-        for metric, spec in analysis.TABLES.items():
-            path = stored_table_path(folder, spec)
-            if path is None:
+        for metric, spec in stored.analysis.TABLES.items():
+            df = stored.table(spec)
+            if df is None:
                 continue
-            df = reference.view(read_table(path, spec), spec)
+            df = reference.view(df, spec)
             caption = f"{metric}: {spec.title}"
             values = df.drop(columns=[*spec.keys, *reference.sweep_columns(df)], errors="ignore")
             if values.isna().all().all():             # ours are empty, printed ones or not
@@ -346,10 +328,9 @@ def sections(results, deviations_text: str, config_dir, analyses: dict) -> list[
                 except ReferenceJoinError:
                     pass
             section.tables.append((metric, caption, df))
-        for figure in sorted((folder / "figures").glob("*")):
-            if figure.suffix in (".png", ".svg", ".pdf"):
-                section.figures.append((figure.name,
-                                        read_stored(figure, MAX_FIGURE_BYTES, "figure")))
+        for figure in stored.figures():
+            section.figures.append((figure.name,
+                                    stored.read(figure, MAX_FIGURE_BYTES, "figure")))
         source = Path(config_dir) / f"{folder.name}.yaml" if config_dir else None
         text_ = source.read_text() if source is not None and source.is_file() else ""
         section.deviations = [(d, entries[d]) for d in cited(text_) if d in entries]

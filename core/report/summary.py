@@ -15,10 +15,11 @@ from pathlib import Path
 
 import numpy as np
 
+from estim.config.registry import ANALYSES
 from estim.experiments.base import Quote
 from estim.experiments.shared import claims
 from estim.report import fragility
-from estim.store import read_manifest, read_table
+from estim.store import Stored, open_stored, stored_folders
 from estim.util import lazy
 
 pd = lazy.load("pandas")
@@ -107,36 +108,38 @@ def quote_line(quote: Quote, df: pd.DataFrame) -> str | None:
 
 
 def experiment(folder: Path, analyses: dict) -> list[str]:
-    """The summary lines of one stored experiment (empty when the folder holds none); the
-    fragile verdicts are read from the folder's parent (``results/``)."""
-    manifest = read_manifest(folder)
-    if manifest is None or not isinstance(manifest.get("config"), dict):
+    """The summary lines of the experiment stored in ``folder`` (empty when there is no such
+    folder; a damaged one is a ``UsageError``, as everywhere: :func:`estim.store.open_stored`)."""
+    if not (Path(folder) / "manifest.json").exists() and not \
+            (Path(folder) / "manifest.json").is_symlink():
         return []
-    config = manifest["config"]
-    module = analyses.get(config.get("analysis", "estimation"))
-    if module is None:
-        return []
+    return lines_of(open_stored(folder, analyses))
+
+
+def lines_of(stored: Stored) -> list[str]:
+    """The summary lines of one stored experiment; the fragile verdicts are read from the
+    folder's parent (``results/``)."""
+    config, folder, module = stored.config, stored.folder, stored.analysis
     title = str(config.get("title") or "")
     runs = (config.get("monte_carlo") or {}).get("runs")
     head = f"**{folder.name}**" + (f": {title}" if title else "")
-    path = folder / claims.TABLE.file
+    verdicts = stored.table(claims.TABLE)
     notes = [f"{runs} runs per cell"] if runs and runs > 1 else []
-    if path.is_file():          # the margin of practical significance (docs/claims.md)
+    if verdicts is not None:      # the margin of practical significance (docs/claims.md)
         notes.append(f"claim margin {number(float(config.get('claim_margin') or 0.0))}")
     if notes:
         head += f" ({'; '.join(notes)})"
     lines = [head]
-    if path.is_file():
-        lines += claim_lines(read_table(path, claims.TABLE),
+    if verdicts is not None:
+        lines += claim_lines(verdicts,
                              fragility.cells(fragility.read(folder.parent), folder.name))
     loaded: dict[str, pd.DataFrame] = {}
     for quote in getattr(module, "QUOTES", ()):
-        spec = module.TABLES[quote.metric]
         if quote.metric not in loaded:
-            table = folder / spec.file
-            if not table.is_file():
+            table = stored.table(module.TABLES[quote.metric])
+            if table is None:
                 continue
-            loaded[quote.metric] = read_table(table, spec)
+            loaded[quote.metric] = table
         line = quote_line(quote, loaded[quote.metric])
         if line is not None:
             lines.append(line)
@@ -144,19 +147,14 @@ def experiment(folder: Path, analyses: dict) -> list[str]:
 
 
 def everything(results: Path, analyses: dict) -> dict[str, list[str]]:
-    """The summary lines of every stored experiment under ``results``, by name; a manifest
-    that cannot be read is a ``UsageError`` naming it (as ``estim table`` and ``estim
-    report`` have it)."""
-    from estim.errors import UsageError
-
+    """The summary lines of every stored experiment under ``results``, by name (a damaged
+    folder is a ``UsageError`` naming the file, as ``estim table`` and ``estim report``
+    have it: :func:`estim.store.stored_folders`)."""
     out = {}
-    for manifest in sorted(results.glob("*/manifest.json")):
-        stored = read_manifest(manifest.parent)
-        if stored is None or not isinstance(stored.get("config"), dict):
-            raise UsageError(f"{manifest}: not a readable estim manifest")
-        lines = experiment(manifest.parent, analyses)
+    for stored in stored_folders(results, analyses):
+        lines = lines_of(stored)
         if lines:
-            out[manifest.parent.name] = lines
+            out[stored.name] = lines
     return out
 
 
@@ -174,17 +172,16 @@ def as_data(results: Path, analyses: dict) -> list[dict]:
     the lines the text gives."""
     out = []
     fragile = fragility.read(results)
-    for name, lines in everything(results, analyses).items():
-        manifest = read_manifest(results / name) or {}
-        config = manifest.get("config") or {}
+    for stored in stored_folders(results, analyses):
+        lines = lines_of(stored)
+        name, config = stored.name, stored.config
         entry = {"name": name, "title": str(config.get("title") or ""),
                  "runs": (config.get("monte_carlo") or {}).get("runs"),
                  "claim_margin": float(config.get("claim_margin") or 0.0), "claims": [],
                  "quotes": [line[2:] for line in lines if line.startswith("- ")
                             and not line.startswith("- `")]}
-        path = results / name / claims.TABLE.file
-        if path.is_file():
-            df = read_table(path, claims.TABLE)
+        df = stored.table(claims.TABLE)
+        if df is not None:
             moved = fragility.cells(fragile, name)
             family, own = claims.counts(df), claims.counts(df, "verdict")
             for (_, f), (_, o) in zip(family.iterrows(), own.iterrows(), strict=True):
@@ -236,11 +233,13 @@ def headline(results: Path) -> list[str]:
              "| fragile | other claims |", "|---|---|---|---|---|---|---|---|---|"]
     fragile = fragility.read(results)
     for table, name, claim in HEADLINE:
-        path = results / name / claims.TABLE.file
-        if not path.is_file():
+        df = None
+        if (results / name / "manifest.json").exists():
+            df = open_stored(results / name, ANALYSES).table(claims.TABLE)
+        if df is None:
             lines.append(f"| {table} | {name} | (no stored results) | | | | | | |")
             continue
-        row, others = headline_counts(read_table(path, claims.TABLE), claim)
+        row, others = headline_counts(df, claim)
         moved = len(fragility.cells(fragile, name).get(row["claim"], set()))
         said = str(row["claim"]).replace("|", "\\|")
         lines.append(f"| {table} | `{name}` | {said} | {row[claims.HOLDS]} | "
@@ -262,10 +261,13 @@ def refresh(text: str, results: Path, analyses: dict) -> tuple[str, list[str]]:
     """``text`` with every summary block re-generated from ``results``, and the names of
     the blocks whose content changed (a stale file names them)."""
     stale = []
+    made: dict[str, list[str]] = {}       # a name's lines once, however many blocks cite it
 
     def fill(match: re.Match) -> str:
         name = match.group("name")
-        lines = experiment(results / name, analyses)
+        if name not in made:
+            made[name] = experiment(results / name, analyses)
+        lines = made[name]
         body = ("\n".join(lines) if lines else f"(no stored results for {name})") + "\n"
         if body != match.group("body"):
             stale.append(name)

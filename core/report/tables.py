@@ -200,20 +200,21 @@ def stored(results, metric: str, fmt: str, thesis: bool, partial: bool,
     such table, or no values at all, is a ``UsageError``."""
     from estim.config.settings import did_you_mean
     from estim.errors import UsageError
-    from estim.store import read_table, stored_tables
+    from estim.store import stored_tables
 
     found = list(stored_tables(results, metric, analyses))
-    names = [folder.name for folder, _, _ in found]
+    names = [stored.name for stored, _ in found]
     for name in only:
         if name not in names:
             raise UsageError(f"{name}: no stored {metric} table under {results}/"
                              f"{did_you_mean(name, names)}; experiments with one: "
                              f"{', '.join(sorted(names)) or 'none'}")
     parts, frames, unprinted = [], [], []
-    for folder, spec, path in found:
+    for stored, spec in found:
+        folder, path = stored.folder, stored.table_path(spec)
         if only and folder.name not in only:
             continue
-        df = view(read_table(path, spec), spec)
+        df = view(stored.table(spec), spec)
         values = df.drop(columns=[*spec.keys, *sweep_columns(df)], errors="ignore")
         if values.isna().all().all():
             continue

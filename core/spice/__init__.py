@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from estim.config.settings import shown
 from estim.errors import ConfigError
 from estim.spice.netlist_model import model_class, rebuild
 from estim.spice.parser import NetlistError
@@ -61,8 +62,12 @@ def resolve_model_block(data: dict, source: str) -> None:
     if block.get("hold") not in (None, "mean", "start", "end"):
         raise ConfigError(source, "model.hold", f"expected mean, start or end, got "
                           f"{block['hold']!r}")
-    if not isinstance(netlist, str):
-        raise ConfigError(source, "model.netlist", f"expected a file name, got {netlist!r}")
+    if not isinstance(netlist, str) or not netlist or "\0" in netlist:
+        raise ConfigError(source, "model.netlist", f"expected a file name, got {shown(netlist)}")
+    if len(netlist.encode("utf-8", "surrogateescape")) > 1024 or any(
+            len(part.encode("utf-8", "surrogateescape")) > 255 for part in Path(netlist).parts):
+        raise ConfigError(source, "model.netlist", f"{shown(netlist)}: a path longer than a "
+                          "netlist's may be (1024 bytes, 255 per name)")
     path = find_netlist(netlist, source)
     if path is None:
         raise ConfigError(source, "model.netlist", f"no file {netlist!r} beside the config, "

@@ -313,6 +313,14 @@ class Circuit:
                 raise NetlistError(self.netlist.source, 0, f"output {text!r}: i() of an "
                                    f"inductor, one of {names}")
             return ("i", len(self.state_nodes) + names.index(m.group(2)))
+        if m.group(3) is not None and (m.group(2) == m.group(3) or
+                                       {m.group(2), m.group(3)} <= set(GROUND)):
+            raise NetlistError(self.netlist.source, 0, f"output {text!r}: the voltage between "
+                               "a node and itself is zero whatever the circuit does; name "
+                               "two different nodes")
+        if m.group(2) in GROUND and m.group(3) is None:
+            raise NetlistError(self.netlist.source, 0, f"output {text!r}: ground's voltage is "
+                               "zero whatever the circuit does; name a node of the circuit")
         for n in (m.group(2), m.group(3)):
             if n and self.row.get(n) is None:
                 raise NetlistError(self.netlist.source, 0, f"output {text!r}: node {n} is "

@@ -18,6 +18,7 @@ and an Ebers-Moll transistor whose ``.model`` sets ``ics`` two of them.
 
 from __future__ import annotations
 
+import math
 import re
 import shutil
 import subprocess
@@ -204,19 +205,39 @@ def vector(name: str) -> str:
     return "v(" + ",".join(flat(n.strip()) for n in inner.split(",")) + ")"
 
 
-TIMEOUT = 300
-"""Seconds one ngspice run may take."""
+TIMEOUT_BASE = 30.0
+"""Seconds any ngspice run may take before its work is counted (start-up, a DC point, an AC
+sweep of a few frequencies)."""
+TIMEOUT_PER_STEP = 1e-3
+"""Seconds more per time step a transient asks for."""
+TIMEOUT_PER_STEP_SQUARED = 1e-6
+"""Seconds more per squared time step: driven by a staircase (a PWL source with a corner per
+sample), ngspice's time grows with the square of the steps (measured on
+circuits/diffamp_em.cir with other work beside it: 16,000 steps 16 s, 80,000 steps 346 s,
+about 6e-8 s per squared step), so a long cross-check is not cut short while a hung short
+one is stopped within seconds of its limit."""
 
 
-def _run(deck: str, tmp: Path, executable: str | None) -> None:
+def timeout(steps: int = 0) -> float:
+    """Seconds an ngspice run of ``steps`` transient time steps may take."""
+    n = max(int(steps), 0)
+    return TIMEOUT_BASE + TIMEOUT_PER_STEP * n + TIMEOUT_PER_STEP_SQUARED * n * n
+
+
+def _run(deck: str, tmp: Path, executable: str | None, steps: int = 0) -> None:
+    """Run ngspice on ``deck`` in batch mode, within :func:`timeout` of ``steps``: a run
+    that takes longer, or that this process is interrupted or terminated during, is
+    killed (``subprocess.run`` kills its child on any exception)."""
     exe = find(executable)
     path = tmp / "deck.cir"
     path.write_text(deck)
+    limit = timeout(steps)
     try:
         run = subprocess.run([exe, "-b", str(path)], capture_output=True, text=True,
-                             errors="replace", timeout=TIMEOUT)
+                             errors="replace", timeout=limit)
     except subprocess.TimeoutExpired:
-        raise NgspiceError(f"ngspice took more than {TIMEOUT} s") from None
+        raise NgspiceError(f"ngspice took more than {limit:.0f} s (the limit for "
+                           f"{steps} time steps): stopped") from None
     log = run.stdout + run.stderr
     bad = re.search(r"(?im)^.*(error|aborted|timestep too small).*$", log)
     if bad:
@@ -265,7 +286,7 @@ quit 0
 .endc
 .end
 """
-        _run(deck, Path(tmp), executable)
+        _run(deck, Path(tmp), executable, steps=math.ceil(float(t[-1]) / step))
         table = _read(data)
     times, values = table[:, 0], table[:, 1:]
     return np.stack([np.interp(t, times, values[:, k]) for k in range(values.shape[1])],

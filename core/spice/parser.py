@@ -29,6 +29,7 @@ suffix are units and are ignored (``10uF``, ``4.7kOhm``). Every error is a
 from __future__ import annotations
 
 import ast
+import collections
 import math
 import re
 from dataclasses import dataclass, field
@@ -108,6 +109,11 @@ def evaluate(text: str, params: dict, where: tuple[str, int]) -> float:
     if text.startswith("{") and text.endswith("}"):
         text = text[1:-1]
     m = _NUMBER.match(text)
+    if m and m.group(3).startswith("e") and "e" not in m.group(1):
+        raise NetlistError(*where, f"{text!r}: an exponent 'e' with no digits")
+    if m and m.group(2) and "e" in m.group(1):
+        raise NetlistError(*where, f"{text!r}: both an exponent and a scale suffix; write "
+                           "one of them")
     if m:
         value = _scaled(m.group(1), m.group(2))
         if not math.isfinite(value) or (value == 0 and any(c in "123456789" for c in
@@ -119,12 +125,16 @@ def evaluate(text: str, params: dict, where: tuple[str, int]) -> float:
     expr = re.sub(r"(?<![\w.])((?:\d+\.?\d*|\.\d+)(?:e[+-]?\d+)?)(meg|mil|[fpnumkgt])(?![\w(])",
                   lambda mm: repr(_scaled(mm.group(1), mm.group(2))), text)
     expr = expr.replace("^", "**")
+    if len(expr) > 1000:            # before parsing: a deep expression exhausts the parser
+        raise NetlistError(*where, "expression longer than 1000 characters")
+    literal = re.search(r"(?<![\w.])(0[xob]\w*|\d[\d.]*_\w*)", expr)
+    if literal:
+        raise NetlistError(*where, f"{literal.group(1)!r} in {text!r} is not a SPICE number "
+                           "(no hexadecimal, octal, binary or digit separators)")
     try:
         tree = ast.parse(expr, mode="eval")
-    except SyntaxError:
+    except (SyntaxError, MemoryError, RecursionError):
         raise NetlistError(*where, f"{text!r} is not a number or an expression") from None
-    if len(expr) > 1000:
-        raise NetlistError(*where, "expression longer than 1000 characters")
 
     def walk(node):
         if isinstance(node, ast.Expression):
@@ -170,10 +180,10 @@ def _logical_lines(text: str, source: str) -> list[tuple[int, str]]:
     raw = text.splitlines()
     if len(raw) > MAX_LINES:
         raise NetlistError(source, 0, f"more than {MAX_LINES} lines")
-    out: list[tuple[int, str]] = []
+    out: list[tuple[int, list[str]]] = []       # each line's parts, joined once at the end
     for number, line in enumerate(raw, start=1):
         if number == 1:
-            out.append((1, line.strip()))
+            out.append((1, [line.strip()]))
             continue
         line = re.split(r"[;$]", line, maxsplit=1)[0].rstrip()
         stripped = line.strip()
@@ -183,11 +193,10 @@ def _logical_lines(text: str, source: str) -> list[tuple[int, str]]:
             if len(out) < 2:
                 raise NetlistError(source, number, "a continuation line ('+') with no line "
                                    "before it")
-            first, before = out[-1]
-            out[-1] = (first, before + " " + stripped[1:])
+            out[-1][1].append(stripped[1:])
             continue
-        out.append((number, stripped))
-    return out
+        out.append((number, [stripped]))
+    return [(number, " ".join(parts)) for number, parts in out]
 
 
 def _tokens(line: str) -> list[str]:
@@ -230,6 +239,8 @@ def _waveform(tokens: list[str], params: dict, where) -> tuple:
     if not tokens:
         raise NetlistError(*where, "a source needs a value")
     toks = tokens[1:] if tokens[0] == "dc" else tokens
+    if not toks:
+        raise NetlistError(*where, "a source needs a value after DC")
     head = toks[0]
     m = re.fullmatch(r"(sin|pulse|pwl)\((.*)\)", head)
     if m:
@@ -323,9 +334,9 @@ def parse(text: str, source: str = "<netlist>") -> Netlist:
     for number, tokens in (b for s in subckts.values() for b in s[3]):
         if tokens[0] == ".model":
             _model(net, tokens, (source, number))
-    names = [e.name for e in net.elements]
+    names = collections.Counter(e.name for e in net.elements)
     for e in net.elements:
-        if names.count(e.name) > 1:
+        if names[e.name] > 1:
             raise NetlistError(source, e.line, f"element {e.name} is defined twice")
     return net
 

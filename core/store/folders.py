@@ -73,6 +73,19 @@ def _fsync_dir(folder: Path) -> None:
         os.close(fd)
 
 
+MIN_FREE_BYTES = 20 * 2**20
+"""Free space a run needs in its output folder before it starts."""
+
+
+def ensure_free(folder: Path, need: int = MIN_FREE_BYTES) -> None:
+    """A :class:`UsageError` before any work when ``folder``'s disk has less than ``need``
+    bytes free (a run would otherwise fail when the disk fills, after its work)."""
+    free = shutil.disk_usage(folder).free
+    if free < need:
+        raise UsageError(f"not enough free space in {folder}: {free / 2**20:.1f} MiB, "
+                         f"need {need / 2**20:.1f} MiB")
+
+
 class ResultFolder:
     """A result folder written as a unit: ``with ResultFolder(out, name) as rf:`` locks
     ``out/name`` against other runs, hands out a staging folder ``rf.path`` beside it, and
@@ -84,7 +97,7 @@ class ResultFolder:
     folder caught between them is restored by the next run.
     """
 
-    def __init__(self, out: Path, name: str, min_free_bytes: int = 20 * 2**20) -> None:
+    def __init__(self, out: Path, name: str, min_free_bytes: int = MIN_FREE_BYTES) -> None:
         self.out, self.name = Path(out), name
         self.final = self.out / name
         self.path = self.out / f".{name}.partial-{os.getpid()}"
@@ -111,12 +124,11 @@ class ResultFolder:
                              "has finished") from None
         self._lock_fd = fd
         self._recover()
-        need = max(self.min_free_bytes, 2 * _size(self.final))
-        free = shutil.disk_usage(self.out).free
-        if free < need:
+        try:
+            ensure_free(self.out, max(self.min_free_bytes, 2 * _size(self.final)))
+        except UsageError:
             self._release()
-            raise UsageError(f"not enough free space in {self.out}: {free / 2**20:.1f} MiB, "
-                             f"need {need / 2**20:.1f} MiB")
+            raise
         self.path.mkdir()
         return self
 
@@ -182,3 +194,28 @@ def ensure_writable(folder: Path) -> None:
         Path(probe).unlink()
     except OSError as exc:
         raise UsageError(f"cannot write to {folder} ({exc.strerror or exc})") from None
+
+
+NAME_MAX, PATH_MAX = 255, 4096
+"""The longest file name and path (bytes) a POSIX system accepts."""
+
+
+def output_file(path: Path, option: str) -> None:
+    """Refuse, before any work, a file a command was asked to write (``report --out``,
+    ``tune --out``, ``summary --readme``) that it must not: a name or path over the
+    system's limits, something other than a regular file where it would go, or a file
+    inside a result folder (a folder with a ``manifest.json``), whose files ``estim
+    reproduce`` writes and ``estim check`` compares. Raises
+    :class:`estim.errors.UsageError` naming ``option`` and the reason."""
+    shown = str(path) if len(str(path)) <= 80 else str(path)[:77] + "..."
+    if (len(os.fsencode(str(path))) > PATH_MAX
+            or any(len(os.fsencode(part)) > NAME_MAX for part in Path(path).parts)):
+        raise UsageError(f"{option} {shown}: a path longer than the system allows")
+    if Path(path).is_dir():
+        raise UsageError(f"{option} {shown}: a folder; name the file to write")
+    if os.path.lexists(path) and not Path(path).is_file():
+        raise UsageError(f"{option} {shown}: not a regular file")
+    for folder in Path(os.path.abspath(path)).parents:
+        if (folder / "manifest.json").is_file():
+            raise UsageError(f"{option} {shown}: inside the result folder {folder}, which "
+                             "estim reproduce writes; give a file elsewhere")

@@ -66,15 +66,18 @@ def stored_table_path(folder: Path, spec) -> Path | None:
     return path
 
 
-def read_table(path: Path, spec=None) -> pd.DataFrame:
-    """A stored result table, with an empty ``table_id`` kept as an empty string.
+def read_table(path: Path, spec=None, data: bytes | None = None) -> pd.DataFrame:
+    """A stored result table, with an empty ``table_id`` kept as an empty string (``data``:
+    the file's bytes, already read and checked by :meth:`estim.store.stored.Stored.read`).
 
     Raises :class:`UsageError` naming the file when it cannot be read as a table: not a
     regular file, over :data:`MAX_TABLE_BYTES`, empty or a header alone, not CSV, ragged
     rows, missing columns of ``spec``, or text in one of its value columns.
     """
     try:
-        text_ = read_stored(path, MAX_TABLE_BYTES, "table").decode("utf-8")
+        if data is None:
+            data = read_stored(path, MAX_TABLE_BYTES, "table")
+        text_ = data.decode("utf-8")
         rows = list(csv.reader(io.StringIO(text_, newline="")))
     except (UnicodeDecodeError, csv.Error) as exc:
         raise UsageError(f"{path}: cannot read ({exc})") from None
@@ -108,24 +111,6 @@ def read_table(path: Path, spec=None) -> pd.DataFrame:
                         raise UsageError(f"{path}: line {i + 2}, column {column}: "
                                          f"{str(cell)[:40]!r} is not a number") from None
     return df
-
-
-def stored_tables(results: Path, metric: str, analyses: dict):
-    """``(folder, TableSpec, path)`` of every stored experiment under ``results`` that has
-    the table ``metric``; a manifest that cannot be read is a ``UsageError`` naming it."""
-    for manifest_path in sorted(Path(results).glob("*/manifest.json")):
-        folder = manifest_path.parent
-        manifest = read_manifest(folder)
-        if manifest is None or not isinstance(manifest.get("config"), dict):
-            raise UsageError(f"{manifest_path}: not a readable estim manifest")
-        name = manifest["config"].get("analysis", "estimation")
-        analysis = analyses.get(name) if isinstance(name, str) else None
-        if analysis is None:
-            raise UsageError(f"{manifest_path}: names an unknown analysis {str(name)[:60]!r}")
-        spec = analysis.TABLES.get(metric)
-        path = stored_table_path(folder, spec) if spec is not None else None
-        if path is not None:
-            yield folder, spec, path
 
 
 def read_manifest(folder: Path) -> dict | None:

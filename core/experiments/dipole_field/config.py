@@ -4,6 +4,7 @@ names of its estimators."""
 from __future__ import annotations
 
 from estim.config.settings import (
+    MIN_NOISE,
     REQUIRED,
     Settings,
     block,
@@ -70,7 +71,7 @@ class Sensors(Settings):
                               doc="fraction of the grid's points that are sensors")
     r: list = setting([0.2, 1.9], list_of(number(positive=True, maximum=1e6), max_length=2),
                       doc="[low, high] radius the sensors are drawn from")
-    measurement_sigma: float = setting(0.01, number(positive=True, maximum=1e3),
+    measurement_sigma: float = setting(0.01, number(minimum=MIN_NOISE, maximum=1e3),
                                        doc="white noise on every measured component")
     seed: int | None = setting(None, integer(0, 2**63 - 1),
                                doc="absent: the sensors are drawn anew for each Monte Carlo "

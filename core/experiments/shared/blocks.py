@@ -13,6 +13,7 @@ import numpy as np
 from estim.config import registry
 from estim.config.settings import (
     MAX_VOLTS,
+    MIN_NOISE,
     REQUIRED,
     Settings,
     block,
@@ -198,7 +199,7 @@ class InputNoise(Readings):
     input_levels: list = setting(REQUIRED, list_of(number(positive=True, maximum=MAX_VOLTS)),
                                  unit="V or V^2", doc="the printed noise numbers, one block of "
                                                       "table rows each")
-    measurement_sigma: float = setting(REQUIRED, number(minimum=0.0, maximum=MAX_VOLTS),
+    measurement_sigma: float = setting(REQUIRED, number(minimum=MIN_NOISE, maximum=MAX_VOLTS),
                                        unit="V", doc="white noise on each measured value")
 
 
