@@ -13,10 +13,24 @@ SIGNAL = [signal.SIGINT]
 """The signal that interrupted this process (its exit status is 128 plus its number)."""
 
 
+ARMED = [False]
+"""Whether the launcher's ``try`` that turns an interrupt into its one line has begun."""
+
+
 def on_interrupt(signum, frame) -> None:
+    """Record the signal; once :func:`arm` has run, unwind the command as Ctrl-C does (an
+    interrupt before that is raised by :func:`arm`, inside the launcher's ``try``)."""
     INTERRUPTED[0] = True
     SIGNAL[0] = signum
-    raise KeyboardInterrupt
+    if ARMED[0]:
+        raise KeyboardInterrupt
+
+
+def arm() -> None:
+    """From here on an interrupt unwinds the command; one that came before is raised now."""
+    ARMED[0] = True
+    if INTERRUPTED[0]:
+        raise KeyboardInterrupt
 
 
 def interrupted() -> bool:

@@ -12,7 +12,7 @@ import os
 import signal
 import sys
 
-from estim.cli.interrupt import exit_status, interrupt_line, interrupted, on_interrupt
+from estim.cli.interrupt import arm, exit_status, interrupt_line, interrupted, on_interrupt
 
 
 def _quiet_hooks() -> None:
@@ -77,6 +77,7 @@ def _run_commands() -> None:
             stream.reconfigure(errors="replace")
     _quiet_hooks()
     try:
+        arm()                   # an interrupt since the handler was installed lands here
         import click
 
         from estim.cli.entry import main as commands

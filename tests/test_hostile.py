@@ -869,8 +869,12 @@ def test_ctrl_c_while_python_imports_is_one_line_and_exit_130(delay):
     ``main``, while it imports click and the commands (about 0.3 s). A fixed sleep from the
     process' start raced the interpreter's own start-up (over 30 ms on a loaded machine: 3
     of 40 such runs got Python's default traceback before any line of estim had run), which
-    no program can answer; so the child says when it is in, and the clock starts there."""
-    child = ("import sys; from estim.cli import launch; "
+    no program can answer; so the child installs the handler as main's first line does, says
+    so, and the clock starts there (a fixed 5 ms after 'in' raced main's own first line on a
+    machine running two CI jobs: an interrupt before the launcher's ``try`` is now recorded
+    and raised inside it, :func:`estim.cli.interrupt.arm`)."""
+    child = ("import signal, sys; from estim.cli import interrupt, launch; "
+             "signal.signal(signal.SIGINT, interrupt.on_interrupt); "     # as main's first line
              "sys.stderr.write('in\\n'); sys.stderr.flush(); launch.main()")
     launch = [sys.executable, "-c", child, "validate", "configs/mosfet_saturation.yaml"]
     run = subprocess.Popen(launch, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
@@ -894,13 +898,18 @@ def test_ctrl_c_inside_clicks_argument_parsing_is_exit_130_not_aborted(monkeypat
 
     monkeypatch.setattr(entry.main, "make_context", interrupted_while_parsing)
     monkeypatch.setattr(sys, "argv", ["estim", "list"])
-    previous = signal.getsignal(signal.SIGINT)
+    import threading
+
+    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    hooks = sys.unraisablehook, threading.excepthook
     try:
         with pytest.raises(SystemExit) as stop:
             launch.main()
-    finally:
-        signal.signal(signal.SIGINT, previous)
-        interrupt.INTERRUPTED[0] = False
+    finally:                    # this process' handlers and hooks as they were
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        sys.unraisablehook, threading.excepthook = hooks
+        interrupt.INTERRUPTED[0] = interrupt.ARMED[0] = False
     assert stop.value.code == 130       # (click first ends the terminal's ^C line)
     assert capsys.readouterr().err.strip().splitlines() == ["error: interrupted"]
 
