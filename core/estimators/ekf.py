@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from estim.config.settings import integer, setting, settings_class, text
+from estim.estimators import ekf_compiled
 from estim.estimators.base import (
     Estimate,
     GaussianFilter,
@@ -69,6 +70,15 @@ class ExtendedKalmanFilter(GaussianFilter, name="ekf"):
         xu, Pu, S = joseph_update(xp, Pp, nu, model.h_jacobian(xp), R)
         return xp, xu, Pu, S, nu
 
+    def compiled_plan(self, model, engine: str = "auto") -> tuple | None:
+        """What the compiled loop (:mod:`estim.estimators.ekf_compiled`) needs to run this
+        filter on ``model``, or ``None`` for the numpy loop: always for ``engine="numpy"``
+        and for a filter that overrides :meth:`cycle` (the UKF, a plugin), whose steps the
+        compiled loop does not know."""
+        if engine == "numpy" or type(self).cycle is not ExtendedKalmanFilter.cycle:
+            return None
+        return ekf_compiled.usable(model, self.discretization)
+
     def run(self, model, z: np.ndarray, u: np.ndarray, dt: float,
             x0: np.ndarray | None = None) -> Estimate:
         runs, _, m = z.shape
@@ -78,9 +88,15 @@ class ExtendedKalmanFilter(GaussianFilter, name="ekf"):
             x0 = np.asarray(self.x0, float)
         elif x0 is None:
             x0 = model.operating_point()
-        x_hat, P_hist, S_hist, innovation, alive = run_batch(
-            lambda x, P, zk, uk: self.cycle(model, x, P, zk, uk, dt, Q, R),
-            x0, P0, z, batch_input(u, runs), self.divergence_bound)
+        plan = self.compiled_plan(model)
+        if plan is not None:
+            x_hat, P_hist, S_hist, innovation, alive = ekf_compiled.run(
+                plan, x0, P0, z, batch_input(u, runs), dt, Q, R, self.discretization,
+                self.substeps, self.divergence_bound)
+        else:
+            x_hat, P_hist, S_hist, innovation, alive = run_batch(
+                lambda x, P, zk, uk: self.cycle(model, x, P, zk, uk, dt, Q, R),
+                x0, P0, z, batch_input(u, runs), self.divergence_bound)
         with np.errstate(all="ignore"):
             y_hat = model.h(x_hat)
         return Estimate(y_hat=y_hat, innovation=innovation, broken=~alive, x_hat=x_hat,

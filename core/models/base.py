@@ -202,6 +202,16 @@ class Model:
             H[..., 0, i] = c
         return H
 
+    def affine_output(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(H, c)`` with ``h(x) = H x + c`` (shapes ``(m, n)`` and ``(m,)``) when the output
+        is affine in the state (the compiled filter loops need it), else ``None``."""
+        if not self.output_row:
+            return None
+        H = np.zeros((1, self.n_states))
+        for i, c in self.output_row:
+            H[0, i % self.n_states] += c
+        return H, np.zeros(1)
+
     def source_to_input(self, source: np.ndarray, dt: float) -> np.ndarray:
         """Map sampled sources ``(..., steps + 1, p)`` (at ``t_0 .. t_steps``) to the model
         input on each of the ``steps`` intervals, ``(..., steps, p)``.

@@ -488,6 +488,17 @@ class NetlistModel(Model, metaclass=_NetlistClass):
             return x[..., term[1]:term[1] + 1]
         return (x[..., term[1]] - x[..., term[2]])[..., None]
 
+    def affine_output(self):
+        term = self.circuit.output_terms
+        H = np.zeros((1, self.n_states))
+        if term[0] == "node":
+            H[0] = self._h[0]
+            return H, np.array([float(self._h[1])])
+        H[0, term[1]] = 1.0
+        if term[0] == "v" and term[2] is not None:
+            H[0, term[2]] = -1.0
+        return H, np.zeros(1)
+
     def h_jacobian(self, x):
         term = self.circuit.output_terms
         x = np.asarray(x, float)
