@@ -351,6 +351,23 @@ def test_hostile_yaml_is_one_line_and_exit_2(tmp_path, text, expected):
     assert_one_line_exit_2(result, path, expected=expected)
 
 
+def test_libyaml_reads_every_shipped_config_as_the_bounded_reader_does():
+    """The fast reader (libyaml) and the bounded one give the same mapping; a text with an
+    alias, a deep block or a bracket hidden in quotes goes to the bounded one."""
+    from estim.config import yaml_reader
+
+    texts = [p.read_text() for p in sorted((ROOT / "configs").rglob("*.yaml"))]
+    plain = [t for t in texts if yaml_reader._plain(t)]
+    assert len(plain) >= len(texts) // 2
+    for text_ in plain:
+        assert (yaml.load(text_, Loader=yaml_reader.FastConfigLoader)  # noqa: S506
+                == yaml.load(text_, Loader=yaml_reader.ConfigLoader))  # noqa: S506
+    deep_block = "".join(" " * i + f"k{i}:\n" for i in range(40)) + " " * 40 + "v: 1\n"
+    hidden = "x: " + "[" * 40 + '"' + "]" * 39 + '"' + "]" * 40 + "\n"
+    for text_ in (deep_block, hidden, BOMB, "x: [1,\n 2]\n"):
+        assert not yaml_reader._plain(text_)
+
+
 def test_device_files_and_fifos_are_refused_before_reading(tmp_path):
     fifo = tmp_path / "pipe.yaml"
     os.mkfifo(fifo)
