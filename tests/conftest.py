@@ -1,8 +1,15 @@
+import os
+
 import numpy as np
 import pytest
 from scipy import linalg
 
 from estim.models.base import Model
+
+# The DC-point disk cache (estim.util.disk_cache) stays off in tests, where models are
+# patched: a point kept by one test must not answer another. tests/test_startup.py turns it
+# on in a folder of its own.
+os.environ["ESTIM_CACHE_DIR"] = "off"
 
 
 class LinearModel(Model):

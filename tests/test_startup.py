@@ -5,10 +5,12 @@ has only registered is not loaded). No timing here: ``bench/bench_startup.py`` m
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -33,11 +35,12 @@ print("ANALYSES=" + json.dumps(sorted(
 """
 
 
-def probe(*args: str) -> dict[str, set[str]]:
+def probe(*args: str, env: dict | None = None) -> dict[str, set[str]]:
     """``{"LOADED": heavy modules, "ANALYSES": analysis modules}`` that ``estim ARGS``
-    loads, run in a fresh interpreter."""
+    loads, run in a fresh interpreter (with ``env`` added to the environment)."""
     out = subprocess.run([sys.executable, "-c", _PROBE.format(heavy=HEAVY), *args],
-                         capture_output=True, text=True, cwd=ROOT, timeout=300)
+                         capture_output=True, text=True, cwd=ROOT, timeout=300,
+                         env={**os.environ, **(env or {})})
     assert out.returncode == 0, out.stderr
     found = {}
     for key in ("LOADED", "ANALYSES"):
@@ -75,6 +78,17 @@ def test_validate_of_a_config_without_a_settling_run_loads_no_compiled_code(conf
     assert not loaded & {"numba", "estim.numerics.kernels", "matplotlib", "pandas"}, loaded
 
 
+def test_validate_again_reads_the_kept_dc_point_and_loads_no_solver(tmp_path):
+    """With the DC-point cache on, the second validate of a MOSFET config (whose first
+    lets the circuit settle with the compiled integrator) imports neither scipy's root
+    finder nor numba."""
+    env = {"ESTIM_CACHE_DIR": str(tmp_path)}
+    first = probe("validate", "configs/mosfet_saturation.yaml", env=env)["LOADED"]
+    assert {"numba", "scipy.optimize"} <= first, first
+    again = probe("validate", "configs/mosfet_saturation.yaml", env=env)["LOADED"]
+    assert not again & {"numba", "scipy.optimize", "estim.numerics.kernels"}, again
+
+
 def test_list_reads_configs_without_building_their_plans():
     loaded = loaded_by("list")
     assert not loaded & {"numba", "estim.numerics.kernels", "matplotlib", "pandas",
@@ -86,3 +100,38 @@ def test_table_reads_csv_without_drawing_or_compiling():
     assert "pandas" in loaded                      # the probe sees a real load
     assert not loaded & {"numba", "estim.numerics.kernels", "matplotlib", "scipy.stats",
                          "scipy.optimize", "skimage", "pywt"}, loaded
+
+
+def test_a_dc_point_is_kept_on_disk_and_read_back_bit_for_bit(tmp_path, monkeypatch):
+    """The second search of the same model's DC point reads the first one's result, equal to
+    the last bit; another parameter, guess or input is another point; a netlist's model and
+    an unwritable folder keep nothing and still give the point."""
+    from estim.models.mosfet_ekv import MosfetEKV
+    from estim.spice import model_class
+
+    cache = tmp_path / "cache"
+    monkeypatch.setenv("ESTIM_CACHE_DIR", str(cache))
+    kept = cache / "operating_points"
+    model = MosfetEKV(V_IN=0.35, drain_current="ekv")
+    first = model.operating_point()
+    assert len(list(kept.iterdir())) == 1
+    monkeypatch.setattr(MosfetEKV, "_find_operating_point",
+                        lambda *args: pytest.fail("searched again"))
+    again = model.operating_point()
+    assert again.tobytes() == first.tobytes()
+    monkeypatch.undo()
+    monkeypatch.setenv("ESTIM_CACHE_DIR", "off")
+    assert MosfetEKV(V_IN=0.35, drain_current="ekv").operating_point().tobytes() \
+        == first.tobytes()
+    monkeypatch.setenv("ESTIM_CACHE_DIR", str(cache))
+    MosfetEKV(V_IN=0.36, drain_current="ekv").operating_point()
+    model.operating_point(x_guess=first + 1e-3)
+    assert len(list(kept.iterdir())) == 3
+    twin = model_class(ROOT / "circuits" / "mosfet_ekv.cir", "VIN", "v(d)",
+                       name="netlist:test_dc_cache")(vin_bias=0.35)
+    twin.operating_point()
+    assert len(list(kept.iterdir())) == 3
+    blocked = tmp_path / "file"
+    blocked.write_text("")
+    monkeypatch.setenv("ESTIM_CACHE_DIR", str(blocked))
+    assert np.allclose(MosfetEKV(V_IN=0.37, drain_current="ekv").operating_point()[0], 0.37)

@@ -10,7 +10,6 @@ from __future__ import annotations
 import numpy as np
 
 from estim.config.settings import integer, setting, settings_class, text
-from estim.estimators import ekf_compiled
 from estim.estimators.base import (
     Estimate,
     GaussianFilter,
@@ -20,6 +19,9 @@ from estim.estimators.base import (
     run_batch,
 )
 from estim.numerics import discretize
+from estim.util import lazy
+
+ekf_compiled = lazy.load("estim.estimators.ekf_compiled")   # numba: imported when a filter runs
 
 
 def thesis_to_state(M: np.ndarray, model) -> np.ndarray:

@@ -11,17 +11,37 @@ evaluated on arrays with any number of leading batch axes: ``x`` has shape ``(..
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 from typing import Any
 
 import numpy as np
+import scipy
 
 from estim.config import registry
 from estim.config.settings import parameter_problem
 from estim.errors import ParameterError, SimulationError
 from estim.numerics.simulate import simulate
-from estim.util import lazy
+from estim.util import disk_cache, lazy
 
 optimize = lazy.load("scipy.optimize")
+
+
+def _exact(value: Any) -> Any:
+    """``value`` for a cache key: an array as its dtype, shape and bytes (its ``repr``
+    rounds and elides), anything else as itself (``repr`` is exact for Python's floats)."""
+    if isinstance(value, (np.ndarray, list, tuple)):
+        a = np.asarray(value)
+        if a.dtype != object:
+            return ("array", str(a.dtype), a.shape, a.tobytes().hex())
+    return value
+
+
+def _code_fingerprint() -> str:
+    """sha256 of the model and numerics packages' sources: a DC point found by other code
+    is never read back."""
+    roots = [Path(__file__).parent, Path(__file__).parents[1] / "numerics"]
+    files = sorted(str(p) for root in roots for p in root.rglob("*.py"))
+    return disk_cache.fingerprint(*files)
 
 
 def check_params(params: Any, positive: tuple[str, ...] = (),
@@ -230,6 +250,31 @@ class Model:
         """
         u0 = np.zeros(self.n_inputs) if u is None else np.asarray(u, float)
         guess = np.zeros(self.n_states) if x_guess is None else np.asarray(x_guess, float)
+        name = self._operating_point_key(guess, u0)
+        kept = disk_cache.load("operating_points", name) if name else None
+        if kept is not None and kept.shape == (self.n_states,):
+            return kept
+        x = self._find_operating_point(guess, u0)
+        if name:
+            disk_cache.store("operating_points", name, x)
+        return x
+
+    def _operating_point_key(self, guess: np.ndarray, u0: np.ndarray) -> str | None:
+        """The disk cache's key of a DC point (:mod:`estim.util.disk_cache`): the model's
+        class, variant and parameters, the guess and the input, and the code that finds it
+        (the model's modules, this one, the integrator). ``None`` (no cache) for a model
+        that is not one of estim's own modules (a netlist's, a plugin's)."""
+        classes = [c for c in type(self).__mro__ if c.__module__.startswith("estim.models.")]
+        if not classes or classes[0] is not type(self):
+            return None
+        params = [(f.name, _exact(getattr(self.params, f.name)))
+                  for f in dataclasses.fields(self.params)]
+        return disk_cache.key(type(self).__module__, type(self).__qualname__, self.variant,
+                              params, _exact(guess), _exact(u0), _code_fingerprint(),
+                              np.__version__, scipy.__version__)
+
+    def _find_operating_point(self, guess: np.ndarray, u0: np.ndarray) -> np.ndarray:
+        """:meth:`operating_point`'s search, without the cache."""
 
         def solve(start):
             return optimize.root(lambda x: self.f(x, u0), start,
