@@ -72,12 +72,12 @@ class ExtendedKalmanFilter(GaussianFilter, name="ekf"):
         xu, Pu, S = joseph_update(xp, Pp, nu, model.h_jacobian(xp), R)
         return xp, xu, Pu, S, nu
 
-    def compiled_plan(self, model, engine: str = "auto") -> tuple | None:
+    def compiled_plan(self, model) -> tuple | None:
         """What the compiled loop (:mod:`estim.estimators.ekf_compiled`) needs to run this
-        filter on ``model``, or ``None`` for the numpy loop: always for ``engine="numpy"``
-        and for a filter that overrides :meth:`cycle` (the UKF, a plugin), whose steps the
-        compiled loop does not know."""
-        if engine == "numpy" or type(self).cycle is not ExtendedKalmanFilter.cycle:
+        filter on ``model``, or ``None`` for the numpy loop: always for a filter that
+        overrides :meth:`cycle` (the UKF, a plugin), whose steps the compiled loop does not
+        know."""
+        if type(self).cycle is not ExtendedKalmanFilter.cycle:
             return None
         return ekf_compiled.usable(model, self.discretization)
 
