@@ -15,8 +15,11 @@ import bench_expansion  # noqa: E402
 import bench_field  # noqa: E402
 import bench_filters  # noqa: E402
 import bench_image  # noqa: E402
+import bench_letkf_sqrt  # noqa: E402
+import bench_newton  # noqa: E402
 import bench_reproduce  # noqa: E402
 import bench_simulate  # noqa: E402
+import peers  # noqa: E402
 
 if __name__ == "__main__":
     if "--reproduce" in sys.argv:
@@ -25,7 +28,10 @@ if __name__ == "__main__":
     for name, module in (("Chapter 3 actual signal", bench_simulate),
                          ("Chapter 2 expansion", bench_expansion),
                          ("filters", bench_filters),
+                         ("EKF beside its peers", peers),
+                         ("Newton iteration", bench_newton),
                          ("Chapter 5 field", bench_field),
+                         ("LETKF square root", bench_letkf_sqrt),
                          ("image filters", bench_image)):
         print(f"== {name}")
         sys.argv = sys.argv[:1]

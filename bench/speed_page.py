@@ -23,9 +23,12 @@ SECTIONS = (
     ("reproduce", "The whole reproduction, config by config"),
     ("quickstart", "The README's quick start"),
     ("startup", "Start-up of the small commands"),
+    ("peers", "The EKF beside filterpy and dynamax (JAX)"),
     ("filters", "Batched filters against filterpy"),
     ("ekf_steps", "Where an EKF step's time goes"),
     ("simulate", "The actual signal: integrators"),
+    ("newton", "The integrator's Newton iteration: full against simplified"),
+    ("letkf_sqrt", "The LETKF's symmetric inverse square root"),
     ("expansion", "Chapter 2: exact propagation of the expansion"),
     ("field", "Chapter 5: the field simulation and filter against the grid"),
     ("image", "The image filters"),
@@ -42,7 +45,7 @@ shown above it on the machine it names; `python bench/speed_page.py` makes this 
 those files, and a test fails when the page and the files differ. The ratios (speed-ups,
 "x" columns) are measured in one process or in alternated runs, so they carry to other
 machines better than the seconds do. `pip install '.[bench]'` adds the peer libraries the
-benchmarks run beside estim; `python bench/all.py` runs the five in-process benchmarks in one
+benchmarks run beside estim; `python bench/all.py` runs the eight in-process benchmarks in one
 go.
 """
 
