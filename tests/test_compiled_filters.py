@@ -63,13 +63,15 @@ def assert_same(fast, slow, rtol):
     for name in ("x_hat", "P", "S", "innovation", "y_hat"):
         a, b = getattr(fast, name), getattr(slow, name)
         np.testing.assert_array_equal(np.isnan(a), np.isnan(b), err_msg=name)
+        if np.isnan(b).all():
+            continue
         scale = np.nanmax(np.abs(b))
         np.testing.assert_allclose(a, b, rtol=0, atol=rtol * scale, err_msg=name, equal_nan=True)
 
 
 CASES = [(name, disc, sub) for name in MODELS
          for disc, sub in [("exponential", 1), ("exponential", 3), ("rosenbrock", 1),
-                           ("euler", 4)]
+                           ("euler", 800)]
          if not (name.startswith("diffamp") and disc == "exponential" and sub > 1)]
 """Every model and discretisation; substeps of the exponential on the MOSFET models (on the
 differential pair, see the note below, two correct exponentials already differ by 3e-5 there)."""
@@ -87,6 +89,10 @@ def test_compiled_ekf_follows_the_numpy_loop(name, discretization, substeps, mon
     fast, slow = both(ekf, model, z, u, dt, x0, monkeypatch)
     stiff = name.startswith("diffamp") and discretization == "exponential"
     assert_same(fast, slow, 1e-6 if stiff else 1e-9)
+    if name.startswith("diffamp") and discretization == "euler":
+        assert fast.broken.all()      # ||T J|| ~ 2e9: forward Euler breaks at once, in both
+    else:
+        assert np.isfinite(fast.x_hat).all()
 
 
 # The differential pair's parasitic capacitance gives ||T J|| ~ 2e9: the exponential
