@@ -131,3 +131,18 @@ def load(folder: str | Path) -> Result:
     return Result(tables, figures, name=folder.name, config=config,
                   models=manifest.get("models") or {},
                   wall_time_s=float(seconds) if isinstance(seconds, int | float) else 0.0)
+
+
+def from_netlist(path: str | Path, input: str | list[str], output: str,
+                 name: str | None = None) -> type:
+    """The model class of the SPICE netlist at ``path``, driven through the voltage
+    source(s) ``input`` and measuring ``output`` (``v(node)`` or ``v(a,b)``), as a config's
+    ``model: {netlist: ..., input: ..., output: ...}`` block makes it. It is registered under
+    ``name`` (default ``netlist:<file stem>``), so ``estim.models.get(name)`` gives it too.
+    Make a model with its parameters (``cls(vin_bias=0.35)``); its states are
+    ``model.state_names``: the node voltages ``v(node)`` in the alphabetical order of the
+    node names, then the inductor currents, which is the order of a vector ``Q`` or ``P0``
+    given in ``noise_units: state``."""
+    from estim.spice import model_class
+
+    return model_class(Path(path), input, output, name=name)

@@ -373,6 +373,8 @@ BAD = [
     (RC + "D1 a 0 dmod\n", 5, "no .model dmod"),
     (RC + "R2 a b 1k\n", 0, "floating node(s) b"),
     (RC + "R2 a b 1k\nR3 b 0 1k\n", 0, "node(s) b have no capacitive path"),
+    (RC + "R2 a b 1k\nR3 b c 1k\nR4 c 0 1k\nC2 b c 1n\n", 0,
+     "singular: node(s) b, c are joined only by capacitors"),
     (RC + "V2 in 0 DC 2\n", 5, "a loop of voltage sources"),
     (RC + "R2 a 0 -5\n", 5, "the value must be positive"),
     (RC + ".subckt s p q\nR p q 1k\n.ends\nX1 a s\n", 8, "has 2 pins, called with 1"),
@@ -880,3 +882,22 @@ def test_the_nmos_laws_agree_with_ngspice(law):
                                1e-7, 2)
     bad = [r for r in rows if r["difference"] > compare.BARS[r["check"]]]
     assert not bad, bad
+
+
+def test_from_netlist_gives_the_registered_model_class_with_states_in_node_order():
+    """docs/your-circuit.md: estim.from_netlist makes and registers the class; its states
+    are the free node voltages in alphabetical order, then the inductor currents; before
+    it is made, estim.models.get names the way to make it."""
+    import estim
+
+    name = "netlist:test_from_netlist"
+    with pytest.raises(KeyError, match=r"estim\.from_netlist\(path, input=\.\.\., output="):
+        estim.models.get(name)
+    cls = estim.from_netlist(ROOT / "circuits" / "mosfet_ekv.cir", input="VIN",
+                             output="v(d)", name=name)
+    assert estim.models.get(name) is cls
+    model = cls(vin_bias=0.35)
+    nodes = [s for s in model.state_names if s.startswith("v(")]
+    assert nodes == sorted(nodes) and model.state_names == ("v(b)", "v(d)", "v(g)", "v(s)")
+    text = " ".join((ROOT / "docs" / "your-circuit.md").read_text().split())
+    assert "in the alphabetical order of the node names, then the inductor currents" in text

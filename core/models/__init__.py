@@ -14,7 +14,11 @@ def get(name: str) -> type:
     try:
         return registry.MODELS[name]
     except KeyError:
-        raise KeyError(f"no model {name!r}; expected one of {list(registry.MODELS)}") from None
+        hint = ("; a netlist's model is registered when it is made: "
+                "estim.from_netlist(path, input=..., output=...)"
+                if isinstance(name, str) and name.startswith("netlist:") else "")
+        raise KeyError(f"no model {name!r}; expected one of {list(registry.MODELS)}{hint}"
+                       ) from None
 
 
 def names() -> list[str]:

@@ -125,9 +125,10 @@ class Circuit:
             raise NetlistError(src, 0, f"node(s) {', '.join(missing)} have no capacitive path: "
                                "add a small shunt capacitor (e.g. 1p to ground) to each")
         if k and np.linalg.matrix_rank(C) < k:
-            raise NetlistError(src, 0, "the nodal capacitance matrix is singular (a group of "
-                               "nodes joined only by capacitors with no capacitor to the "
-                               "rest): add a shunt capacitor")
+            raise NetlistError(src, 0, "the nodal capacitance matrix is singular: node(s) "
+                               f"{', '.join(self._floating_group(C))} are joined only by "
+                               "capacitors, with no capacitor to the rest: add a shunt "
+                               "capacitor to one of them")
         self.C_inv = np.linalg.inv(C) if k else np.zeros((0, 0))
         self.B = B
         self._check_dc_paths()
@@ -239,6 +240,14 @@ class Circuit:
             if not any(c[0] is vx for c in out):
                 out.append((vx, node, sign))
         return out
+
+    def _floating_group(self, C: np.ndarray) -> list[str]:
+        """The state nodes in the null space of the nodal capacitance matrix ``C`` (a group
+        that moves together with no capacitor to anything else)."""
+        _, s, Vt = np.linalg.svd(C)
+        null = Vt[s <= s[0] * 1e-12 * len(s)]
+        weight = np.abs(null).max(axis=0)
+        return [self.state_nodes[i] for i in np.flatnonzero(weight > 1e-9 * weight.max())]
 
     def _check_dc_paths(self) -> None:
         """Refuse nodes with no DC path to ground (through R, L, D, Q, M and the voltage
