@@ -901,3 +901,35 @@ def test_from_netlist_gives_the_registered_model_class_with_states_in_node_order
     assert nodes == sorted(nodes) and model.state_names == ("v(b)", "v(d)", "v(g)", "v(s)")
     text = " ".join((ROOT / "docs" / "your-circuit.md").read_text().split())
     assert "in the alphabetical order of the node names, then the inductor currents" in text
+
+
+@NGSPICE
+def test_estim_spice_holds_on_a_circuit_biased_at_zero_volts(tmp_path):
+    """The guide's rectifier with its input biased at 0 V: every node's DC point is 0 V, so
+    the DC difference is measured against the voltages the input drives (it was 0/0, a false
+    "fails" of 1.00); every difference holds."""
+    import re
+
+    from click.testing import CliRunner
+
+    from estim.cli.main import main
+
+    blocks = re.findall(r"```(\w+)\n(.*?)```", (ROOT / "docs" / "your-circuit.md").read_text(),
+                        re.S)
+    (tmp_path / "rectifier.cir").write_text(blocks[0][1])
+    config = tmp_path / "rectifier_spice.yaml"
+    config.write_text(blocks[1][1].replace("bias_v: [0.5]", "bias_v: [0.0]"))
+    result = CliRunner().invoke(main, ["spice", str(config)])
+    assert result.exit_code == 0, result.output
+    dc = next(line for line in result.output.splitlines() if " dc " in line)
+    assert dc.split()[-1] == "holds" and float(dc.split()[-7]) < 1e-13, dc
+
+
+def test_a_nan_difference_is_no_agreement():
+    import pandas as pd
+
+    from estim.engine import ngspice_check as compare
+
+    table = pd.DataFrame({"difference": [np.nan, 1e-14], "bar": [1e-13, 1e-13],
+                          "ngspice_spread": [np.nan, np.nan]})
+    assert compare.verdict(table).tolist() == ["fails", "holds"]

@@ -12,10 +12,14 @@ exactly what estim's model sees (the staircase of its held values,
 :meth:`source_to_input`, or, for an input that drives through a capacitor, the
 piecewise-linear source itself). Reported per case:
 
-* ``dc``: the DC point, the largest node difference over the largest node voltage;
+* ``dc``: the DC point, the largest node difference over the largest node voltage of the
+  circuit (at the DC point or over the run: a circuit biased at 0 V is measured against the
+  voltages its input drives);
 * ``transient``: each state and the output, the largest difference over the run divided by
   the largest node voltage of the circuit's states (the scale SPICE's own tolerances work
-  against; for an inductor current, its own largest magnitude). ``own_scale`` divides by
+  against; for an inductor current, its own largest magnitude). No scale is taken below
+  SPICE's default absolute tolerances (:data:`FLOORS`: 1 uV, 1 pA), so a quantity that stays
+  at zero is compared absolutely, not as 0/0. ``own_scale`` divides by
   the quantity's own largest magnitude instead: for a node that hardly moves (the MOSFET's
   bulk swings microvolts) it shows ngspice's absolute tolerances, not a disagreement of the
   circuits (it shrinks as ngspice's ``reltol`` is tightened);
@@ -42,6 +46,10 @@ pd = lazy.load("pandas")
 
 BARS = {"dc": 1e-13, "transient": 5.5e-6, "ac": 1.7e-9}
 """Largest relative differences from ngspice that count as agreement."""
+
+FLOORS = {"v": 1e-6, "i": 1e-12}
+"""The smallest scale a voltage (V) or a current (A) difference is divided by: SPICE's default
+``vntol`` and ``abstol``, below which a simulator's answer carries no digits."""
 
 
 def cases(exp) -> list[tuple[str, object, np.ndarray, float, float | None]]:
@@ -109,8 +117,8 @@ def compare_case(label: str, model, source: np.ndarray, dt: float, frequency: fl
                                reltol=reltol, max_step=step * dt)
     rows = []
     nodes = [i for i, s in enumerate(model.state_names) if s.startswith("v(")]
-    node_scale = np.abs(theirs[:, nodes]).max() if nodes else 0.0
-    dc = np.abs(ours[0, nodes] - theirs[0, nodes]).max() / np.abs(theirs[0, nodes]).max()
+    node_scale = max(np.abs(theirs[:, nodes]).max() if nodes else 0.0, FLOORS["v"])
+    dc = np.abs(ours[0, nodes] - theirs[0, nodes]).max() / node_scale if nodes else 0.0
     rows.append({"case": label, "check": "dc", "quantity": "node voltages",
                  "difference": dc, "own_scale": dc})
     y_ours, y_theirs = model.h(ours)[:, 0], model.h(theirs)[:, 0]
@@ -120,7 +128,7 @@ def compare_case(label: str, model, source: np.ndarray, dt: float, frequency: fl
     for name, a, b in series:
         gap = np.abs(a - b).max()
         own = np.abs(b).max()
-        scale = node_scale if name.startswith("v(") else own
+        scale = node_scale if name.startswith("v(") else max(own, FLOORS["i"])
         rows.append({"case": label, "check": "transient", "quantity": name,
                      "difference": gap / scale, "own_scale": gap / own if own else np.nan,
                      "_theirs": b, "_scale": scale})
@@ -135,7 +143,7 @@ def compare_case(label: str, model, source: np.ndarray, dt: float, frequency: fl
         bias = {name: float(source[0, k]) for k, name in enumerate(circuit.inputs)}
         theirs_ac = np.array([ngspice.ac(net, bias, name, [frequency], output, executable)[0]
                               for name in circuit.inputs])
-        top = np.abs(theirs_ac).max()
+        top = max(np.abs(theirs_ac).max(), 1e-12)      # a gain of zero: compared absolutely
         for k, name in enumerate(circuit.inputs):
             rows.append({"case": label, "check": "ac",
                          "quantity": f"gain {name.upper()} -> {output}",
@@ -204,7 +212,7 @@ def verdict(table: pd.DataFrame) -> pd.Series:
     """Per row: ``holds`` (the difference within its bar), ``undecided`` (above it, but
     ngspice's own answers at its last two settings differ by more than the bar: its
     truncation error, not a measured disagreement of the circuits) or ``fails``."""
-    over = table["difference"] > table["bar"]
+    over = ~(table["difference"] <= table["bar"])        # a NaN difference is no agreement
     loose = table["ngspice_spread"] > table["bar"]
     return pd.Series(np.where(~over, "holds", np.where(loose, "undecided", "fails")),
                      index=table.index)
