@@ -24,6 +24,7 @@ from estim.cli.output import (
     run_and_report,
     run_together,
     say_if_compiling,
+    tune_progress,
 )
 from estim.config import loading as config
 from estim.config.registry import ANALYSES
@@ -303,7 +304,8 @@ def tune(config, label, new_label, runs, fit_r, out, max_work) -> None:
     store.output_file(out, "--out")                 # a path the system takes, not a folder
     store.ensure_writable(out.parent)                       # before the fit, not after it
     start = time.perf_counter()
-    entry, fit = tuning.tune(exp, analysis.training, label, runs, fit_r)
+    entry, fit = tuning.tune(exp, analysis.training, label, runs, fit_r,
+                             progress=tune_progress(start))
     entry["label"] = new_label or f"{label} (fitted {'Q, R' if fit_r else 'Q'})"
     text_ = tuning.overlay(entry, fit, label, runs, " ".join(["estim", *sys.argv[1:]]),
                            time.perf_counter() - start, fit_r)

@@ -44,6 +44,21 @@ def say_if_compiling(quiet: bool) -> None:
         click.echo(COMPILING, err=True)
 
 
+def tune_progress(start: float, every: float = 5.0) -> Callable[[int, float], None]:
+    """``estim tune``'s progress: one line on standard error at most every ``every`` seconds
+    with the likelihood evaluations so far and the best log-likelihood (a fit takes minutes,
+    each evaluation a run of the filter over every training draw)."""
+    last = [start]
+
+    def report(evaluations: int, best: float) -> None:
+        now = time.perf_counter()
+        if now - last[0] >= every:
+            last[0] = now
+            click.echo(f"tune: {evaluations} likelihood evaluations, best log-likelihood "
+                       f"{best:.6g}, {now - start:.0f} s", err=True)
+    return report
+
+
 def progress_lines(name: str, total: int, prefix: str = "") -> Callable[[], None]:
     """Without a terminal (CI, cluster logs): one line per finished work unit with the
     elapsed time and an estimate of the time left."""

@@ -48,10 +48,20 @@ def test_fit_says_when_q_and_r_cannot_be_told_apart(linear_model):
             static, z, u, 1.0)
         return tuning.log_likelihood(out.innovation, out.S)
 
-    fit = tuning.fit(evaluate, q0=[0.1], r0=[0.1], fit_r=True)
+    seen = []
+    fit = tuning.fit(evaluate, q0=[0.1], r0=[0.1], fit_r=True,
+                     progress=lambda n, best: seen.append((n, best)))
     assert not fit.identifiable
     assert "not identifiable" in fit.message
     assert abs(fit.q[0] + fit.r[0] - 0.3) < 0.05
+    # the message says why, and that the fit still raised the likelihood
+    assert "some combination of the entries leaves the likelihood flat" in fit.message or \
+        "curvature at the optimum is not positive definite" in fit.message, fit.message
+    assert f"from {fit.log_likelihood_start:.6g} to {fit.log_likelihood:.6g}" in fit.message
+    # progress after every evaluation, with the best log-likelihood so far
+    assert [n for n, _ in seen] == list(range(1, fit.evaluations + 1))
+    best = [b for _, b in seen]
+    assert best == sorted(best) and best[-1] >= fit.log_likelihood
 
 
 def test_log_likelihood_is_minus_infinity_for_a_broken_run():
@@ -72,3 +82,16 @@ def test_a_lost_step_scores_below_any_plausible_step():
     S[1, 30:] = np.nan
     broken = tuning.log_likelihood(nu, S, R=np.array([[0.01]]))
     assert np.isfinite(broken) and broken < whole - 20 * 0.5 * (tuning.LOST_STEP_NIS - 1)
+
+
+def test_estim_tune_reports_progress_on_standard_error(capsys):
+    import time
+
+    from estim.cli.output import tune_progress
+
+    report = tune_progress(time.perf_counter() - 10, every=5.0)
+    report(12, -345.678)
+    report(13, -340.0)                      # within 5 s of the last line: not printed
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith("tune: 12 likelihood evaluations, best "
+                                               "log-likelihood -345.678, 10 s")

@@ -100,10 +100,12 @@ def _hessian(fun: Callable[[np.ndarray], float], x: np.ndarray, step: float = 1e
 
 
 def fit(evaluate: Callable[[np.ndarray, np.ndarray], float], q0: np.ndarray, r0: np.ndarray,
-        fit_r: bool = False, max_iterations: int = 200) -> Fit:
+        fit_r: bool = False, max_iterations: int = 200,
+        progress: Callable[[int, float], None] | None = None) -> Fit:
     """Maximise ``evaluate(q_diag, r_diag)`` (a log-likelihood) over ``q`` (and ``r``).
 
     ``q0`` and ``r0`` are the starting diagonals; with ``fit_r`` false ``r`` stays ``r0``.
+    ``progress(evaluations, best log-likelihood so far)`` is called after every evaluation.
     """
     q0, r0 = np.asarray(q0, float), np.asarray(r0, float)
     nq = q0.size
@@ -114,9 +116,15 @@ def fit(evaluate: Callable[[np.ndarray, np.ndarray], float], q0: np.ndarray, r0:
         r = np.exp(theta[nq:]) if fit_r else r0
         return q, r
 
+    best = [-np.inf]
+
     def nll(theta):
         count[0] += 1
         value = evaluate(*split(theta))
+        if np.isfinite(value):
+            best[0] = max(best[0], value)
+        if progress is not None:
+            progress(count[0], best[0])
         return 1e300 if not np.isfinite(value) else -value
 
     theta0 = np.log(np.concatenate([q0, r0]) if fit_r else q0)
@@ -148,20 +156,43 @@ def fit(evaluate: Callable[[np.ndarray, np.ndarray], float], q0: np.ndarray, r0:
     loose = [name for name, s_, v in zip(names, se, np.exp(res.x), strict=True)
              if not s_ < v]
     identifiable = not loose and condition < IDENTIFIABLE_CONDITION
+    spread = [name for name, f, s_, v in zip(names, flat, se, np.exp(res.x), strict=True)
+              if not f and np.isfinite(s_) and not s_ < v]
     if condition >= IDENTIFIABLE_CONDITION:
         se[:] = np.nan
         loose = names
     if identifiable:
         message = f"converged: {res.message}" if res.success else f"stopped: {res.message}"
     else:
-        message = (f"not identifiable from these data: {', '.join(loose)} (the likelihood is "
-                   "flat along them, or their standard error exceeds the value; their fitted "
-                   "values are arbitrary)")
+        message = (f"not identifiable from these data: {', '.join(loose)} "
+                   f"({'; '.join(_why(names, flat, spread, condition))}). The fitted values "
+                   f"still raise the log-likelihood from {start:.6g} to {-res.fun:.6g}, so "
+                   "they may well help the filter (run it beside the others to see), but the "
+                   "data do not pin these entries down: another fit may land elsewhere")
     q_se = se[:nq]
     r_se = se[nq:] if fit_r else np.full(r0.size, np.nan)
     return Fit(q=q, q_se=q_se, r=np.asarray(r, float), r_se=r_se,
                log_likelihood_start=float(start), log_likelihood=float(-res.fun),
                identifiable=identifiable, message=message, evaluations=count[0])
+
+
+def _why(names: list[str], flat: np.ndarray, spread: list[str], condition: float) -> list[str]:
+    """The reasons :func:`fit` gives for entries it cannot pin down."""
+    reasons = []
+    if flat.any():
+        reasons.append("the likelihood does not change with "
+                       + ", ".join(n for n, f in zip(names, flat, strict=True) if f)
+                       + " (a state the output never sees, or a noise swamped by another)")
+    if spread:
+        reasons.append(f"{', '.join(spread)}: standard error above the value")
+    if not flat.all() and not np.isfinite(condition):
+        reasons.append("the likelihood's curvature at the optimum is not positive definite "
+                       "(no standard errors)")
+    elif condition >= IDENTIFIABLE_CONDITION:
+        reasons.append(f"the observed information's condition number is {condition:.2g}, "
+                       f"above {IDENTIFIABLE_CONDITION:.0e}: some combination of the entries "
+                       "leaves the likelihood flat (no standard errors)")
+    return reasons
 
 
 def check_tunable(exp, label: str) -> None:
@@ -183,13 +214,13 @@ def check_tunable(exp, label: str) -> None:
                              "be dropped)")
 
 
-def tune(exp, training: Callable, label: str, runs: int,
-         fit_r: bool = False) -> tuple[dict, Fit]:
+def tune(exp, training: Callable, label: str, runs: int, fit_r: bool = False,
+         progress: Callable[[int, float], None] | None = None) -> tuple[dict, Fit]:
     """Maximum-likelihood ``Q`` (and ``R``) of the filter ``label`` of ``exp``, pooled over the
     training draws its analysis gives (``training(exp, label, runs)``, e.g.
     :func:`estim.experiments.estimation.training`): one setting for the table, as the thesis
     uses one. Returns the estimator's config entry with the fitted diagonals, and the
-    :class:`Fit`."""
+    :class:`Fit`. ``progress`` is :func:`fit`'s."""
     from estim.errors import UsageError
     from estim.estimators.base import as_matrix
 
@@ -212,7 +243,7 @@ def tune(exp, training: Callable, label: str, runs: int,
                 return -np.inf
         return total
 
-    result = fit(evaluate, q0, r0, fit_r=fit_r)
+    result = fit(evaluate, q0, r0, fit_r=fit_r, progress=progress)
     entry = exp.config.estimators[index].to_spec()
     entry["settings"]["Q"] = [float(f"{v:.6g}") for v in result.q]
     if fit_r:
