@@ -180,3 +180,23 @@ def test_divergence_needs_the_stated_number_of_consecutive_steps_out_of_range():
     est = Estimate(y_hat=y, innovation=y, broken=np.zeros(3, bool))
     flagged = health.diverged(est, None, (-1.0, 1.0), consecutive=5)
     assert flagged.tolist() == [False, True, False]
+
+
+def test_a_run_notes_each_estimator_that_broke_in_every_run_of_some_rows():
+    """estim run's printout of an estimation config: a line per estimator whose every run
+    broke in some rows, none for one that kept some runs."""
+    import pandas as pd
+
+    from estim.experiments import estimation
+    from estim.experiments.base import Result
+
+    rmse = pd.DataFrame({
+        "measurement": ["noisy"] * 4, "noise_reading": ["sigma"] * 4, "noise_param": [0.1] * 4,
+        "frequency_hz": [100.0, 100.0, 1000.0, 1000.0], "estimator": ["UKF", "EKF"] * 2,
+        "rmse": [float("inf"), 0.1, float("inf"), float("inf")], "runs": [5] * 4,
+        "diverged": [5, 0, 5, 4]})
+    lines = estimation.broken_lines(rmse)
+    assert lines == [lines[0]] and lines[0].startswith("note: UKF broke in every run of 2 of 2 "
+                                                       "rows")
+    text = estimation.printout(Result(tables={"rmse": rmse}))
+    assert text.splitlines()[-1] == lines[0]
