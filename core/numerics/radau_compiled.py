@@ -18,6 +18,7 @@ import numpy as np
 
 from estim.numerics import kernels, radau
 from estim.numerics.kernels import evaluate, jit
+from estim.numerics.small_matrices import solve_into
 
 AVAILABLE = kernels.AVAILABLE
 
@@ -27,33 +28,11 @@ OK, STEP_UNDERFLOW, TOO_MANY_STEPS = 0, 1, 2
 
 
 def _solve(M, b):
-    """``M^-1 b`` by Gaussian elimination with partial pivoting, in place (``M`` and ``b``
-    are overwritten; ``b`` holds the result). No LAPACK call: at these sizes (3n <= 24) the
-    call's overhead is most of the work."""
-    n = b.shape[0]
-    for c in range(n):
-        p = c
-        big = abs(M[c, c])
-        for r in range(c + 1, n):
-            if abs(M[r, c]) > big:
-                big = abs(M[r, c])
-                p = r
-        if p != c:
-            for q in range(c, n):
-                M[c, q], M[p, q] = M[p, q], M[c, q]
-            b[c], b[p] = b[p], b[c]
-        pivot = M[c, c]
-        for r in range(c + 1, n):
-            m = M[r, c] / pivot
-            if m != 0.0:
-                for q in range(c + 1, n):
-                    M[r, q] -= m * M[c, q]
-                b[r] -= m * b[c]
-    for c in range(n - 1, -1, -1):
-        acc = b[c]
-        for q in range(c + 1, n):
-            acc -= M[c, q] * b[q]
-        b[c] = acc / M[c, c]
+    """``M^-1 b`` in place (``M`` and ``b`` are overwritten; ``b`` holds the result): the
+    partial-pivoting elimination of :func:`estim.numerics.small_matrices.solve_into` on ``b``
+    as one column. No LAPACK call: at these sizes (3n <= 24) the call's overhead is most of
+    the work."""
+    solve_into(M, b.reshape((b.shape[0], 1)))
 
 
 solve = jit(_solve)
