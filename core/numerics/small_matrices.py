@@ -6,6 +6,10 @@ so these are plain loops that allocate nothing. Each follows its numpy counterpa
 :mod:`estim.numerics.linalg` step for step (:func:`expm`: Higham's scaling and squaring with
 the degree-13 Padé approximant and the same scaling exponent), so the two agree to rounding
 (``tests/test_compiled_filters.py``). Without numba the functions are plain Python.
+The integrator (:mod:`estim.numerics.radau_compiled`) eliminates with :func:`solve_into` too;
+numba's disk cache of a caller does not notice an edit here (as for
+:mod:`estim.numerics.kernels`): after one, delete the caches (``find . -name '*.nb[ic]'
+-delete``).
 """
 
 from __future__ import annotations
