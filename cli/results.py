@@ -183,7 +183,9 @@ def summary(results, readme, check_only, as_json) -> None:
 def settings(name, out, plugins) -> None:
     """List every setting a config can give, from its one declaration: each analysis' keys,
     each estimator's settings and each model's parameters, with type, default, unit and
-    meaning (NAME: one analysis, estimator or model, built in or from a --plugin file)."""
+    meaning (NAME: one analysis, estimator or model, built in or from a --plugin file; or a
+    config file: its model's states, in the order a vector Q, P0 or x0 follows, and its
+    parameters' values)."""
     from estim.config import listing as declared
     from estim.errors import ConfigError
 
@@ -193,6 +195,9 @@ def settings(name, out, plugins) -> None:
             modules += config.load_plugins([plugin.name], str(plugin))
         except ConfigError as exc:
             fail(f"--plugin {plugin}: {exc.message}")
+    if name is not None and name.endswith((".yaml", ".yml")) and out is None:
+        output.markdown(model_listing(Path(name)))
+        return
     text_ = declared.listing(name, modules)
     if name is not None and text_.strip() == "":
         fail(f"no analysis, estimator or model named {name!r}")
@@ -207,6 +212,28 @@ def settings(name, out, plugins) -> None:
     except OSError as exc:
         fail(f"cannot write {out} ({exc.strerror or exc})")
     click.echo(f"settings -> {out}", err=True)
+
+
+def model_listing(path: Path) -> str:
+    """``estim settings CONFIG``: the model of a config as the config makes it, its states in
+    the order a vector ``Q``, ``P0`` or ``x0`` follows, and its parameters' values."""
+    from estim.config.registry import MODELS
+
+    exp = config.load_files([path], plan=False)[0]
+    block = exp.spec.get("model")
+    if not isinstance(block, dict) or block.get("name") not in MODELS:
+        fail(f"{path}: estim settings CONFIG lists the model a config makes; this one "
+             f"({exp.analysis}) has no model block")
+    cls = MODELS[block["name"]]
+    model = cls(block.get("variant"), **(block.get("params") or {}))
+    made = (f" (from {block['netlist']}, input {block['input']}, output {block['output']})"
+            if block.get("netlist") else "")
+    lines = [f"### model `{cls.name}`{made}", "",
+             "States, in the order of a vector Q, P0 or x0: "
+             + ", ".join(f"`{s}`" for s in model.state_names), "",
+             "| parameter | value in this config |", "|---|---|"]
+    lines += [f"| {k} | {v!r} |" for k, v in vars(model.params).items()]
+    return "\n".join(lines) + "\n"
 
 
 def table_span(ids: list[str]) -> str:

@@ -933,3 +933,23 @@ def test_a_nan_difference_is_no_agreement():
     table = pd.DataFrame({"difference": [np.nan, 1e-14], "bar": [1e-13, 1e-13],
                           "ngspice_spread": [np.nan, np.nan]})
     assert compare.verdict(table).tolist() == ["fails", "holds"]
+
+
+def test_estim_settings_of_a_config_lists_its_models_states_in_order_and_values():
+    """estim settings CONFIG: the model the config makes, its states in the order of a
+    vector Q, P0 or x0 (the netlist's: node names alphabetically), its parameters' values;
+    a config without a model block is one line, exit 2."""
+    from click.testing import CliRunner
+
+    from estim.cli.main import main
+
+    out = CliRunner().invoke(main, ["settings", str(ROOT / "configs" / "netlist" /
+                                                    "ce_amp_ekf.yaml")])
+    assert out.exit_code == 0, out.output
+    assert ("States, in the order of a vector Q, P0 or x0: `v(b)`, `v(c)`, `v(e)`, `v(o)`, "
+            "`v(s)`") in out.output
+    hand = CliRunner().invoke(main, ["settings", str(ROOT / "configs" /
+                                                     "mosfet_saturation.yaml")])
+    assert "`v_G`, `v_B`, `v_S`, `v_D`" in hand.output and "| V_IN | 0.35 |" in hand.output
+    none = CliRunner().invoke(main, ["settings", str(ROOT / "configs" / "dipole_field.yaml")])
+    assert none.exit_code == 2 and none.output.count("\n") == 1
