@@ -10,7 +10,7 @@ from collections.abc import Callable, Iterable
 
 import click
 
-from estim.errors import ConfigError, UsageError
+from estim.errors import ConfigError, Notice, UsageError
 
 MAX_LINE = 400
 """Longest error line printed: a value quoted from the user's input is cut in the middle."""
@@ -81,6 +81,14 @@ class Group(click.Group):
 
     def invoke(self, ctx):
         warnings.simplefilter("ignore", RuntimeWarning)     # errors are reported, one line
+        shown = warnings.showwarning
+
+        def notice(message, category, *args, **kwargs):
+            if issubclass(category, Notice):
+                click.echo(f"notice: {bounded(str(message))}", err=True)
+            else:
+                shown(message, category, *args, **kwargs)
+        warnings.showwarning = notice
         try:
             return super().invoke(ctx)
         except (KeyboardInterrupt, click.Abort):

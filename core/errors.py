@@ -57,3 +57,9 @@ class SimulationError(EstimError, RuntimeError):
 
 class ReferenceJoinError(EstimError, ValueError):
     """Our table and the reference table do not join one-to-one on the declared key."""
+
+
+class Notice(UserWarning):
+    """Something a user should know that is no error (a netlist's input waveform that the
+    config's input replaces): ``warnings.warn(text, Notice)``; the command line prints it as
+    one line ``notice: text`` on standard error."""

@@ -953,3 +953,26 @@ def test_estim_settings_of_a_config_lists_its_models_states_in_order_and_values(
     assert "`v_G`, `v_B`, `v_S`, `v_D`" in hand.output and "| V_IN | 0.35 |" in hand.output
     none = CliRunner().invoke(main, ["settings", str(ROOT / "configs" / "dipole_field.yaml")])
     assert none.exit_code == 2 and none.output.count("\n") == 1
+
+
+def test_a_waveform_on_the_netlists_input_is_replaced_with_a_notice(tmp_path):
+    """A SIN source on the model input in the netlist: the config's input drives the model,
+    and the command says so in one line (it was replaced silently)."""
+    import re
+
+    from click.testing import CliRunner
+
+    from estim.cli.main import main
+
+    blocks = re.findall(r"```(\w+)\n(.*?)```", (ROOT / "docs" / "your-circuit.md").read_text(),
+                        re.S)
+    (tmp_path / "rectifier.cir").write_text(
+        blocks[0][1].replace("VIN in 0 DC 0", "VIN in 0 SIN(0 1 50)"))
+    config = tmp_path / "rectifier_spice.yaml"
+    config.write_text(blocks[1][1])
+    result = CliRunner().invoke(main, ["validate", str(config)])
+    assert result.exit_code == 0, result.output
+    text = result.output                              # standard output and error, as shown
+    notices = [line for line in text.splitlines() if line.startswith("notice: ")]
+    assert len(notices) == 1 and "SIN waveform on input VIN is replaced by the config's input" \
+        in notices[0], text

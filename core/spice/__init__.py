@@ -11,10 +11,11 @@ config is validated, so every analysis takes it as it takes a hand-written model
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 from estim.config.settings import shown
-from estim.errors import ConfigError
+from estim.errors import ConfigError, Notice
 from estim.spice.netlist_model import model_class, rebuild
 from estim.spice.parser import NetlistError
 from estim.util.shipped import shipped_folder
@@ -96,4 +97,11 @@ def resolve_model_block(data: dict, source: str) -> None:
             cls().thesis_map  # noqa: B018 (building the map checks the quantities)
         except NetlistError as exc:
             raise ConfigError(source, "model.thesis_states", exc.message) from None
+    for name in cls.circuit.inputs:
+        wave = cls.circuit.netlist.element(name).waveform
+        if wave[0] != "dc":
+            warnings.warn(f"{source}: the netlist's {wave[0].upper()} waveform on input "
+                          f"{name.upper()} is replaced by the config's input block (estim "
+                          "drives a netlist model's inputs with the config's waveform)", Notice,
+                          stacklevel=2)
     block["name"] = cls.name
