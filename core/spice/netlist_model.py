@@ -500,16 +500,8 @@ class NetlistModel(Model, metaclass=_NetlistClass):
         return H, np.zeros(1)
 
     def h_jacobian(self, x):
-        term = self.circuit.output_terms
-        x = np.asarray(x, float)
-        H = np.zeros(x.shape[:-1] + (1, self.n_states))
-        if term[0] == "node":
-            H[..., 0, :] = self._h[0]
-            return H
-        H[..., 0, term[1]] = 1.0
-        if term[0] == "v" and term[2] is not None:
-            H[..., 0, term[2]] = -1.0
-        return H
+        H = self.affine_output()[0]
+        return np.broadcast_to(H, np.shape(x)[:-1] + H.shape).copy()
 
 
 def _with_params(text: str, lines: list[str]) -> str:
