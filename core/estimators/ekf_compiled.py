@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from estim.numerics import kernels
-from estim.numerics.kernels import evaluate, jit
+from estim.numerics.kernels import evaluate, jit, plain
 from estim.numerics.small_matrices import expm_into, matmul, matmul_t, solve_into
 
 METHODS = {"euler": 0, "rosenbrock": 1, "exponential": 2}
@@ -171,12 +171,6 @@ def _runs(kind, Pk, x0, P0, z, u, dt, Q, R, H, c, method, substeps, bound):
 runs_compiled = jit(_runs)
 
 
-def _plain(a) -> np.ndarray:
-    """``a`` as a C-contiguous, writable float64 array (numba types read-only arrays apart)."""
-    a = np.ascontiguousarray(a, dtype=np.float64)
-    return a if a.flags.writeable else a.copy()
-
-
 def usable(model, discretization: str) -> tuple | None:
     """``(kind, P, H, c)`` where the compiled loop can run ``model`` (module docstring),
     else ``None``."""
@@ -199,6 +193,6 @@ def run(plan: tuple, x0: np.ndarray, P0: np.ndarray, z: np.ndarray, u: np.ndarra
     kind, Pk, H, c = plan
     runs, _, n = z.shape[0], z.shape[1], np.shape(x0)[-1]
     X0 = np.broadcast_to(np.asarray(x0, float), (runs, n))
-    return runs_compiled(int(kind), _plain(Pk), _plain(X0), _plain(P0), _plain(z), _plain(u),
-                         float(dt), _plain(Q), _plain(R), _plain(H), _plain(c),
+    return runs_compiled(int(kind), plain(Pk), plain(X0), plain(P0), plain(z), plain(u),
+                         float(dt), plain(Q), plain(R), plain(H), plain(c),
                          METHODS[discretization], int(substeps), float(bound))

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from estim.numerics import kernels, radau
-from estim.numerics.kernels import evaluate, jit
+from estim.numerics.kernels import evaluate, jit, plain
 from estim.numerics.small_matrices import solve_into
 
 AVAILABLE = kernels.AVAILABLE
@@ -192,12 +192,6 @@ def _integrate(kind, P, x0, u, dt, rtol, atol, newton_tol, max_newton, max_itera
 integrate_runs = jit(_integrate)
 
 
-def _plain(a) -> np.ndarray:
-    """``a`` as a C-contiguous, writable float64 array (a copy only where it is not one)."""
-    a = np.ascontiguousarray(a, dtype=np.float64)
-    return a if a.flags.writeable else a.copy()
-
-
 def integrate(kind: int, P: np.ndarray, x0: np.ndarray, u: np.ndarray, dt: float, rtol: float,
               atol: float, newton_tol: float, max_newton: int, max_iterations: int,
               nan_on_failure: bool) -> tuple[np.ndarray, int, int, int]:
@@ -207,6 +201,6 @@ def integrate(kind: int, P: np.ndarray, x0: np.ndarray, u: np.ndarray, dt: float
     Every array reaches numba C-contiguous and writable: numba types a read-only array
     apart, and one such input (the perturbation analysis' read-only source) compiled the
     whole integrator a second time on a fresh install (about 19 s), with the same code."""
-    return integrate_runs(int(kind), _plain(P), _plain(x0), _plain(u), float(dt), float(rtol),
+    return integrate_runs(int(kind), plain(P), plain(x0), plain(u), float(dt), float(rtol),
                           float(atol), float(newton_tol), int(max_newton), int(max_iterations),
                           bool(nan_on_failure), RADAU_A, RADAU_E, RADAU_MU)
