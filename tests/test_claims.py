@@ -108,6 +108,7 @@ def test_too_few_runs_with_a_divergence_are_undecided():
     assert claims.sign_interval_rank(5) == 0 and claims.sign_interval_rank(6) == 1
 
 
+@pytest.mark.slow
 def test_the_sign_rank_matches_scipy_stats():
     """The sign interval's rank is computed exactly (integer binomial sums): the same ranks
     as scipy.stats for every number of runs up to 400."""

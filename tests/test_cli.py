@@ -316,6 +316,7 @@ def fake_project(tmp_path: Path, monkeypatch) -> Path:
     return root
 
 
+@pytest.mark.slow
 def test_overridden_run_never_writes_the_baseline(tmp_path, monkeypatch):
     root = fake_project(tmp_path, monkeypatch)
     config = str(root / "configs" / "tiny.yaml")
@@ -425,6 +426,7 @@ def test_table_with_thesis_on_a_table_without_printed_values_says_so_in_one_line
     assert "no printed derivative table to compare with" in line
 
 
+@pytest.mark.slow
 def test_key_path_overrides_on_run_validate_and_check(tmp_path, monkeypatch):
     """``key.path=value`` among the configs: YAML-typed, applied before validation (errors
     keep the key path), recorded in the manifest, combined with --quick, and accepted by
@@ -578,6 +580,7 @@ def test_report_is_one_page_with_every_table_and_figure(tmp_path, fmt, media):
     assert page.failing == int((claims["verdict"] == "fails").sum())
 
 
+@pytest.mark.slow
 def test_the_report_of_the_shipped_results_is_under_3_mb(tmp_path):
     out = tmp_path / "report.html"
     result = CliRunner().invoke(main, ["report", "--results", str(ROOT / "results"), "--out",
@@ -586,6 +589,7 @@ def test_the_report_of_the_shipped_results_is_under_3_mb(tmp_path):
     assert out.stat().st_size <= 3 * 1024 * 1024
 
 
+@pytest.mark.slow
 def test_a_dask_run_writes_the_same_bytes_as_jobs_1(tmp_path):
     pytest.importorskip("distributed")
     path = write(tmp_path, tiny_config())
@@ -607,6 +611,7 @@ def test_a_dask_run_writes_the_same_bytes_as_jobs_1(tmp_path):
     assert refused.exit_code == 2 and "--executor dask" in refused.output
 
 
+@pytest.mark.slow
 def test_an_interrupted_run_resumes_with_its_finished_cells(tmp_path, monkeypatch):
     from estim.experiments import estimation
 
@@ -644,6 +649,7 @@ def test_an_interrupted_run_resumes_with_its_finished_cells(tmp_path, monkeypatc
     assert not list((tmp_path / "res").glob(".tiny.cells-*"))
 
 
+@pytest.mark.slow
 def test_shards_merged_give_the_tables_of_one_run(tmp_path):
     path = write(tmp_path, tiny_config(**{"input.frequencies_hz": [100, 1000, 10000]}))
     runner = CliRunner()
@@ -692,6 +698,7 @@ def test_a_key_set_twice_on_one_command_line_is_refused(tmp_path):
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.slow
 def test_a_sweep_block_runs_each_cell_as_its_override_would(tmp_path):
     spec = tiny_config(**{"input.frequencies_hz": [1000], "noise.input_levels": [0.1],
                           "figures.noise_level": 0.1, "figures.frequency_hz": 1000})
@@ -766,6 +773,7 @@ def test_figure_streams_never_touch_the_tables(tmp_path):
     assert (outs[0] / fig).read_bytes() != (outs[1] / fig).read_bytes()
 
 
+@pytest.mark.slow
 def test_a_sweep_over_a_key_that_is_also_a_column_keeps_both(tmp_path):
     """``regime`` is a config key and an rmse column: the swept value gets its own column,
     and ``estim table`` shows it in front."""
@@ -782,6 +790,7 @@ def test_a_sweep_over_a_key_that_is_also_a_column_keeps_both(tmp_path):
                                                                      "sweep:regime"]
 
 
+@pytest.mark.slow
 def test_shards_of_a_sweep_share_every_cell_and_merge_to_one_run(tmp_path):
     spec = tiny_config(**{"input.frequencies_hz": [100, 1000]})
     spec["sweep"] = {"noise.measurement_sigma": [0.05, 0.1]}
@@ -901,6 +910,7 @@ def test_quick_ignores_the_size_of_the_grid_it_does_not_run(tmp_path):
     assert quick.exit_code == 0, quick.output
 
 
+@pytest.mark.slow
 def test_gain_table_skips_a_swept_experiment_without_gain_values(tmp_path):
     spec = yaml.safe_load((ROOT / "configs" / "cco_distortion.yaml").read_text())
     spec["sweep"] = {"title": ["a", "b"]}
@@ -913,6 +923,7 @@ def test_gain_table_skips_a_swept_experiment_without_gain_values(tmp_path):
     assert shown.exit_code == 2 and "no gain values" in shown.output, shown.output
 
 
+@pytest.mark.slow
 def test_a_sweep_holds_one_cells_figures_at_a_time(tmp_path, monkeypatch):
     import gc
     import weakref
@@ -1071,6 +1082,7 @@ def test_list_groups_every_config_aligned_and_as_json():
     assert saturation["tables"] == ["3.2", "3.4"] and saturation["analysis"] == "estimation"
 
 
+@pytest.mark.slow
 def test_check_json_reports_each_config_and_keeps_the_exit_code(tmp_path):
     import json
 
@@ -1094,6 +1106,7 @@ def test_check_json_reports_each_config_and_keeps_the_exit_code(tmp_path):
     assert any("rmse" in line for line in data["configs"][0]["lines"])
 
 
+@pytest.mark.slow
 def test_a_run_with_no_compiled_kernel_cached_says_numba_compiles_first(tmp_path):
     from estim.cli.output import COMPILING
 

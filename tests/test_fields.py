@@ -219,6 +219,7 @@ def test_with_the_wrong_source_the_field_filter_cuts_the_open_loop_error():
             assert rel.loc[(zone, comp), "KF"] < 0.5 * rel.loc[(zone, comp), "plain simulation"]
 
 
+@pytest.mark.slow
 def test_field_etkf_equals_a_dense_kalman_filter_on_an_8_cube():
     """The ensemble filter's plumbing on the real field model (N = 8, 2050 states): the
     members differ only in their source amplitude, so the covariance has rank 2 and the

@@ -468,6 +468,7 @@ def test_fuzzed_configs_end_in_a_config_error_or_validate():
     assert 0 < len(accepted) < 150
 
 
+@pytest.mark.slow
 def test_accepted_mutants_run_or_fail_in_one_line_without_silent_nan(tmp_path):
     _, accepted = fuzz(300, seed=9)
     rng = random.Random(3)
@@ -598,6 +599,7 @@ def started(run) -> str:
     return line
 
 
+@pytest.mark.slow
 def test_killed_run_leaves_the_folder_all_old_or_all_new(tmp_path):
     path = tmp_path / "tiny.yaml"
     path.write_text(yaml.safe_dump(tiny_spec(runs=8, periods=4)))
@@ -620,6 +622,7 @@ def test_killed_run_leaves_the_folder_all_old_or_all_new(tmp_path):
         assert not list(out.glob(".tiny.partial-*")) and not list(out.glob(".tiny.old-*"))
 
 
+@pytest.mark.slow
 def test_concurrent_run_into_one_folder_is_refused(tmp_path):
     path = tmp_path / "tiny.yaml"
     path.write_text(yaml.safe_dump(tiny_spec(runs=10, periods=4)))
@@ -826,6 +829,7 @@ def test_a_kf_sized_for_another_model_is_refused_at_validate(tmp_path):
                            "1 rows, but the model mosfet_ekv has 4 states")
 
 
+@pytest.mark.slow
 def test_merge_recomputes_a_damaged_cell_and_names_a_directory_in_its_place(tmp_path):
     path = tmp_path / "tiny.yaml"
     path.write_text(yaml.safe_dump(tiny_spec()))
@@ -1037,6 +1041,7 @@ def test_a_yaml_merge_key_merges_and_yields_to_explicit_keys():
 LAUNCH = "from estim.cli.launch import main; main()"
 
 
+@pytest.mark.slow
 def test_a_closed_stderr_or_a_narrow_terminal_encoding_does_not_end_a_command(tmp_path):
     """With stderr closed, a run died at its first progress line (exit 3, nothing written);
     on a latin-1 terminal estim summary died at its first en dash (exit 3)."""
@@ -1076,6 +1081,7 @@ def test_a_cell_is_data_and_comes_back_as_it_went():
         cells.encode(np.array(["a", object()], dtype=object))
 
 
+@pytest.mark.slow
 def test_merge_never_runs_code_from_a_shard_folder(tmp_path):
     """A shard folder is what users share between machines: a pickle that would run a
     command, a cell file whose array is an object pickle, and a cell of another config put

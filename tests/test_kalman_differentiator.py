@@ -33,6 +33,7 @@ def test_frequency_response_is_the_closed_form_up_to_20_hz():
     assert np.max(np.abs(kd.frequency_response(F, H, K, f) - closed) / np.abs(closed)) < 1e-3
 
 
+@pytest.mark.slow
 def test_monte_carlo_derivative_error_matches_the_discrete_riccati():
     q, r, dt, runs, steps = 1.0, 1e-4, 1e-3, 1000, 5000   # ~4e4 independent samples
     rng = np.random.default_rng(11)

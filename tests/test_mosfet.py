@@ -82,6 +82,7 @@ def test_completed_saturation_stage_amplifies():
     assert np.ptp(vD) / 2 / amp > 5
 
 
+@pytest.mark.slow
 def test_simulator_matches_solve_ivp_radau():
     model = MosfetEKV(V_IN=0.435)
     x0 = model.operating_point()

@@ -143,6 +143,7 @@ def test_first_order_improves_on_linear_in_every_circuit(name, excitation, close
     assert row["order_first_order"] - row["order_linear"] > 0.5
 
 
+@pytest.mark.slow
 def test_scipy_solver_gives_the_same_row():
     """The batched Radau integrator against scipy's solve_ivp on a MOSFET row."""
     rows = {}

@@ -23,8 +23,9 @@ FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-
 
 sync_api = pytest.importorskip("playwright.sync_api",
                                reason="Playwright is not installed (pip install '.[browser]')")
-pytestmark = pytest.mark.skipif(CHROMIUM is None,
-                                reason="no Chromium on this machine (apt-get install chromium)")
+pytestmark = [pytest.mark.skipif(CHROMIUM is None,
+                                 reason="no Chromium on this machine (apt-get install chromium)"),
+              pytest.mark.slow]                     # a browser: .ci/run's second pytest call
 
 
 @pytest.fixture(scope="module")

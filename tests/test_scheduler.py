@@ -108,6 +108,7 @@ def test_only_the_timing_analysis_runs_alone():
         "burden"]
 
 
+@pytest.mark.slow
 def test_reproduce_on_a_shared_pool_writes_what_one_config_after_another_writes(
         tmp_path, monkeypatch):
     root = fake_project(tmp_path, monkeypatch)
@@ -165,6 +166,7 @@ def test_ctrl_c_during_a_shared_reproduce_is_one_line_exit_130_and_stops_the_wor
     assert left.stdout.strip() == "", left.stdout
 
 
+@pytest.mark.slow
 def test_run_of_several_configs_shares_the_pool_and_writes_what_jobs_1_writes(tmp_path):
     paths = []
     for name, seed in (("first", 1), ("second", 2)):
@@ -242,6 +244,7 @@ def test_a_failing_config_stops_a_shared_run_without_hanging():
     assert outcome == ["boom"], "the run hung or did not raise the first failure"
 
 
+@pytest.mark.slow
 def test_reproduce_of_several_configs_prints_a_line_each_and_a_closing_summary(
         tmp_path, monkeypatch):
     """No tables in the stream: each finished config is one line (where it went, its time,

@@ -224,6 +224,7 @@ def test_the_netlist_cco_is_the_hand_written_model():
                   atol=1e-13)
 
 
+@pytest.mark.slow
 def test_the_netlist_darlington_is_the_hand_written_model():
     """circuits/mosfet_darlington.cir (Chapter 4's pair: one subcircuit called twice, stage
     2's coupling capacitor between stage 1's source and stage 2's gate) against estim's
@@ -731,6 +732,7 @@ NGSPICE = pytest.mark.skipif(__import__("shutil").which("ngspice") is None,
                                     "ngspice); CI installs it")
 
 
+@pytest.mark.slow
 @NGSPICE
 def test_estim_spice_holds_on_the_new_circuit():
     """Every case of configs/netlist/ce_amp_distortion.yaml within its bars (CI runs estim

@@ -1,6 +1,7 @@
 """Maximum-likelihood noise fitting (estim.experiments.shared.tuning)."""
 
 import numpy as np
+import pytest
 
 from estim.estimators.ekf import ExtendedKalmanFilter
 from estim.experiments.shared import tuning
@@ -19,6 +20,7 @@ def simulate(model, q, r, runs, steps, dt, seed):
     return z, u
 
 
+@pytest.mark.slow
 def test_fit_recovers_a_known_q_within_its_standard_error(oscillator):
     q_true, r = np.array([4e-3, 1e-2]), 0.05
     z, u = simulate(oscillator, q_true, r, runs=40, steps=300, dt=0.1, seed=21)
