@@ -9,6 +9,8 @@ import scipy.linalg
 
 from estim.estimators import ekf_compiled
 from estim.estimators.ekf import ExtendedKalmanFilter
+from estim.estimators.kf import KalmanFilter
+from estim.estimators.ukf import UnscentedKalmanFilter
 from estim.models.diffamp_em import DiffAmpEbersMoll
 from estim.models.diffamp_exp import DiffAmpExponential
 from estim.models.mosfet_ekv import MosfetEKV
@@ -122,11 +124,66 @@ def test_a_filter_that_overrides_cycle_keeps_the_numpy_loop():
         def cycle(self, model, x, P, z, u, dt, Q, R):
             return super().cycle(model, x, P, z, u, dt, Q, R)
 
+    class Unscented(UnscentedKalmanFilter):
+        def cycle(self, model, x, P, z, u, dt, Q, R):
+            return super().cycle(model, x, P, z, u, dt, Q, R)
+
     model = MODELS["mosfet_ekv"]()
     ekf = Shifted(Q=1e-4, R=0.01, P0=1e-3)
     assert ekf.compiled_plan(model) is None
+    assert Unscented(Q=1e-4, R=0.01, P0=1e-3).compiled_plan(model) is None
+    assert UnscentedKalmanFilter(Q=1e-4, R=0.01, P0=1e-3).compiled_plan(model) is not None
     assert ExtendedKalmanFilter(Q=1e-4, R=0.01, P0=1e-3,
                                 discretization="radau").compiled_plan(model) is None
+
+
+def kf_both(kf, z, u, monkeypatch):
+    """The KF's estimate through the compiled loop, then through the numpy loop."""
+    assert kf.compiled()
+    fast = kf.run(None, z, u)
+    with monkeypatch.context() as patch:
+        patch.setattr(KalmanFilter, "compiled", lambda self: False)
+        slow = kf.run(None, z, u)
+    return fast, slow
+
+
+def test_compiled_kf_follows_the_numpy_loop(monkeypatch):
+    """A 3-state, 2-output, 2-input system with inputs that differ per run: both loops
+    agree to rounding, and the estimate is the closed-form one-step KF of eqs A.1-A.7 at
+    the first step."""
+    rng = np.random.default_rng(11)
+    A = np.array([[0.9, 0.1, 0.0], [-0.1, 0.9, 0.05], [0.0, 0.02, 0.7]])
+    B = rng.normal(size=(3, 2))
+    C = rng.normal(size=(2, 3))
+    Q = np.diag([1e-3, 2e-3, 5e-4])
+    R = np.array([[0.04, 0.01], [0.01, 0.09]])
+    P0 = np.eye(3)
+    z = rng.normal(size=(5, 200, 2))
+    u = rng.normal(size=(5, 200, 2))
+    kf = KalmanFilter(A=A.tolist(), B=B.tolist(), C=C.tolist(), Q=Q.tolist(), R=R.tolist(),
+                      P0=P0.tolist(), x0=[0.1, -0.2, 0.3])
+    fast, slow = kf_both(kf, z, u, monkeypatch)
+    assert_same(fast, slow, 1e-12)
+    assert not fast.broken.any()
+    x = A @ [0.1, -0.2, 0.3] + B @ u[2, 0]
+    P = A @ P0 @ A.T + Q
+    K = P @ C.T @ np.linalg.inv(C @ P @ C.T + R)
+    np.testing.assert_allclose(fast.x_hat[2, 0], x + K @ (z[2, 0] - C @ x), rtol=1e-12)
+    np.testing.assert_allclose(fast.P[2, 0], (np.eye(3) - K @ C) @ P, rtol=1e-10, atol=1e-14)
+
+
+def test_a_kf_run_that_overflows_is_broken_from_the_same_step_in_both_loops(monkeypatch):
+    """A very unstable A: the run whose measurement jumps to 1e300 at step 5 follows it, and
+    its next prediction (1e10 times that) overflows; both loops mark it broken with NaN
+    from that step on, and the other runs go on."""
+    z = np.zeros((3, 40, 1))
+    z[1, 5:] = 1e300
+    kf = KalmanFilter(A=[[1e10]], B=[[0.0]], C=[[1.0]], Q=1.0, R=1.0, P0=1.0, x0=[0.0])
+    fast, slow = kf_both(kf, z, np.zeros((40, 1)), monkeypatch)
+    assert fast.broken.tolist() == [False, True, False]
+    assert np.flatnonzero(np.isnan(fast.x_hat[1, :, 0]))[0] == 6
+    assert np.isfinite(fast.x_hat[[0, 2]]).all()
+    assert_same(fast, slow, 1e-12)
 
 
 @pytest.mark.parametrize("scale", [1e-3, 1.0, 30.0, 1e4])
@@ -153,3 +210,51 @@ def test_compiled_expm_of_a_non_finite_matrix_is_nan():
     out = np.zeros((3, 3))
     small_matrices.expm_into(A, out, np.empty((6, 3, 3)))
     assert np.all(np.isnan(out))
+
+
+UKF_CASES = [(name, disc) for name in ("mosfet_ekv", "mosfet_weak_saturation", "netlist",
+                                       "diffamp_em")
+             for disc in ("exponential", "rosenbrock")]
+
+
+@pytest.mark.parametrize("name, discretization", UKF_CASES)
+def test_compiled_ukf_follows_the_numpy_loop(name, discretization, monkeypatch):
+    """The UKF through its compiled loop and through the numpy one agree to rounding, with
+    a small spread (alpha 1e-3, whose weights of -1e6 and 1.25e5 cancel: both loops' sums
+    are rounded at 1e6 times the state) and with the default alpha = 1 (0.1 on the
+    differential pair, as its configs give it: at 1 its sigma points leave the junctions'
+    range, where exp(T J) has a norm of 1e47 and neither loop gives a usable prediction)."""
+    model = MODELS[name]()
+    x0, z, u, dt = problem(model)
+    n = model.n_states
+    pair = name.startswith("diffamp")
+    for alpha in (1e-3, 0.1 if pair else 1.0):
+        ukf = UnscentedKalmanFilter(Q=[1e-4] * n, R=0.01, P0=[1e-3] * n, alpha=alpha,
+                                    discretization=discretization)
+        assert ukf.compiled_plan(model) is not None
+        fast = ukf.run(model, z, u, dt, x0)
+        with monkeypatch.context() as patch:
+            patch.setattr(UnscentedKalmanFilter, "compiled_plan", lambda *args: None)
+            slow = ukf.run(model, z, u, dt, x0)
+        assert_same(fast, slow, 1e-6 if pair or alpha < 0.1 else 1e-9)
+        assert not fast.broken.any()
+
+
+def test_the_compiled_square_root_falls_back_to_the_symmetric_root():
+    """A positive definite P gets its Cholesky factor; a semidefinite one (a zero variance,
+    a rank-one matrix) the symmetric root with its negative rounding clipped: L L^T = P."""
+    from estim.estimators import ukf_compiled
+    from estim.estimators.ukf import sqrt_psd
+
+    rng = np.random.default_rng(2)
+    M = rng.normal(size=(4, 4))
+    v = rng.normal(size=4)
+    for P in (M @ M.T + np.eye(4), np.diag([1.0, 0.0, 2.0, 3.0]), np.outer(v, v)):
+        L = np.empty((4, 4))
+        ukf_compiled.sqrt_psd(P, L)
+        np.testing.assert_allclose(L @ L.T, P, atol=1e-12 * np.abs(P).max())
+        ours = sqrt_psd(P[None])[0]
+        np.testing.assert_allclose(L @ L.T, ours @ ours.T, atol=1e-12 * np.abs(P).max())
+    L = np.empty((4, 4))
+    ukf_compiled.sqrt_psd(M @ M.T + np.eye(4), L)
+    np.testing.assert_allclose(L, np.linalg.cholesky(M @ M.T + np.eye(4)), rtol=1e-13)

@@ -81,6 +81,12 @@ class ExtendedKalmanFilter(GaussianFilter, name="ekf"):
             return None
         return ekf_compiled.usable(model, self.discretization)
 
+    def run_compiled(self, plan: tuple, x0, P0, z, u, dt, Q, R) -> tuple[np.ndarray, ...]:
+        """The batch through the compiled loop: what :func:`~estim.estimators.base.run_batch`
+        returns for :meth:`cycle`."""
+        return ekf_compiled.run(plan, x0, P0, z, u, dt, Q, R, self.discretization,
+                                self.substeps, self.divergence_bound)
+
     def run(self, model, z: np.ndarray, u: np.ndarray, dt: float,
             x0: np.ndarray | None = None) -> Estimate:
         runs, _, m = z.shape
@@ -92,9 +98,8 @@ class ExtendedKalmanFilter(GaussianFilter, name="ekf"):
             x0 = model.operating_point()
         plan = self.compiled_plan(model)
         if plan is not None:
-            x_hat, P_hist, S_hist, innovation, alive = ekf_compiled.run(
-                plan, x0, P0, z, batch_input(u, runs), dt, Q, R, self.discretization,
-                self.substeps, self.divergence_bound)
+            x_hat, P_hist, S_hist, innovation, alive = self.run_compiled(
+                plan, x0, P0, z, batch_input(u, runs), dt, Q, R)
         else:
             x_hat, P_hist, S_hist, innovation, alive = run_batch(
                 lambda x, P, zk, uk: self.cycle(model, x, P, zk, uk, dt, Q, R),

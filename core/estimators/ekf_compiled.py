@@ -19,62 +19,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from estim.estimators.compiled_steps import METHODS, joseph_update, predict
 from estim.numerics import kernels
-from estim.numerics.kernels import evaluate, jit, plain
-from estim.numerics.small_matrices import expm_into, matmul, matmul_t, solve_into
+from estim.numerics.kernels import jit, plain
+from estim.numerics.small_matrices import matmul, matmul_t
 
-METHODS = {"euler": 0, "rosenbrock": 1, "exponential": 2}
 AVAILABLE = kernels.AVAILABLE
-
-
-def _predict(kind, Pk, x, uk, dt, method, substeps, f, J, F, Ft, aug, E, work, tmp):
-    """``x <- x(t + dt)`` by ``substeps`` steps of the discretisation; ``F`` gets the
-    step's Jacobian (chained over substeps)."""
-    n = x.shape[0]
-    h = dt / substeps
-    for step in range(substeps):
-        evaluate(kind, x, uk, Pk, f, J)
-        if method == 0:
-            for a in range(n):
-                for b in range(n):
-                    Ft[a, b] = h * J[a, b]
-                Ft[a, a] += 1.0
-            for a in range(n):
-                x[a] += h * f[a]
-        elif method == 1:
-            for a in range(n):
-                for b in range(n):
-                    aug[a, b] = -h * J[a, b]
-                    E[a, b + 1] = 0.0
-                aug[a, a] += 1.0
-                E[a, 0] = f[a]
-                E[a, a + 1] = 1.0
-            solve_into(aug[:n, :n], E[:n, :n + 1])
-            for a in range(n):
-                x[a] += h * E[a, 0]
-                for b in range(n):
-                    Ft[a, b] = E[a, b + 1]
-        else:
-            for a in range(n + 1):
-                for b in range(n + 1):
-                    aug[a, b] = 0.0
-            for a in range(n):
-                for b in range(n):
-                    aug[a, b] = h * J[a, b]
-                aug[a, n] = h * f[a]
-            expm_into(aug, E, work)
-            for a in range(n):
-                x[a] += E[a, n]
-                for b in range(n):
-                    Ft[a, b] = E[a, b]
-        if step == 0:
-            F[:, :] = Ft
-        else:
-            matmul(Ft, F, tmp)
-            F[:, :] = tmp
-
-
-predict = jit(_predict)
 
 
 def _runs(kind, Pk, x0, P0, z, u, dt, Q, R, H, c, method, substeps, bound):
@@ -121,42 +71,8 @@ def _runs(kind, Pk, x0, P0, z, u, dt, Q, R, H, c, method, substeps, bound):
                 for a in range(n):
                     acc += H[i, a] * x[a]
                 nu[i] = z[r, k, i] - acc
-            matmul(H, P, HP)                          # S = H P H^T + R
-            matmul_t(HP, H, S)
-            for i in range(m):
-                for j in range(m):
-                    S[i, j] += R[i, j]
-            Sw[:, :] = S
-            Kt[:, :] = HP
-            solve_into(Sw, Kt)                        # K^T = S^-1 H P
+            ok = joseph_update(x, P, nu, H, R, S, HP, Sw, Kt, K, KR, IKH, FP, tmp)
             for a in range(n):
-                for i in range(m):
-                    K[a, i] = Kt[i, a]
-                acc = 0.0
-                for i in range(m):
-                    acc += K[a, i] * nu[i]
-                x[a] += acc
-            for a in range(n):                        # Joseph form (I-KH) P (I-KH)^T + K R K^T
-                for b in range(n):
-                    acc = 0.0
-                    for i in range(m):
-                        acc += K[a, i] * H[i, b]
-                    IKH[a, b] = -acc
-                IKH[a, a] += 1.0
-            matmul(IKH, P, FP)
-            matmul_t(FP, IKH, tmp)
-            matmul(K, R, KR)
-            matmul_t(KR, K, P)
-            ok = True
-            for a in range(n):
-                for b in range(n):
-                    P[a, b] += tmp[a, b]
-            for a in range(n):
-                for b in range(a, n):
-                    mean = 0.5 * (P[a, b] + P[b, a])
-                    P[a, b] = mean
-                    P[b, a] = mean
-                    ok &= np.isfinite(mean)
                 ok &= np.isfinite(x[a]) and abs(x[a]) <= bound and abs(xp[a]) <= bound
             if not ok:
                 alive[r] = False

@@ -14,6 +14,9 @@ from estim.estimators.base import (
     check_covariance,
     joseph_update,
 )
+from estim.util import lazy
+
+kf_compiled = lazy.load("estim.estimators.kf_compiled")   # numba: imported when a filter runs
 
 
 @settings_class
@@ -83,33 +86,49 @@ class KalmanFilter(NoiseCovariances, name="kf"):
 
     def run(self, model, z: np.ndarray, u: np.ndarray, dt: float | None = None,
             x0: np.ndarray | None = None) -> Estimate:
-        runs, steps, m = z.shape
+        runs = z.shape[0]
         A, B, C, Q, R, P0 = self.matrices()
         n = A.shape[0]
         u = batch_input(u, runs)
         start = self.x0 if self.x0 is not None else (np.zeros(n) if x0 is None else x0)
         x = np.broadcast_to(np.asarray(start, float), (runs, n)).copy()
-        P = np.broadcast_to(P0, (runs, n, n)).copy()
-        H = np.broadcast_to(C, (runs, m, n))
-        x_hat = np.empty((runs, steps, n))
-        P_hist = np.empty((runs, steps, n, n))
-        S_hist = np.empty((runs, steps, m, m))
-        innovation = np.empty((runs, steps, m))
-        with np.errstate(all="ignore"):     # an overflowing run is marked broken below
-            for k in range(steps):
-                x = x @ A.T + u[:, k, :] @ B.T
-                P = A @ P @ A.T + Q
-                innovation[:, k] = z[:, k] - x @ C.T
-                x, P, S_hist[:, k] = joseph_update(x, P, innovation[:, k], H, R)
-                x_hat[:, k] = x
-                P_hist[:, k] = P
+        loop = kf_compiled.run if self.compiled() else numpy_loop
+        x_hat, P_hist, S_hist, innovation, alive = loop(x, P0, z, u, A, B, C, Q, R)
         with np.errstate(all="ignore"):
             y_hat = x_hat @ C.T
-        # a run whose estimate overflowed is broken from its first non-finite step on
-        bad = ~(np.all(np.isfinite(x_hat), axis=2) & np.all(np.isfinite(P_hist), axis=(2, 3)))
-        bad = np.cumsum(bad, axis=1) > 0
-        for a in (x_hat, y_hat, innovation):
-            a[bad] = np.nan
-        P_hist[bad], S_hist[bad] = np.nan, np.nan
-        return Estimate(y_hat=y_hat, innovation=innovation, broken=bad[:, -1], x_hat=x_hat,
+        return Estimate(y_hat=y_hat, innovation=innovation, broken=~alive, x_hat=x_hat,
                         P=P_hist, S=S_hist)
+
+    def compiled(self) -> bool:
+        """Whether :meth:`run` steps through time in the compiled loop
+        (:mod:`estim.estimators.kf_compiled`; numba installed) or in :func:`numpy_loop`."""
+        return kf_compiled.AVAILABLE
+
+
+def numpy_loop(x, P0, z, u, A, B, C, Q, R) -> tuple[np.ndarray, ...]:
+    """The filter over the batch, one numpy step for every run at a time: ``x_hat``, ``P``,
+    ``S``, the innovations (NaN from a run's first non-finite estimate on) and the runs
+    whose estimate stayed finite. ``x (runs, n)``, ``u (runs, steps, p)``."""
+    runs, steps, m = z.shape
+    n = A.shape[0]
+    P = np.broadcast_to(P0, (runs, n, n)).copy()
+    H = np.broadcast_to(C, (runs, m, n))
+    x_hat = np.empty((runs, steps, n))
+    P_hist = np.empty((runs, steps, n, n))
+    S_hist = np.empty((runs, steps, m, m))
+    innovation = np.empty((runs, steps, m))
+    with np.errstate(all="ignore"):     # an overflowing run is marked broken below
+        for k in range(steps):
+            x = x @ A.T + u[:, k, :] @ B.T
+            P = A @ P @ A.T + Q
+            innovation[:, k] = z[:, k] - x @ C.T
+            x, P, S_hist[:, k] = joseph_update(x, P, innovation[:, k], H, R)
+            x_hat[:, k] = x
+            P_hist[:, k] = P
+    # a run whose estimate overflowed is broken from its first non-finite step on
+    bad = ~(np.all(np.isfinite(x_hat), axis=2) & np.all(np.isfinite(P_hist), axis=(2, 3)))
+    bad = np.cumsum(bad, axis=1) > 0
+    for a in (x_hat, innovation):
+        a[bad] = np.nan
+    P_hist[bad], S_hist[bad] = np.nan, np.nan
+    return x_hat, P_hist, S_hist, innovation, ~bad[:, -1]

@@ -26,8 +26,11 @@ import numpy as np
 
 from estim.config.settings import number, setting, settings_class
 from estim.estimators.base import joseph_update
-from estim.estimators.ekf import ExtendedKalmanFilter
+from estim.estimators.ekf import ExtendedKalmanFilter, ekf_compiled
 from estim.numerics import discretize, linalg
+from estim.util import lazy
+
+ukf_compiled = lazy.load("estim.estimators.ukf_compiled")   # numba: imported when a filter runs
 
 
 def sqrt_psd(P: np.ndarray) -> np.ndarray:
@@ -87,6 +90,21 @@ class UnscentedKalmanFilter(ExtendedKalmanFilter, name="ukf"):
         cols = np.swapaxes(L, -1, -2)
         return np.concatenate([x[:, None, :], x[:, None, :] + cols, x[:, None, :] - cols],
                               axis=1)
+
+    def compiled_plan(self, model) -> tuple | None:
+        """As the EKF's: the compiled loop (:mod:`estim.estimators.ukf_compiled`) where the
+        model has a kernel and an affine output and the discretisation is not ``radau``;
+        ``None`` (the numpy loop) for a subclass that overrides :meth:`cycle`."""
+        if type(self).cycle is not UnscentedKalmanFilter.cycle:
+            return None
+        return ekf_compiled.usable(model, self.discretization)
+
+    def run_compiled(self, plan: tuple, x0, P0, z, u, dt, Q, R) -> tuple[np.ndarray, ...]:
+        n = np.shape(x0)[-1]
+        return ukf_compiled.run(plan, x0, P0, z, u, dt, Q, R,
+                                self.discretization, self.substeps,
+                                self.divergence_bound, self.weights(n),
+                                np.sqrt(n + self.scaling(n)))
 
     def cycle(self, model, x: np.ndarray, P: np.ndarray, z: np.ndarray, u: np.ndarray,
               dt: float, Q: np.ndarray, R: np.ndarray):

@@ -1,0 +1,118 @@
+"""The steps the compiled filter loops share (numba, one run at a time, into scratch arrays
+that the caller allocates once): the prediction by the shared discretisation and the
+measurement update in Joseph form (thesis Appendix A, eqs A.5-A.7 and A.14-A.16).
+
+Each follows its numpy counterpart step for step (:func:`estim.numerics.discretize.step`,
+:func:`estim.estimators.base.joseph_update`), so the compiled loops
+(:mod:`~estim.estimators.ekf_compiled`, :mod:`~estim.estimators.ukf_compiled`,
+:mod:`~estim.estimators.kf_compiled`) agree with the numpy ones to rounding
+(``tests/test_compiled_filters.py``). As for :mod:`estim.numerics.kernels`, numba's disk
+cache of a caller does not notice an edit here: delete the caches after one.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from estim.numerics.kernels import evaluate, jit
+from estim.numerics.small_matrices import expm_into, matmul, matmul_t, solve_into
+
+METHODS = {"euler": 0, "rosenbrock": 1, "exponential": 2}
+"""The discretisations the compiled prediction knows, by number (``radau`` is numpy's)."""
+
+
+def _predict(kind, Pk, x, uk, dt, method, substeps, f, J, F, Ft, aug, E, work, tmp):
+    """``x <- x(t + dt)`` by ``substeps`` steps of the discretisation; ``F`` gets the
+    step's Jacobian (chained over substeps)."""
+    n = x.shape[0]
+    h = dt / substeps
+    for step in range(substeps):
+        evaluate(kind, x, uk, Pk, f, J)
+        if method == 0:
+            for a in range(n):
+                for b in range(n):
+                    Ft[a, b] = h * J[a, b]
+                Ft[a, a] += 1.0
+            for a in range(n):
+                x[a] += h * f[a]
+        elif method == 1:
+            for a in range(n):
+                for b in range(n):
+                    aug[a, b] = -h * J[a, b]
+                    E[a, b + 1] = 0.0
+                aug[a, a] += 1.0
+                E[a, 0] = f[a]
+                E[a, a + 1] = 1.0
+            solve_into(aug[:n, :n], E[:n, :n + 1])
+            for a in range(n):
+                x[a] += h * E[a, 0]
+                for b in range(n):
+                    Ft[a, b] = E[a, b + 1]
+        else:
+            for a in range(n + 1):
+                for b in range(n + 1):
+                    aug[a, b] = 0.0
+            for a in range(n):
+                for b in range(n):
+                    aug[a, b] = h * J[a, b]
+                aug[a, n] = h * f[a]
+            expm_into(aug, E, work)
+            for a in range(n):
+                x[a] += E[a, n]
+                for b in range(n):
+                    Ft[a, b] = E[a, b]
+        if step == 0:
+            F[:, :] = Ft
+        else:
+            matmul(Ft, F, tmp)
+            F[:, :] = tmp
+
+
+predict = jit(_predict)
+
+
+def _joseph_update(x, P, nu, H, R, S, HP, Sw, Kt, K, KR, IKH, FP, tmp):
+    """In place: ``x <- x + K nu`` and ``P <- (I-KH) P (I-KH)^T + K R K^T`` (symmetrised)
+    with ``K = P H^T S^-1``; ``S <- H P H^T + R`` (the prior ``P``). Returns whether every
+    entry of the new ``P`` is finite."""
+    n, m = x.shape[0], nu.shape[0]
+    matmul(H, P, HP)                          # S = H P H^T + R
+    matmul_t(HP, H, S)
+    for i in range(m):
+        for j in range(m):
+            S[i, j] += R[i, j]
+    Sw[:, :] = S
+    Kt[:, :] = HP
+    solve_into(Sw, Kt)                        # K^T = S^-1 H P
+    for a in range(n):
+        for i in range(m):
+            K[a, i] = Kt[i, a]
+        acc = 0.0
+        for i in range(m):
+            acc += K[a, i] * nu[i]
+        x[a] += acc
+    for a in range(n):                        # Joseph form (I-KH) P (I-KH)^T + K R K^T
+        for b in range(n):
+            acc = 0.0
+            for i in range(m):
+                acc += K[a, i] * H[i, b]
+            IKH[a, b] = -acc
+        IKH[a, a] += 1.0
+    matmul(IKH, P, FP)
+    matmul_t(FP, IKH, tmp)
+    matmul(K, R, KR)
+    matmul_t(KR, K, P)
+    for a in range(n):
+        for b in range(n):
+            P[a, b] += tmp[a, b]
+    ok = True
+    for a in range(n):
+        for b in range(a, n):
+            mean = 0.5 * (P[a, b] + P[b, a])
+            P[a, b] = mean
+            P[b, a] = mean
+            ok &= np.isfinite(mean)
+    return ok
+
+
+joseph_update = jit(_joseph_update)
