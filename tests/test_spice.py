@@ -593,7 +593,7 @@ def test_thesis_states_map_a_covariance_onto_the_node_voltages():
 
 
 @pytest.mark.parametrize("hand, netlist, ukf_gap", [
-    ("diffamp_ekf", "diffamp_netlist_ekf", "1.9e-04"),
+    ("diffamp_ekf", "diffamp_netlist_ekf", "9.8e-06"),
     ("mosfet_saturation", "mosfet_netlist_saturation", "9.1e-05"),
     ("mosfet_conduction", "mosfet_netlist_conduction", None),
 ])
