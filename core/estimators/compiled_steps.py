@@ -15,7 +15,13 @@ from __future__ import annotations
 import numpy as np
 
 from estim.numerics.kernels import evaluate, jit
-from estim.numerics.small_matrices import expm_into, matmul, matmul_t, solve_into
+from estim.numerics.small_matrices import (
+    copy_matrix,
+    expm_into,
+    matmul,
+    matmul_t,
+    solve_into,
+)
 
 METHODS = {"euler": 0, "rosenbrock": 1, "exponential": 2}
 """The discretisations the compiled prediction knows, by number (``radau`` is numpy's)."""
@@ -62,10 +68,10 @@ def _predict(kind, Pk, x, uk, dt, method, substeps, f, J, F, Ft, aug, E, work, t
                 for b in range(n):
                     Ft[a, b] = E[a, b]
         if step == 0:
-            F[:, :] = Ft
+            copy_matrix(Ft, F)
         else:
             matmul(Ft, F, tmp)
-            F[:, :] = tmp
+            copy_matrix(tmp, F)
 
 
 predict = jit(_predict)
@@ -81,8 +87,8 @@ def _joseph_update(x, P, nu, H, R, S, HP, Sw, Kt, K, KR, IKH, FP, tmp):
     for i in range(m):
         for j in range(m):
             S[i, j] += R[i, j]
-    Sw[:, :] = S
-    Kt[:, :] = HP
+    copy_matrix(S, Sw)
+    copy_matrix(HP, Kt)
     solve_into(Sw, Kt)                        # K^T = S^-1 H P
     for a in range(n):
         for i in range(m):

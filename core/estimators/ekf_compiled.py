@@ -22,7 +22,7 @@ import numpy as np
 from estim.estimators.compiled_steps import METHODS, joseph_update, predict
 from estim.numerics import kernels
 from estim.numerics.kernels import jit, plain
-from estim.numerics.small_matrices import matmul, matmul_t
+from estim.numerics.small_matrices import copy_matrix, copy_vector, matmul, matmul_t
 
 AVAILABLE = kernels.AVAILABLE
 
@@ -56,11 +56,11 @@ def _runs(kind, Pk, x0, P0, z, u, dt, Q, R, H, c, method, substeps, bound):
     IKH = np.empty((n, n))
     nu = np.empty(m)
     for r in range(runs):
-        x[:] = x0[r]
-        P[:, :] = P0
+        copy_vector(x0[r], x)
+        copy_matrix(P0, P)
         for k in range(steps):
             predict(kind, Pk, x, u[r, k], dt, method, substeps, f, J, F, Ft, aug, E, work, tmp)
-            xp[:] = x
+            copy_vector(x, xp)
             matmul(F, P, FP)                          # P = F P F^T + Q
             matmul_t(FP, F, P)
             for a in range(n):
@@ -77,10 +77,10 @@ def _runs(kind, Pk, x0, P0, z, u, dt, Q, R, H, c, method, substeps, bound):
             if not ok:
                 alive[r] = False
                 break
-            x_hat[r, k] = x
-            P_hist[r, k] = P
-            S_hist[r, k] = S
-            innovation[r, k] = nu
+            copy_vector(x, x_hat[r, k])
+            copy_matrix(P, P_hist[r, k])
+            copy_matrix(S, S_hist[r, k])
+            copy_vector(nu, innovation[r, k])
     return x_hat, P_hist, S_hist, innovation, alive
 
 

@@ -14,7 +14,7 @@ import numpy as np
 from estim.estimators.compiled_steps import joseph_update
 from estim.numerics import kernels
 from estim.numerics.kernels import jit, plain
-from estim.numerics.small_matrices import matmul, matmul_t
+from estim.numerics.small_matrices import copy_matrix, copy_vector, matmul, matmul_t
 
 AVAILABLE = kernels.AVAILABLE
 
@@ -41,8 +41,8 @@ def _runs(x0, P0, z, u, A, B, C, Q, R):
     tmp = np.empty((n, n))
     nu = np.empty(m)
     for r in range(runs):
-        x[:] = x0[r]
-        P[:, :] = P0
+        copy_vector(x0[r], x)
+        copy_matrix(P0, P)
         for k in range(steps):
             for a in range(n):                        # x = A x + B u
                 acc = 0.0
@@ -53,7 +53,7 @@ def _runs(x0, P0, z, u, A, B, C, Q, R):
                 for j in range(p):
                     acc += B[a, j] * u[r, k, j]
                 xp[a] += acc
-            x[:] = xp
+            copy_vector(xp, x)
             matmul(A, P, AP)                          # P = A P A^T + Q
             matmul_t(AP, A, P)
             for a in range(n):
@@ -70,10 +70,10 @@ def _runs(x0, P0, z, u, A, B, C, Q, R):
             if not ok:
                 alive[r] = False
                 break
-            x_hat[r, k] = x
-            P_hist[r, k] = P
-            S_hist[r, k] = S
-            innovation[r, k] = nu
+            copy_vector(x, x_hat[r, k])
+            copy_matrix(P, P_hist[r, k])
+            copy_matrix(S, S_hist[r, k])
+            copy_vector(nu, innovation[r, k])
     return x_hat, P_hist, S_hist, innovation, alive
 
 

@@ -19,7 +19,7 @@ import numpy as np
 
 from estim.estimators.compiled_steps import METHODS, joseph_update, predict
 from estim.numerics.kernels import jit, plain
-from estim.numerics.small_matrices import solve_into
+from estim.numerics.small_matrices import copy_matrix, copy_vector, solve_into
 
 
 def _sqrt_psd(P, L):
@@ -121,15 +121,15 @@ def _runs(kind, Pk, x0, P0, z, u, dt, Q, R, H, c, method, substeps, bound, wm, w
     IKH = np.empty((n, n))
     nu = np.empty(m)
     for r in range(runs):
-        x[:] = x0[r]
-        P[:, :] = P0
+        copy_vector(x0[r], x)
+        copy_matrix(P0, P)
         for k in range(steps):
             sigma_points(x, P, spread, L, X)
             for j in range(points):                  # each point over the interval
-                xs[:] = X[j]
+                copy_vector(X[j], xs)
                 predict(kind, Pk, xs, u[r, k], dt, method, substeps, f, J, F, Ft, aug, E,
                         work, tmp)
-                Xp[j] = xs
+                copy_vector(xs, Xp[j])
             for a in range(n):                       # weighted mean and covariance + Q
                 acc = 0.0
                 for j in range(points):
@@ -171,22 +171,22 @@ def _runs(kind, Pk, x0, P0, z, u, dt, Q, R, H, c, method, substeps, bound, wm, w
                     for j in range(points):
                         acc += wc[j] * (X[j, a] - xp[a]) * (Z[j, i] - zp[i])
                     Pxz[a, i] = acc
-            Pw[:, :] = P                             # H = (P^-1 P_xz)^T
+            copy_matrix(P, Pw)                       # H = (P^-1 P_xz)^T
             solve_into(Pw, Pxz)
             for i in range(m):
                 for a in range(n):
                     Hl[i, a] = Pxz[a, i]
-            x[:] = xp
+            copy_vector(xp, x)
             ok = joseph_update(x, P, nu, Hl, R, S, HP, Sw, Kt, K, KR, IKH, FP, tmp)
             for a in range(n):
                 ok &= np.isfinite(x[a]) and abs(x[a]) <= bound
             if not ok:
                 alive[r] = False
                 break
-            x_hat[r, k] = x
-            P_hist[r, k] = P
-            S_hist[r, k] = S
-            innovation[r, k] = nu
+            copy_vector(x, x_hat[r, k])
+            copy_matrix(P, P_hist[r, k])
+            copy_matrix(S, S_hist[r, k])
+            copy_vector(nu, innovation[r, k])
     return x_hat, P_hist, S_hist, innovation, alive
 
 

@@ -18,7 +18,7 @@ import numpy as np
 
 from estim.numerics import kernels, radau
 from estim.numerics.kernels import evaluate, jit, plain
-from estim.numerics.small_matrices import solve_into
+from estim.numerics.small_matrices import copy_matrix, copy_vector, solve_into
 
 AVAILABLE = kernels.AVAILABLE
 
@@ -61,8 +61,8 @@ def _radau_step(kind, P, x, u, h, newton_tol, max_newton, A, E, mu, work, Js, M,
     for iteration in range(max_newton):
         for i in range(3):
             if iteration == 0:
-                F[i] = f0
-                Js[i] = J0
+                copy_vector(f0, F[i])
+                copy_matrix(J0, Js[i])
                 continue
             for a in range(n):
                 X[a] = x[a] + Z[i, a]
@@ -141,7 +141,7 @@ def _integrate(kind, P, x0, u, dt, rtol, atol, newton_tol, max_newton, max_itera
     new = work[2, :n]
     error = work[8, :n]
     for r in range(runs):
-        x[:] = x0[r]
+        copy_vector(x0[r], x)
         h = dt / 4
         iterations = 0
         for k in range(steps):
@@ -168,7 +168,7 @@ def _integrate(kind, P, x0, u, dt, rtol, atol, newton_tol, max_newton, max_itera
                 accept = ok and err <= 1.0
                 fresh = accept
                 if accept:
-                    x[:] = new
+                    copy_vector(new, x)
                     t += hh
                 if ok:
                     factor = min(max(0.9 * max(err, 1e-10) ** (-0.25), 0.2), 10.0)
@@ -185,7 +185,7 @@ def _integrate(kind, P, x0, u, dt, rtol, atol, newton_tol, max_newton, max_itera
                     x[:] = np.nan
                     t = dt
                     h = dt / 4
-            out[r, k] = x
+            copy_vector(x, out[r, k])
     return out, OK, -1, -1
 
 

@@ -23,6 +23,26 @@ PADE_B = np.array(linalg._B)
 THETA_13 = linalg._THETA_13
 
 
+def _copy_vector(src, dst):
+    """``dst[:] = src`` by a loop: numba's array assignment compiles a shape check with a
+    formatted error message, seconds of a first run's compile per function that uses it."""
+    for i in range(src.shape[0]):
+        dst[i] = src[i]
+
+
+copy_vector = jit(_copy_vector)
+
+
+def _copy_matrix(src, dst):
+    """``dst[:, :] = src`` by a loop (as :func:`copy_vector`)."""
+    for i in range(src.shape[0]):
+        for j in range(src.shape[1]):
+            dst[i, j] = src[i, j]
+
+
+copy_matrix = jit(_copy_matrix)
+
+
 def _matmul(A, B, out):
     """``out = A @ B`` (``out`` must not be ``A`` or ``B``)."""
     n, k = A.shape
@@ -142,7 +162,7 @@ def _expm_into(A, out, work):
     solve_into(X, out)
     for _ in range(s):
         matmul(out, out, X)
-        out[:, :] = X
+        copy_matrix(X, out)
 
 
 expm_into = jit(_expm_into)
