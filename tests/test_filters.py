@@ -174,3 +174,49 @@ def test_printed_taylor_model_diverges_and_is_reported():
                                                                1e-3, x0=x0)
     assert est.broken.all()
     assert np.isnan(est.y_hat[:, -1]).all()
+
+
+def test_q_and_p0_by_state_name_are_the_diagonal_in_the_models_order():
+    """``{state: variance}`` (``"*"`` for the rest) gives the same filter as the diagonal in
+    the model's state order, whatever order the names come in."""
+    model = MosfetEKV(V_IN=0.435, drain_current="weak_saturation")
+    x0 = model.operating_point()
+    rng = np.random.default_rng(4)
+    z = x0[3] + 0.05 * rng.standard_normal((3, 40, 1))
+    u = np.zeros((40, 1))
+    listed = ExtendedKalmanFilter(Q=[1e-4, 2e-4, 2e-4, 3e-4], R=0.01, P0=[1e-3, 2e-3, 2e-3, 2e-3],
+                                  noise_units="state")
+    named = ExtendedKalmanFilter(Q={"v_D": 3e-4, "v_G": 1e-4, "*": 2e-4}, R=0.01,
+                                 P0={"v_G": 1e-3, "v_B": 2e-3, "v_S": 2e-3, "v_D": 2e-3},
+                                 noise_units="state")
+    a = listed.run(model, z, u, 1e-4, x0)
+    b = named.run(model, z, u, 1e-4, x0)
+    np.testing.assert_array_equal(a.x_hat, b.x_hat)
+    np.testing.assert_array_equal(a.P, b.P)
+
+
+@pytest.mark.parametrize("Q, message", [
+    ({"v_G": 1e-4, "v_X": 1e-4, "*": 1e-4}, "Q: no state named 'v_X'; the states are v_G, "
+                                            "v_B, v_S, v_D"),
+    ({"v_G": 1e-4, "v_D": 1e-4}, "Q: no variance for v_B, v_S: name every state or give '*'"),
+])
+def test_a_wrong_state_name_in_a_config_is_one_error_at_its_key_path(Q, message):
+    """An unknown name, or a state left without a variance, fails when the config is loaded,
+    at the setting's key path, naming the model's states."""
+    from estim.config.loading import load_file
+    from estim.errors import ConfigError
+
+    root = __import__("pathlib").Path(__file__).resolve().parents[1]
+    with pytest.raises(ConfigError) as caught:
+        load_file(root / "configs" / "mosfet_saturation.yaml",
+                  {"estimators.0.settings.Q": Q, "estimators.0.settings.noise_units": "state"})
+    assert "estimators[0].settings.Q" in str(caught.value)
+    assert message in str(caught.value)
+
+
+def test_a_kf_refuses_q_by_state_name():
+    """A KF's matrices are its settings: it has no model whose states could name the rows."""
+    from estim.errors import SettingError
+
+    with pytest.raises(SettingError, match="given by state name, but this filter has no model"):
+        KalmanFilter(A=[[1.0]], B=[[0.0]], C=[[1.0]], Q={"x": 1.0}, R=1.0, P0=1.0)

@@ -172,13 +172,21 @@ def matrix(v):
     return "a finite number, a list of finite numbers or a list of equal-length rows"
 
 
-def covariance(definite: bool = False):
+def covariance(definite: bool = False, by_name: bool = False):
     """A :func:`matrix` that is a covariance: symmetric and positive semidefinite (positive
     definite with ``definite``): a number ``>= 0`` (``> 0``), a diagonal of such numbers, or
-    a symmetric matrix whose smallest eigenvalue is so (to rounding)."""
+    a symmetric matrix whose smallest eigenvalue is so (to rounding). With ``by_name`` also
+    a diagonal given by state name, ``{name: variance}`` (``"*"``: every state not named),
+    whose names the filter checks against its model."""
     kind = "positive definite" if definite else "positive semidefinite"
+    variance = number(minimum=0.0)
 
     def check(v):
+        if by_name and isinstance(v, dict):
+            if 0 < len(v) <= 256 and all(isinstance(k, str) and variance(x) is None
+                                         for k, x in v.items()):
+                return None
+            return "a mapping of state names to variances (numbers >= 0)"
         problem = matrix(v)
         if problem:
             return problem

@@ -117,12 +117,14 @@ class NoiseCovariances(Estimator):
     """The settings every Kalman-type filter shares (not registered itself): additive noise
     covariances and the initial estimate."""
 
-    Q: float | list = setting(REQUIRED, covariance(), unit="state^2",
-                     doc="process noise covariance per step: a number, a diagonal or a matrix")
+    Q: float | list | dict = setting(REQUIRED, covariance(by_name=True), unit="state^2",
+                                     doc="process noise covariance per step: a number, a "
+                                         "diagonal, a matrix, or {state name: variance} "
+                                         "('*': the states not named)")
     R: float | list = setting(REQUIRED, covariance(definite=True), unit="output^2",
                      doc="measurement noise covariance: a number, a diagonal or a matrix")
-    P0: float | list = setting(REQUIRED, covariance(), unit="state^2",
-                               doc="covariance of the initial estimate")
+    P0: float | list | dict = setting(REQUIRED, covariance(by_name=True), unit="state^2",
+                                      doc="covariance of the initial estimate (as Q)")
     x0: list | None = setting(None, vector(), unit="state",
                               doc="initial estimate; none: the x0 the analysis passes (the "
                                   "actual operating point), else the model's own (a KF: 0)")
@@ -144,11 +146,16 @@ class GaussianFilter(NoiseCovariances):
     def measured(self, model) -> int | None:
         return model.n_outputs
 
+    def state_labels(self, model) -> tuple:
+        """The names of the states whose variances ``Q`` and ``P0`` give, in their order
+        (the model's states)."""
+        return tuple(model.state_names)
+
     def validate(self, model) -> None:
         """The covariances and ``x0`` against the model's size."""
         n, m = model.n_states, model.n_outputs
-        check_covariance(self.Q, n, "Q")
-        check_covariance(self.P0, n, "P0")
+        check_covariance(self.Q, n, "Q", states=self.state_labels(model))
+        check_covariance(self.P0, n, "P0", states=self.state_labels(model))
         check_covariance(self.R, m, "R", definite=True)
         if self.x0 is not None and np.size(self.x0) != n:
             raise SettingError("x0", f"expected {n} values for {list(model.state_names)}")
@@ -230,8 +237,12 @@ def batch_input(u: np.ndarray, runs: int) -> np.ndarray:
     return np.broadcast_to(u, (runs,) + u.shape[1:])
 
 
-def as_matrix(value, n: int, name: str) -> np.ndarray:
-    """A covariance given as a scalar, a diagonal list or a full matrix -> ``(n, n)``."""
+def as_matrix(value, n: int, name: str, states: tuple | None = None) -> np.ndarray:
+    """A covariance given as a scalar, a diagonal list, a full matrix or, where the filter's
+    model names its ``states``, ``{state name: variance}`` (``"*"``: every state not named)
+    -> ``(n, n)``; :class:`SettingError` naming what does not fit."""
+    if isinstance(value, dict):
+        return _by_name(value, n, name, states)
     a = np.asarray(value, float)
     if a.ndim == 0:
         return a * np.eye(n)
@@ -242,10 +253,29 @@ def as_matrix(value, n: int, name: str) -> np.ndarray:
     raise SettingError(name, f"expected a scalar, {n} diagonal entries or an {n}x{n} matrix")
 
 
-def check_covariance(value, n: int, name: str, definite: bool = False) -> np.ndarray:
-    """``value`` as an ``(n, n)`` covariance; ``ValueError`` unless finite, symmetric and
-    positive semidefinite (positive definite with ``definite``)."""
-    M = as_matrix(value, n, name)
+def _by_name(value: dict, n: int, name: str, states: tuple | None) -> np.ndarray:
+    """The diagonal covariance of ``{state name: variance}`` over ``states``."""
+    if states is None:
+        raise SettingError(name, "given by state name, but this filter has no model whose "
+                                 "states name its rows: give a number, a list or a matrix")
+    unknown = [k for k in value if k != "*" and k not in states]
+    if unknown:
+        raise SettingError(name, f"no state named {', '.join(map(repr, unknown))}; the "
+                                 f"states are {', '.join(states)} ('estim settings CONFIG' "
+                                 "lists them)")
+    missing = [s for s in states if s not in value]
+    if missing and "*" not in value:
+        raise SettingError(name, f"no variance for {', '.join(missing)}: name every state "
+                                 "or give '*' for the rest")
+    return np.diag([float(value.get(s, value.get("*"))) for s in states])
+
+
+def check_covariance(value, n: int, name: str, definite: bool = False,
+                     states: tuple | None = None) -> np.ndarray:
+    """``value`` as an ``(n, n)`` covariance (by state name over ``states``, as
+    :func:`as_matrix`); ``ValueError`` unless finite, symmetric and positive semidefinite
+    (positive definite with ``definite``)."""
+    M = as_matrix(value, n, name, states)
     if not np.all(np.isfinite(M)):
         raise SettingError(name, "entries must be finite")
     if not np.allclose(M, M.T, rtol=1e-12, atol=0.0):

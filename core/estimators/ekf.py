@@ -52,10 +52,17 @@ class ExtendedKalmanFilter(GaussianFilter, name="ekf"):
                                    "voltage, D36), mapped onto the model's states (S Q S); "
                                    "state: as given, in the model's own units")
 
+    def state_labels(self, model) -> tuple:
+        """The states ``Q`` and ``P0`` name: a netlist's ``thesis_states`` where the
+        thesis' units map onto them (D77), else the model's states."""
+        if self.noise_units == "thesis" and getattr(model, "thesis_map", None) is not None:
+            return tuple(model.thesis_states)
+        return tuple(model.state_names)
+
     def state_covariances(self, model) -> tuple[np.ndarray, np.ndarray]:
         """``Q`` and ``P0`` in the model's own state units (:func:`thesis_to_state`)."""
-        n = model.n_states
-        Q, P0 = as_matrix(self.Q, n, "Q"), as_matrix(self.P0, n, "P0")
+        n, names = model.n_states, self.state_labels(model)
+        Q, P0 = as_matrix(self.Q, n, "Q", names), as_matrix(self.P0, n, "P0", names)
         if self.noise_units == "thesis":
             Q, P0 = thesis_to_state(Q, model), thesis_to_state(P0, model)
         return Q, P0

@@ -99,7 +99,8 @@ class KroneckerEKF(GaussianFilter, name="kronecker_ekf"):
         n = model.n_states
         D = self.discrete(model, dt)
         H = np.asarray(model.h_jacobian(D.terms.x_op), float)
-        Q, P0 = as_matrix(self.Q, n, "Q"), as_matrix(self.P0, n, "P0")
+        names = self.state_labels(model)
+        Q, P0 = as_matrix(self.Q, n, "Q", names), as_matrix(self.P0, n, "P0", names)
         R = as_matrix(self.R, m, "R")
         if self.x0 is not None:
             x0 = np.asarray(self.x0, float)

@@ -229,7 +229,8 @@ def tune(exp, training: Callable, label: str, runs: int, fit_r: bool = False,
     if not (hasattr(est, "Q") and hasattr(est, "R")):
         raise UsageError(f"{exp.name}: {label!r} has no noise covariances to fit")
     n, m = model.n_states, model.n_outputs
-    q0 = np.diag(as_matrix(est.Q, n, "Q")).copy()
+    labels = est.state_labels(model) if hasattr(est, "state_labels") else None
+    q0 = np.diag(as_matrix(est.Q, n, "Q", labels)).copy()
     r0 = np.diag(as_matrix(est.R, m, "R")).copy()
     q0[q0 <= 0] = 1e-12 * max(float(q0.max()), 1e-300)
 
