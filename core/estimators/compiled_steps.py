@@ -17,6 +17,7 @@ import numpy as np
 from estim.numerics.kernels import evaluate, jit
 from estim.numerics.small_matrices import (
     copy_matrix,
+    copy_vector,
     expm_into,
     matmul,
     matmul_t,
@@ -27,9 +28,23 @@ METHODS = {"euler": 0, "rosenbrock": 1, "exponential": 2}
 """The discretisations the compiled prediction knows, by number (``radau`` is numpy's)."""
 
 
-def _predict(kind, Pk, x, uk, dt, method, substeps, f, J, F, Ft, aug, E, work, tmp):
-    """``x <- x(t + dt)`` by ``substeps`` steps of the discretisation; ``F`` gets the
-    step's Jacobian (chained over substeps)."""
+def _predict_scratch(n):
+    """Scratch for :func:`predict`: the drift, its Jacobian, the step's ``F`` (first, as the
+    caller reads it), a substep's, the augmented matrix and its exponential, the
+    exponential's work and a product."""
+    return (np.empty((n, n)), np.empty(n), np.empty((n, n)), np.empty((n, n)),
+            np.empty((n + 1, n + 1)), np.empty((n + 1, n + 1)), np.empty((6, n + 1, n + 1)),
+            np.empty((n, n)))
+
+
+predict_scratch = jit(_predict_scratch)
+
+
+def _predict(kind, Pk, x, uk, dt, method, substeps, scratch):
+    """``x <- x(t + dt)`` by ``substeps`` steps of the discretisation; ``F``, the first
+    array of ``scratch`` (:func:`predict_scratch`), gets the step's Jacobian (chained over
+    substeps)."""
+    F, f, J, Ft, aug, E, work, tmp = scratch
     n = x.shape[0]
     h = dt / substeps
     for step in range(substeps):
@@ -77,10 +92,61 @@ def _predict(kind, Pk, x, uk, dt, method, substeps, f, J, F, Ft, aug, E, work, t
 predict = jit(_predict)
 
 
-def _joseph_update(x, P, nu, H, R, S, HP, Sw, Kt, K, KR, IKH, FP, tmp):
+def _history(runs, steps, n, m):
+    """What a filter returns for a batch, before any step: ``x_hat``, ``P``, ``S`` and the
+    innovations all NaN, and every run alive."""
+    return (np.full((runs, steps, n), np.nan), np.full((runs, steps, n, n), np.nan),
+            np.full((runs, steps, m, m), np.nan), np.full((runs, steps, m), np.nan),
+            np.ones(runs, np.bool_))
+
+
+history = jit(_history)
+
+
+def _record(r, k, x, P, S, nu, out):
+    """Step ``k`` of run ``r`` into :func:`history`'s ``out``."""
+    copy_vector(x, out[0][r, k])
+    copy_matrix(P, out[1][r, k])
+    copy_matrix(S, out[2][r, k])
+    copy_vector(nu, out[3][r, k])
+
+
+record = jit(_record)
+
+
+def _keep(r, k, ok, x, xp, bound, P, S, nu, out):
+    """Whether run ``r`` goes on after step ``k``: its update was finite (``ok``), and its
+    estimate ``x`` is finite, and ``x`` and the prediction ``xp`` are within ``bound``.
+    Records the step into :func:`history`'s ``out`` if so, else marks the run broken."""
+    for a in range(x.shape[0]):
+        ok &= np.isfinite(x[a]) and abs(x[a]) <= bound and abs(xp[a]) <= bound
+    if ok:
+        record(r, k, x, P, S, nu, out)
+    else:
+        out[4][r] = False
+    return ok
+
+
+keep = jit(_keep)
+
+
+def _update_scratch(n, m):
+    """Scratch for :func:`joseph_update` (``S`` first: it holds the innovation covariance
+    after an update; ``FP`` and ``tmp``, ``n x n``, serve the callers between updates)."""
+    return (np.empty((m, m)), np.empty((m, n)), np.empty((m, m)), np.empty((m, n)),
+            np.empty((n, m)), np.empty((n, m)), np.empty((n, n)), np.empty((n, n)),
+            np.empty((n, n)))
+
+
+update_scratch = jit(_update_scratch)
+
+
+def _joseph_update(x, P, nu, H, R, scratch):
     """In place: ``x <- x + K nu`` and ``P <- (I-KH) P (I-KH)^T + K R K^T`` (symmetrised)
-    with ``K = P H^T S^-1``; ``S <- H P H^T + R`` (the prior ``P``). Returns whether every
-    entry of the new ``P`` is finite."""
+    with ``K = P H^T S^-1``; ``S <- H P H^T + R`` (the prior ``P``), ``S`` the first array
+    of ``scratch`` (:func:`update_scratch`). Returns whether every entry of the new ``P`` is
+    finite."""
+    S, HP, Sw, Kt, K, KR, IKH, FP, tmp = scratch
     n, m = x.shape[0], nu.shape[0]
     matmul(H, P, HP)                          # S = H P H^T + R
     matmul_t(HP, H, S)

@@ -19,7 +19,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from estim.estimators.compiled_steps import METHODS, joseph_update, predict
+from estim.estimators.compiled_steps import (
+    METHODS,
+    history,
+    joseph_update,
+    keep,
+    predict,
+    predict_scratch,
+    update_scratch,
+)
 from estim.numerics import kernels
 from estim.numerics.kernels import jit, plain
 from estim.numerics.small_matrices import copy_matrix, copy_vector, matmul, matmul_t
@@ -30,36 +38,20 @@ AVAILABLE = kernels.AVAILABLE
 def _runs(kind, Pk, x0, P0, z, u, dt, Q, R, H, c, method, substeps, bound):
     runs, steps, m = z.shape
     n = x0.shape[1]
-    x_hat = np.full((runs, steps, n), np.nan)
-    P_hist = np.full((runs, steps, n, n), np.nan)
-    S_hist = np.full((runs, steps, m, m), np.nan)
-    innovation = np.full((runs, steps, m), np.nan)
-    alive = np.ones(runs, np.bool_)
+    out = history(runs, steps, n, m)
+    scratch = update_scratch(n, m)
+    S, FP = scratch[0], scratch[7]
     x = np.empty(n)
     xp = np.empty(n)
     P = np.empty((n, n))
-    f = np.empty(n)
-    J = np.empty((n, n))
-    F = np.empty((n, n))
-    Ft = np.empty((n, n))
-    tmp = np.empty((n, n))
-    aug = np.empty((n + 1, n + 1))
-    E = np.empty((n + 1, n + 1))
-    work = np.empty((6, n + 1, n + 1))
-    FP = np.empty((n, n))
-    HP = np.empty((m, n))
-    S = np.empty((m, m))
-    Sw = np.empty((m, m))
-    Kt = np.empty((m, n))
-    K = np.empty((n, m))
-    KR = np.empty((n, m))
-    IKH = np.empty((n, n))
     nu = np.empty(m)
+    steps_scratch = predict_scratch(n)
+    F = steps_scratch[0]
     for r in range(runs):
         copy_vector(x0[r], x)
         copy_matrix(P0, P)
         for k in range(steps):
-            predict(kind, Pk, x, u[r, k], dt, method, substeps, f, J, F, Ft, aug, E, work, tmp)
+            predict(kind, Pk, x, u[r, k], dt, method, substeps, steps_scratch)
             copy_vector(x, xp)
             matmul(F, P, FP)                          # P = F P F^T + Q
             matmul_t(FP, F, P)
@@ -71,17 +63,10 @@ def _runs(kind, Pk, x0, P0, z, u, dt, Q, R, H, c, method, substeps, bound):
                 for a in range(n):
                     acc += H[i, a] * x[a]
                 nu[i] = z[r, k, i] - acc
-            ok = joseph_update(x, P, nu, H, R, S, HP, Sw, Kt, K, KR, IKH, FP, tmp)
-            for a in range(n):
-                ok &= np.isfinite(x[a]) and abs(x[a]) <= bound and abs(xp[a]) <= bound
-            if not ok:
-                alive[r] = False
+            ok = joseph_update(x, P, nu, H, R, scratch)
+            if not keep(r, k, ok, x, xp, bound, P, S, nu, out):
                 break
-            copy_vector(x, x_hat[r, k])
-            copy_matrix(P, P_hist[r, k])
-            copy_matrix(S, S_hist[r, k])
-            copy_vector(nu, innovation[r, k])
-    return x_hat, P_hist, S_hist, innovation, alive
+    return out
 
 
 runs_compiled = jit(_runs)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from estim.estimators.compiled_steps import joseph_update
+from estim.estimators.compiled_steps import history, joseph_update, keep, update_scratch
 from estim.numerics import kernels
 from estim.numerics.kernels import jit, plain
 from estim.numerics.small_matrices import copy_matrix, copy_vector, matmul, matmul_t
@@ -22,23 +22,12 @@ AVAILABLE = kernels.AVAILABLE
 def _runs(x0, P0, z, u, A, B, C, Q, R):
     runs, steps, m = z.shape
     n, p = B.shape
-    x_hat = np.full((runs, steps, n), np.nan)
-    P_hist = np.full((runs, steps, n, n), np.nan)
-    S_hist = np.full((runs, steps, m, m), np.nan)
-    innovation = np.full((runs, steps, m), np.nan)
-    alive = np.ones(runs, np.bool_)
+    out = history(runs, steps, n, m)
+    scratch = update_scratch(n, m)
+    S, AP = scratch[0], scratch[7]
     x = np.empty(n)
     xp = np.empty(n)
     P = np.empty((n, n))
-    AP = np.empty((n, n))
-    HP = np.empty((m, n))
-    S = np.empty((m, m))
-    Sw = np.empty((m, m))
-    Kt = np.empty((m, n))
-    K = np.empty((n, m))
-    KR = np.empty((n, m))
-    IKH = np.empty((n, n))
-    tmp = np.empty((n, n))
     nu = np.empty(m)
     for r in range(runs):
         copy_vector(x0[r], x)
@@ -64,17 +53,10 @@ def _runs(x0, P0, z, u, A, B, C, Q, R):
                 for a in range(n):
                     acc += C[i, a] * x[a]
                 nu[i] = z[r, k, i] - acc
-            ok = joseph_update(x, P, nu, C, R, S, HP, Sw, Kt, K, KR, IKH, AP, tmp)
-            for a in range(n):
-                ok &= np.isfinite(x[a])
-            if not ok:
-                alive[r] = False
+            ok = joseph_update(x, P, nu, C, R, scratch)
+            if not keep(r, k, ok, x, x, np.inf, P, S, nu, out):
                 break
-            copy_vector(x, x_hat[r, k])
-            copy_matrix(P, P_hist[r, k])
-            copy_matrix(S, S_hist[r, k])
-            copy_vector(nu, innovation[r, k])
-    return x_hat, P_hist, S_hist, innovation, alive
+    return out
 
 
 runs_compiled = jit(_runs)

@@ -17,7 +17,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from estim.estimators.compiled_steps import METHODS, joseph_update, predict
+from estim.estimators.compiled_steps import (
+    METHODS,
+    history,
+    joseph_update,
+    keep,
+    predict,
+    predict_scratch,
+    update_scratch,
+)
 from estim.numerics.kernels import jit, plain
 from estim.numerics.small_matrices import copy_matrix, copy_vector, solve_into
 
@@ -86,40 +94,23 @@ def _runs(kind, Pk, x0, P0, z, u, dt, Q, R, H, c, method, substeps, bound, wm, w
     runs, steps, m = z.shape
     n = x0.shape[1]
     points = 2 * n + 1
-    x_hat = np.full((runs, steps, n), np.nan)
-    P_hist = np.full((runs, steps, n, n), np.nan)
-    S_hist = np.full((runs, steps, m, m), np.nan)
-    innovation = np.full((runs, steps, m), np.nan)
-    alive = np.ones(runs, np.bool_)
+    out = history(runs, steps, n, m)
+    scratch = update_scratch(n, m)
+    S = scratch[0]
     x = np.empty(n)
     xp = np.empty(n)
     xs = np.empty(n)
     P = np.empty((n, n))
+    Pw = np.empty((n, n))
     L = np.empty((n, n))
     X = np.empty((points, n))
     Xp = np.empty((points, n))
     Z = np.empty((points, m))
     zp = np.empty(m)
-    f = np.empty(n)
-    J = np.empty((n, n))
-    F = np.empty((n, n))
-    Ft = np.empty((n, n))
-    tmp = np.empty((n, n))
-    aug = np.empty((n + 1, n + 1))
-    E = np.empty((n + 1, n + 1))
-    work = np.empty((6, n + 1, n + 1))
-    FP = np.empty((n, n))
-    Pw = np.empty((n, n))
+    nu = np.empty(m)
     Pxz = np.empty((n, m))
     Hl = np.empty((m, n))
-    HP = np.empty((m, n))
-    S = np.empty((m, m))
-    Sw = np.empty((m, m))
-    Kt = np.empty((m, n))
-    K = np.empty((n, m))
-    KR = np.empty((n, m))
-    IKH = np.empty((n, n))
-    nu = np.empty(m)
+    steps_scratch = predict_scratch(n)
     for r in range(runs):
         copy_vector(x0[r], x)
         copy_matrix(P0, P)
@@ -127,8 +118,7 @@ def _runs(kind, Pk, x0, P0, z, u, dt, Q, R, H, c, method, substeps, bound, wm, w
             sigma_points(x, P, spread, L, X)
             for j in range(points):                  # each point over the interval
                 copy_vector(X[j], xs)
-                predict(kind, Pk, xs, u[r, k], dt, method, substeps, f, J, F, Ft, aug, E,
-                        work, tmp)
+                predict(kind, Pk, xs, u[r, k], dt, method, substeps, steps_scratch)
                 copy_vector(xs, Xp[j])
             for a in range(n):                       # weighted mean and covariance + Q
                 acc = 0.0
@@ -150,7 +140,7 @@ def _runs(kind, Pk, x0, P0, z, u, dt, Q, R, H, c, method, substeps, bound, wm, w
             for a in range(n):
                 ok &= np.isfinite(xp[a]) and abs(xp[a]) <= bound
             if not ok:
-                alive[r] = False
+                out[4][r] = False
                 break
             sigma_points(xp, P, spread, L, X)        # redrawn, through h = H x + c
             for j in range(points):
@@ -177,17 +167,10 @@ def _runs(kind, Pk, x0, P0, z, u, dt, Q, R, H, c, method, substeps, bound, wm, w
                 for a in range(n):
                     Hl[i, a] = Pxz[a, i]
             copy_vector(xp, x)
-            ok = joseph_update(x, P, nu, Hl, R, S, HP, Sw, Kt, K, KR, IKH, FP, tmp)
-            for a in range(n):
-                ok &= np.isfinite(x[a]) and abs(x[a]) <= bound
-            if not ok:
-                alive[r] = False
+            ok = joseph_update(x, P, nu, Hl, R, scratch)
+            if not keep(r, k, ok, x, xp, bound, P, S, nu, out):
                 break
-            copy_vector(x, x_hat[r, k])
-            copy_matrix(P, P_hist[r, k])
-            copy_matrix(S, S_hist[r, k])
-            copy_vector(nu, innovation[r, k])
-    return x_hat, P_hist, S_hist, innovation, alive
+    return out
 
 
 runs_compiled = jit(_runs)
