@@ -4,6 +4,7 @@ hand-written twin, and bad netlists ending in one line."""
 from __future__ import annotations
 
 import importlib
+import pathlib
 import random
 from pathlib import Path
 
@@ -925,6 +926,69 @@ def test_estim_spice_holds_on_a_circuit_biased_at_zero_volts(tmp_path):
     assert result.exit_code == 0, result.output
     dc = next(line for line in result.output.splitlines() if " dc " in line)
     assert dc.split()[-1] == "holds" and float(dc.split()[-7]) < 1e-13, dc
+
+
+@NGSPICE
+def test_estim_spice_holds_on_a_reverse_biased_diode(tmp_path):
+    """The guide's rectifier with its diode reverse biased (input at -1 V): below -3 n V_T
+    estim takes SPICE's reverse law, so the DC point agrees with ngspice to rounding (with
+    Shockley's law the reverse currents differ by 2e-5 of Is, and the DC check failed at
+    2.3e-7 against its bar of 1e-13)."""
+    import re
+
+    from click.testing import CliRunner
+
+    from estim.cli.main import main
+
+    blocks = re.findall(r"```(\w+)\n(.*?)```", (ROOT / "docs" / "your-circuit.md").read_text(),
+                        re.S)
+    (tmp_path / "rectifier.cir").write_text(blocks[0][1])
+    config = tmp_path / "rectifier_spice.yaml"
+    config.write_text(blocks[1][1].replace("bias_v: [0.5]", "bias_v: [-1.0]")
+                      .replace("amplitude_v: 1.0", "amplitude_v: 0.1"))
+    result = CliRunner().invoke(main, ["spice", str(config)])
+    assert result.exit_code == 0, result.output
+    dc = next(line for line in result.output.splitlines() if " dc " in line)
+    assert dc.split()[-1] == "holds" and float(dc.split()[-7]) < 1e-14, dc
+
+
+@pytest.mark.parametrize("rs", [0.0, 50.0])
+def test_the_diode_turns_to_spices_reverse_law_smoothly_and_the_kernel_follows(rs):
+    """At the knee -3 n V_T the reverse law meets Shockley's in value and slope; below it the
+    current is -Is (1 + (3 n V_T / (e v))^3); the compiled kernel gives the numpy path's
+    drift and Jacobian there (a series resistance included)."""
+    from estim.spice.devices import DIODE_VT, diode, diode_slope
+
+    p = {"is": 1e-12, "n": 1.5, "rs": rs}
+    a = p["n"] * DIODE_VT
+    knee = -3 * a - rs * 1e-12 * 0.95      # the junction at the knee
+    lo, hi = diode(np.array([knee - 1e-9]), p), diode(np.array([knee + 1e-9]), p)
+    np.testing.assert_allclose(lo[0], hi[0], rtol=1e-7)
+    np.testing.assert_allclose(lo[1], hi[1], rtol=1e-6)
+    i, g = diode(np.array([-0.9]), p)
+    want = -1e-12 * (1 + (3 * a / (-0.9 * np.e)) ** 3)
+    np.testing.assert_allclose(i, want, rtol=1e-9 if rs else 1e-15)
+    h = 1e-6
+    slope = (diode(np.array([-0.9 + h]), p)[1] - diode(np.array([-0.9 - h]), p)[1]) / (2 * h)
+    np.testing.assert_allclose(diode_slope(-0.9, float(i[0]), float(g[0]), p), slope[0],
+                               rtol=1e-5)
+    text = (f"limiter\nVIN in 0 DC -1\nR1 in out 10k\nD1 out 0 dmod\nC1 out 0 1n\n"
+            f"R2 out 0 100k\n.model dmod d(is=1e-12 n=1.5 rs={rs})\n.end\n")
+    path = pathlib.Path(__import__("tempfile").mkdtemp()) / "limiter.cir"
+    path.write_text(text)
+    model = model_class(path, "VIN", "v(out)", name=f"netlist:test_reverse_{int(rs)}")()
+    if model.kernel() is None:
+        pytest.skip("numba is not installed")
+    from estim.numerics.kernels import evaluate
+
+    kind, P = model.kernel()
+    for v in (-0.9, -0.2, -0.05, 0.3):
+        x, u = np.array([v]), np.array([-1.0])
+        f, J = np.empty(1), np.empty((1, 1))
+        evaluate(kind, x, u, P, f, J)
+        fn, Jn = model.f_and_jacobian(x, u)
+        np.testing.assert_allclose(f, fn, rtol=1e-12, atol=1e-18)
+        np.testing.assert_allclose(J, Jn, rtol=1e-12)
 
 
 def test_a_nan_difference_is_no_agreement():

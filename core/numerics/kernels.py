@@ -260,6 +260,15 @@ def _netlist(x, u, P, f, J):
                 w = lambertw_exp(np.log(Is * rs / a_) + (vd + Is * rs) / a_)
                 i_d = a_ * w / rs - Is
                 g = (i_d + Is) / (a_ + rs * (i_d + Is))
+            if vd - rs * i_d < -3.0 * a_:                  # SPICE's reverse law (devices.py)
+                vj = vd
+                for _ in range(3 if rs > 0.0 else 1):
+                    arg = (3.0 * a_ / (vj * np.e)) ** 3
+                    vj = vd + rs * Is * (1.0 + arg)
+                arg = (3.0 * a_ / (vj * np.e)) ** 3
+                i_d = -Is * (1.0 + arg)
+                gj = 3.0 * Is * arg / vj
+                g = gj / (1.0 + rs * gj)
             term[0], term[1] = i_d, -i_d
             dterm[0, 0], dterm[0, 1] = g, -g
             dterm[1, 0], dterm[1, 1] = -g, g

@@ -20,7 +20,8 @@ DC path (only capacitors and current sources reach it) is refused too. An input 
 reaches the circuit only through capacitors drives it by its slope (D72).
 
 Device laws and their ``.model`` parameters: Shockley diodes with series resistance
-(``d``: ``is n rs``; closed form by the Lambert W function), Ebers-Moll NPN/PNP (``npn``,
+(``d``: ``is n rs``; closed form by the Lambert W function; SPICE's reverse law below
+``-3 n V_T``), Ebers-Moll NPN/PNP (``npn``,
 ``pnp``: ``ies alpha_f alpha_r vt``, ``I_CS`` by reciprocity unless ``ics`` is given;
 :mod:`estim.models.devices.ebers_moll`, the thesis' law), EKV NMOS (``nmos``: ``u_t v_t0 eta i_0
 w_l law``; the laws of :mod:`estim.models.mosfet_ekv`, ``law`` the index in

@@ -37,22 +37,61 @@ transistor with the thesis' approximations as the hand-written model's filters d
 DEFAULTS = {"d": DIODE, "npn": BJT, "pnp": BJT, "nmos": EKV}
 
 
+REVERSE_KNEE = 3.0
+"""SPICE's diode law turns to its reverse form below ``-3 n V_T`` (ngspice's dioload.c):
+``i = -Is (1 + (3 n V_T / (e v))^3)``, which meets Shockley's law there in value and slope."""
+
+
 def diode(vd, p):
     """Shockley diode with series resistance: current and conductance. With ``rs > 0`` the
     junction voltage is eliminated in closed form: ``i = a W(b e^{(v + Is rs)/a}) / rs - Is``
-    with ``a = n V_T``, ``b = Is rs / a`` (Lambert W)."""
+    with ``a = n V_T``, ``b = Is rs / a`` (Lambert W). Below the knee (a junction voltage
+    under ``-3 a``) SPICE's reverse law instead (:data:`REVERSE_KNEE`), as ngspice computes
+    a diode without breakdown."""
     a = p["n"] * DIODE_VT
     Is, rs = p["is"], p["rs"]
     if rs <= 0:
         with np.errstate(over="ignore"):
             e = np.exp(vd / a)
-        return Is * (e - 1), Is * e / a
-    z = np.log(Is * rs / a) + (vd + Is * rs) / a           # log of W's argument
-    w = np.where(z < 500, np.real(special.lambertw(np.exp(np.minimum(z, 500)))),
-                 z - np.log(np.maximum(z, 1.0)))
-    i = a * w / rs - Is
-    g = (i + Is) / (a + rs * (i + Is))
+        i, g = Is * (e - 1), Is * e / a
+    else:
+        z = np.log(Is * rs / a) + (vd + Is * rs) / a           # log of W's argument
+        w = np.where(z < 500, np.real(special.lambertw(np.exp(np.minimum(z, 500)))),
+                     z - np.log(np.maximum(z, 1.0)))
+        i = a * w / rs - Is
+        g = (i + Is) / (a + rs * (i + Is))
+    vd = np.asarray(vd, float)
+    reverse = vd - rs * i < -REVERSE_KNEE * a
+    if np.any(reverse):
+        ir, gr, _ = diode_reverse(np.where(reverse, vd, -REVERSE_KNEE * a - 1.0), Is, a, rs)
+        i, g = np.where(reverse, ir, i), np.where(reverse, gr, g)
     return i, g
+
+
+def diode_reverse(vd, Is: float, a: float, rs: float):
+    """SPICE's reverse law below the knee: the current, the conductance and its derivative
+    at terminal voltage ``vd`` (the junction's ``vj = vd - rs i``, by a fixed point that
+    converges at once: ``rs Is`` is volts times 1e-12 or less)."""
+    vj = np.asarray(vd, float)
+    for _ in range(3 if rs > 0 else 1):
+        arg = (REVERSE_KNEE * a / (vj * np.e)) ** 3
+        i = -Is * (1 + arg)
+        vj = vd - rs * i
+    arg = (REVERSE_KNEE * a / (vj * np.e)) ** 3
+    i = -Is * (1 + arg)
+    gj = 3 * Is * arg / vj
+    dgj = -4 * gj / vj
+    return i, gj / (1 + rs * gj), dgj / (1 + rs * gj) ** 3
+
+
+def diode_slope(vd, cur, g, p):
+    """The derivative of :func:`diode`'s conductance at ``vd`` (its current ``cur`` and
+    conductance ``g``, one point)."""
+    aa = p["n"] * DIODE_VT
+    if vd - p["rs"] * cur < -REVERSE_KNEE * aa:
+        return float(diode_reverse(vd, p["is"], aa, p["rs"])[2])
+    y = cur + p["is"]
+    return aa * g / (aa + p["rs"] * y) ** 2 if p["rs"] > 0 else g / aa
 
 
 def nmos(vd, vg, vs, vb, p, second: bool = False):

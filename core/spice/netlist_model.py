@@ -18,7 +18,7 @@ from estim.config.settings import setting
 from estim.models.base import Model
 from estim.models.devices import ebers_moll
 from estim.spice.circuit import Circuit
-from estim.spice.devices import DEFAULTS, DIODE_VT, diode, nmos
+from estim.spice.devices import DEFAULTS, DIODE_VT, diode, diode_slope, nmos
 from estim.spice.parser import NetlistError, read
 from estim.util import lazy
 
@@ -380,9 +380,7 @@ class NetlistModel(Model, metaclass=_NetlistClass):
             if kind == "d":
                 a, b = idx
                 cur, g = diode(V[a] - V[b], p)
-                y = cur + p["is"]
-                aa = p["n"] * DIODE_VT
-                dg = aa * g / (aa + p["rs"] * y) ** 2 if p["rs"] > 0 else g / aa
+                dg = diode_slope(V[a] - V[b], cur, g, p)
                 d1 = np.array([g, -g])
                 d2 = dg * np.array([[1.0, -1.0], [-1.0, 1.0]])
                 yield [a, b], [(a, d1, d2), (b, -d1, -d2)]
