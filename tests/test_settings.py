@@ -77,3 +77,17 @@ def test_the_manifest_records_every_default_and_every_model_parameter(tmp_path):
     assert manifest["config"]["health"]["growth"] == 10.0
     truth = manifest["models"]["model.params"]
     assert truth["name"] == "mosfet_ekv" and truth["params"]["R_D"] == 1e5
+
+
+def test_list_items_without_a_mapping_setting_get_a_dict_of_their_own():
+    """Two estimator entries that give no settings: each gets its own filled-in dict (an
+    analysis completes it in place with the estimator's defaults; a shared one made the
+    second entry inherit the first's, refused as unknown keys of another type)."""
+    from estim.experiments.shared.blocks import EstimatorEntry
+
+    spec = ("list", EstimatorEntry.schema(), True, 10, False)
+    out = validate([{"label": "a", "type": "rls"}, {"label": "b", "type": "ekf"}],
+                   spec, "x.yaml", "estimators")
+    assert out[0]["settings"] == {} and out[0]["settings"] is not out[1]["settings"]
+    out[0]["settings"]["order"] = 3
+    assert out[1]["settings"] == {}

@@ -262,8 +262,10 @@ def _check(value: Any, spec: Any, source: str, path: str, errors: list) -> Any:
                 if default is REQUIRED:
                     errors.append(ConfigError(source, sub_path, "missing required key"))
                     continue
+                # a copy: the items of a list share one schema, and a filled-in default
+                # (an estimator's settings) is completed in place later
                 out[key] = _validate(default, sub, source, sub_path, errors) if isinstance(
-                    sub, dict) and default is not None else default
+                    sub, dict) and default is not None else copy.deepcopy(default)
                 continue
             out[key] = _validate(value[key], sub, source, sub_path, errors)
         return out

@@ -18,6 +18,7 @@ size); ``example(model)`` gives a working instance for a test model.
 from __future__ import annotations
 
 import functools
+import inspect
 import math
 from dataclasses import dataclass, field
 from typing import ClassVar
@@ -68,6 +69,19 @@ class Estimator(Settings):
         """A working instance for ``model`` (a small linear test model): the conformance test
         runs every registered estimator through it."""
         raise NotImplementedError(f"{cls.__name__} gives no example")
+
+
+GENERATOR_KEY = 2**32 + 1
+"""An estimator that draws random numbers gets its own ``numpy.random.Generator`` from the
+work unit's seed: ``spawn_key=(*unit, GENERATOR_KEY, i)`` for the batch's key ``unit`` and
+the estimator's place ``i`` in the config, a key space no noise draw reaches."""
+
+
+def takes_generator(estimator: Estimator) -> bool:
+    """Whether ``estimator.run`` takes ``rng`` (an ensemble or particle filter): the analyses
+    then pass it a generator of its own (:data:`GENERATOR_KEY`), so its draws repeat with the
+    config's seed whatever ``--jobs`` or executor, and filters that take none get none."""
+    return "rng" in inspect.signature(type(estimator).run).parameters
 
 
 def check_inputs(estimator: Estimator, model, z, u, dt, x0) -> tuple[np.ndarray, np.ndarray]:

@@ -39,6 +39,7 @@ from estim.config.experiment import Experiment
 from estim.config.settings import file_name, validate
 from estim.errors import ConfigError, UsageError
 from estim.estimators import kalman_differentiator
+from estim.estimators.base import GENERATOR_KEY, takes_generator
 from estim.experiments.base import Quote, Result
 from estim.experiments.estimation import figures as estimation_figures
 from estim.experiments.estimation.config import Config
@@ -305,11 +306,18 @@ def filter_input(exp: Experiment, data: dict, method: str, bandwidth: float) -> 
     return 0.5 * (slopes[:, 1:] + slopes[:, :-1])
 
 
-def estimate_point(exp: Experiment, data: dict) -> list:
-    """Run every configured estimator on one simulated batch."""
-    inputs = exp.plan.inputs
-    return [est.run(model, data["z"], filter_input(exp, data, *how), data["dt"], x0=data["x0"])
-            for (_, est, model), how in zip(exp.plan.filters, inputs, strict=True)]
+def estimate_point(exp: Experiment, data: dict, key: tuple) -> list:
+    """Run every configured estimator on one simulated batch, drawn from the seed key
+    ``key``; an estimator whose ``run`` takes ``rng`` gets a generator of its own from it
+    (:func:`estim.estimators.base.takes_generator`)."""
+    out = []
+    for i, ((_, est, model), how) in enumerate(zip(exp.plan.filters, exp.plan.inputs,
+                                                   strict=True)):
+        extra = ({"rng": exp.config.monte_carlo.rng(*key, GENERATOR_KEY, i)}
+                 if takes_generator(est) else {})
+        out.append(est.run(model, data["z"], filter_input(exp, data, *how), data["dt"],
+                           x0=data["x0"], **extra))
+    return out
 
 
 def run_point(exp: Experiment, point: SweepPoint, traces: bool = False) -> tuple[list, dict,
@@ -321,7 +329,7 @@ def run_point(exp: Experiment, point: SweepPoint, traces: bool = False) -> tuple
     rng = exp.config.monte_carlo.rng(point.index)
     data = simulate_point(exp, point.frequency_hz, point.sigma, mc.runs, rng,
                           point.measurement)
-    estimates = estimate_point(exp, data)
+    estimates = estimate_point(exp, data, (point.index,))
     regime = exp.config.regime
     fraction = float("nan") if regime is None else float(np.mean(exp.plan.truth.in_regime(
         regime, data["states"], data["source"][:, 1:])))
@@ -416,7 +424,7 @@ def figure_traces(exp: Experiment, known: dict) -> dict:
             continue
         rng = exp.config.monte_carlo.rng(FIGURE_SEED_KEY, i)
         data = simulate_point(exp, f, sigma, runs, rng, exp.config.noise.measurement[0])
-        estimates = estimate_point(exp, data)
+        estimates = estimate_point(exp, data, (FIGURE_SEED_KEY, i))
         verdicts = [pipeline.judge(exp, data, est, model)["diverged"]
                     for (_, _, model), est in zip(exp.plan.filters, estimates, strict=True)]
         out[key] = estimation_figures.traces(exp, data, estimates, verdicts)
@@ -479,5 +487,7 @@ def training(exp: Experiment, label: str, runs: int) -> tuple[int, object, objec
     noisy = [p for p in points if p.measurement == "noisy"]
     for p in noisy or points:
         rng = exp.config.monte_carlo.rng(TUNE_SEED_KEY, p.index)
-        batches.append(simulate_point(exp, p.frequency_hz, p.sigma, runs, rng, p.measurement))
+        batches.append({**simulate_point(exp, p.frequency_hz, p.sigma, runs, rng,
+                                         p.measurement),
+                        "generator_key": (TUNE_SEED_KEY, p.index, GENERATOR_KEY, index)})
     return index, est, model, batches

@@ -222,7 +222,7 @@ def tune(exp, training: Callable, label: str, runs: int, fit_r: bool = False,
     uses one. Returns the estimator's config entry with the fitted diagonals, and the
     :class:`Fit`. ``progress`` is :func:`fit`'s."""
     from estim.errors import UsageError
-    from estim.estimators.base import as_matrix
+    from estim.estimators.base import as_matrix, takes_generator
 
     check_tunable(exp, label)
     index, est, model, batches = training(exp, label, runs)
@@ -237,8 +237,10 @@ def tune(exp, training: Callable, label: str, runs: int, fit_r: bool = False,
     def evaluate(q, r):
         trial = dataclasses.replace(est, Q=[float(v) for v in q], R=[float(v) for v in r])
         total = 0.0
-        for data in batches:
-            out = trial.run(model, data["z"], data["u"], data["dt"], x0=data["x0"])
+        for data in batches:            # a filter's own draws repeat at every evaluation
+            extra = ({"rng": exp.config.monte_carlo.rng(*data["generator_key"])}
+                     if takes_generator(trial) else {})
+            out = trial.run(model, data["z"], data["u"], data["dt"], x0=data["x0"], **extra)
             total += log_likelihood(out.innovation, out.S, R=as_matrix(r, m, "R"))
             if not np.isfinite(total):
                 return -np.inf
