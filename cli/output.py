@@ -154,8 +154,15 @@ def on_shared_pool(exps: list[Experiment], jobs: int, recorded: Path,
     """``work(exp, pool)`` for every config of ``exps``, up to ``jobs`` at once, their work
     units on one pool of ``jobs`` processes (:mod:`estim.engine.scheduler`), longest first by the
     manifests in ``recorded``; yields ``(exp, value)`` as each finishes. Every lazily
-    registered module is imported first (:func:`estim.util.lazy.import_all_now`)."""
+    registered module is imported first (:func:`estim.util.lazy.import_all_now`), and the
+    matplotlib modules the figures import inside their functions: two driver threads
+    importing matplotlib.ticker at once could see it half-imported (``ImportError: cannot
+    import name 'NullFormatter' from partially initialized module``, measured on a cold
+    numba cache by bench/bench_first_run.py)."""
     lazy.import_all_now()
+    import matplotlib.colors
+    import matplotlib.figure
+    import matplotlib.ticker  # noqa: F401
     with scheduler.process_pool(jobs) as pool:
         yield from scheduler.run_each(longest_first(exps, recorded),
                                       lambda exp: work(exp, pool), jobs, alone=runs_alone,
