@@ -1,22 +1,37 @@
-"""estim's EKF beside its peers, filterpy and dynamax (JAX), at the run counts people use.
+"""estim's KF, EKF and UKF beside their peers, filterpy and dynamax (JAX), at the run counts
+people use.
 
-    pip install '.[bench]' dynamax && python bench/peers.py [--rounds 7]
+    pip install '.[bench]' && python bench/peers.py [--rounds 7]
 
 The problem is bench_filters.py's: the EKV MOSFET (eq 3.12 law, 4 states), 200 steps, the
-exponential discretisation, measured drain voltage. Every filter runs the same filter:
+exponential discretisation, measured drain voltage. Every library runs the same filter:
 
-* estim: ``ExtendedKalmanFilter.run`` on the whole batch (the compiled loop,
-  :mod:`estim.estimators.ekf_compiled`, where numba is installed);
-* filterpy 2.0's ``ExtendedKalmanFilter``, its prediction given estim's discretisation
-  (:func:`estim.numerics.discretize.step`), looped over runs (timed on at most 20 runs and
-  scaled: its time is linear in the runs);
-* dynamax's ``extended_kalman_filter`` under ``jax.jit`` and ``jax.vmap`` over runs, in
-  float64, its dynamics the same exponential step written in JAX with ``F = exp(T J)``
-  as its derivative (a custom JVP; JAX's own derivative of the step would add the
-  derivative of ``J``, another filter).
-  Compilation is excluded: each shape is run once before it is timed.
+* **EKF**. estim: ``ExtendedKalmanFilter.run`` on the whole batch (the compiled loop,
+  :mod:`estim.estimators.ekf_compiled`, where numba is installed); filterpy 2.0's
+  ``ExtendedKalmanFilter``, its prediction given estim's discretisation
+  (:func:`estim.numerics.discretize.step`); dynamax's ``extended_kalman_filter``, its
+  dynamics the same exponential step written in JAX with ``F = exp(T J)`` as its derivative
+  (a custom JVP; JAX's own derivative of the step would add the derivative of ``J``,
+  another filter).
+* **UKF** (alpha 1e-3, beta 2, kappa 0: van der Merwe's small spread; at estim's default
+  alpha = 1 dynamax's update ``P - K S K^T``, not in Joseph form, loses positive
+  definiteness within 3 steps on this circuit and its Cholesky factor is NaN from there).
+  estim: ``UnscentedKalmanFilter.run``
+  (:mod:`estim.estimators.ukf_compiled`); filterpy's ``UnscentedKalmanFilter`` with
+  ``MerweScaledSigmaPoints``, its sigma points redrawn from the prediction before each
+  update (estim's and dynamax's filter; filterpy's own update reuses the propagated ones);
+  dynamax's ``unscented_kalman_filter``, its dynamics the exponential step in JAX.
+* **KF**: the circuit linearised at its operating point and discretised exactly
+  (``exp`` of ``[[J, b], [0, 0]] T``), input the source's slope. estim: ``KalmanFilter.run``
+  (its compiled loop, :mod:`estim.estimators.kf_compiled`, up to 100 runs; numpy's loop over
+  the batch above); filterpy's ``KalmanFilter``; dynamax's ``lgssm_filter``.
 
-Throughput is run-steps per second, the median of ``rounds`` rounds in which the three
+filterpy is looped over runs (timed on at most 20 runs and scaled: its time is linear in
+the runs); dynamax runs under ``jax.jit`` and ``jax.vmap`` over runs, in float64, and its
+compilation is excluded: each shape is run once before it is timed. dynamax updates with
+``z_1`` first and predicts after, so it starts from the filter's own prediction to ``t_1``.
+
+Throughput is run-steps per second, the median of ``rounds`` rounds in which the libraries
 alternate, in this process. Agreement is the largest difference of the filtered drain
 voltage from estim's on the runs both made.
 """
@@ -36,6 +51,8 @@ import record  # noqa: E402
 from bench_filters import Q, filterpy_ekf, problem  # noqa: E402
 
 from estim.estimators.ekf import ExtendedKalmanFilter  # noqa: E402
+from estim.estimators.kf import KalmanFilter  # noqa: E402
+from estim.estimators.ukf import UnscentedKalmanFilter  # noqa: E402
 from estim.numerics import discretize  # noqa: E402
 
 RUN_COUNTS = (1, 30, 1000)
@@ -43,13 +60,13 @@ STEPS = 200
 FILTERPY_RUNS = 20
 
 
-def dynamax_filter(model, x0, u, dt):
-    """``(batch_filter, shift)``: a jitted function of ``z (runs, steps, 1)`` giving the
-    filtered means, or ``None`` without dynamax."""
+def jax_dynamics(model, dt):
+    """``(jax, jnp, step)``: the exponential step of the MOSFET (eq 3.12 law) in JAX, its
+    derivative ``F = exp(T J)`` as the EKF's; ``None`` without dynamax."""
     try:
+        import dynamax  # noqa: F401
         import jax
         import jax.numpy as jnp
-        from dynamax.nonlinear_gaussian_ssm import ParamsNLGSSM, extended_kalman_filter
     except ImportError:
         return None
     jax.config.update("jax_enable_x64", True)
@@ -85,8 +102,24 @@ def dynamax_filter(model, x0, u, dt):
         E = exponential(x, uk)
         return x + E[:n, n], E[:n, :n] @ tangents[0]
 
-    # dynamax updates with z_1 first and predicts after (with the input of the step it
-    # predicts to): start it from estim's prediction to t_1
+    return jax, jnp, step
+
+
+def batched(jax, jnp, one):
+    """``one`` (a filter of one run's ``z``) under ``jit`` and ``vmap``, as numpy in and out."""
+    batch = jax.jit(jax.vmap(one))
+    return lambda z: np.asarray(batch(jnp.asarray(z)).block_until_ready())
+
+
+def dynamax_ekf(model, x0, u, dt):
+    """A jitted function of ``z (runs, steps, 1)`` giving dynamax's EKF's filtered means, or
+    ``None`` without dynamax."""
+    made = jax_dynamics(model, dt)
+    if made is None:
+        return None
+    jax, jnp, step = made
+    from dynamax.nonlinear_gaussian_ssm import ParamsNLGSSM, extended_kalman_filter
+
     xp, F = discretize.step(model, x0[None], u[:1], dt)
     Pp = F[0] @ np.diag(Q) @ F[0].T + np.diag(Q)
     params = ParamsNLGSSM(initial_mean=jnp.asarray(xp[0]), initial_covariance=jnp.asarray(Pp),
@@ -94,36 +127,131 @@ def dynamax_filter(model, x0, u, dt):
                           emission_function=lambda x, uk: x[3:4],
                           emission_covariance=jnp.array([[0.01]]))
     inputs = jnp.asarray(u)
-
-    def one(z):
-        return extended_kalman_filter(params, z, inputs=inputs,
-                                      output_fields=["filtered_means"]).filtered_means
-
-    batch = jax.jit(jax.vmap(one))
-    return lambda z: np.asarray(batch(jnp.asarray(z)).block_until_ready())
+    return batched(jax, jnp, lambda z: extended_kalman_filter(
+        params, z, inputs=inputs, output_fields=["filtered_means"]).filtered_means)
 
 
-def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--rounds", type=int, default=7)
-    args = parser.parse_args(argv)
-    model, x0, z_all, u, dt = problem(max(RUN_COUNTS), STEPS)
-    ekf = ExtendedKalmanFilter(Q=Q, R=0.01, P0=Q, discretization="exponential")
-    dyn = dynamax_filter(model, x0, u, dt)
+def ukf_prediction(ukf, model, x0, u, dt):
+    """The UKF's predicted mean and covariance at ``t_1`` from ``(x0, P0 = Q)``."""
+    Qm = np.diag(Q)
+    X = ukf.sigma_points(x0[None], Qm[None])[0]
+    Xp, _ = discretize.step(model, X, np.repeat(u[:1], len(X), axis=0), dt)
+    wm, wc = ukf.weights(len(x0))
+    xp = wm @ Xp
+    D = Xp - xp
+    return xp, (wc[:, None] * D).T @ D + Qm
+
+
+def dynamax_ukf(ukf, model, x0, u, dt):
+    """A jitted function of ``z`` giving dynamax's UKF's filtered means, or ``None``."""
+    made = jax_dynamics(model, dt)
+    if made is None:
+        return None
+    jax, jnp, step = made
+    from dynamax.nonlinear_gaussian_ssm import (
+        ParamsNLGSSM,
+        UKFHyperParams,
+        unscented_kalman_filter,
+    )
+
+    xp, Pp = ukf_prediction(ukf, model, x0, u, dt)
+    params = ParamsNLGSSM(initial_mean=jnp.asarray(xp), initial_covariance=jnp.asarray(Pp),
+                          dynamics_function=step, dynamics_covariance=jnp.diag(jnp.array(Q)),
+                          emission_function=lambda x, uk: x[3:4],
+                          emission_covariance=jnp.array([[0.01]]))
+    hyper = UKFHyperParams(alpha=ukf.alpha, beta=ukf.beta, kappa=ukf.kappa)
+    inputs = jnp.asarray(u)
+    return batched(jax, jnp, lambda z: unscented_kalman_filter(
+        params, z, hyper, inputs=inputs, output_fields=["filtered_means"]).filtered_means)
+
+
+def filterpy_ukf(ukf, model, x0, z, u, dt):
+    from filterpy.kalman import MerweScaledSigmaPoints
+    from filterpy.kalman import UnscentedKalmanFilter as FilterpyUKF
+
+    def fx(x, _dt, u):
+        return discretize.step(model, x[None], u[None], dt)[0][0]
+
+    points = MerweScaledSigmaPoints(4, alpha=ukf.alpha, beta=ukf.beta, kappa=ukf.kappa)
+    out = np.empty(z.shape)
+    for r in range(z.shape[0]):
+        f = FilterpyUKF(dim_x=4, dim_z=1, dt=dt, hx=lambda x: x[3:4], fx=fx, points=points)
+        f.x, f.P, f.Q, f.R = x0.copy(), np.diag(Q), np.diag(Q), np.array([[0.01]])
+        for k in range(z.shape[1]):
+            f.predict(u=u[k])
+            f.sigmas_f = points.sigma_points(f.x, f.P)      # redrawn, as estim's and dynamax's
+            f.update(z[r, k])
+            out[r, k] = f.x[3]
+    return out
+
+
+def linearised(model, x0, dt):
+    """``A, B, C`` of the circuit linearised at ``x0``, discretised exactly over ``dt``."""
+    import scipy.linalg
+
+    n = len(x0)
+    u0 = np.zeros(model.n_inputs)
+    _, J = model.f_and_jacobian(x0, u0)
+    b = model.f(x0, np.ones(model.n_inputs)) - model.f(x0, u0)     # the drift is affine in u
+    aug = np.zeros((n + 1, n + 1))
+    aug[:n, :n], aug[:n, n] = J * dt, b * dt
+    E = scipy.linalg.expm(aug)
+    return E[:n, :n], E[:n, n:], np.array([[0.0, 0.0, 0.0, 1.0]])
+
+
+def filterpy_kf(A, B, C, x0, z, u):
+    from filterpy.kalman import KalmanFilter as FilterpyKF
+
+    out = np.empty(z.shape)
+    for r in range(z.shape[0]):
+        f = FilterpyKF(dim_x=4, dim_z=1, dim_u=1)
+        f.F, f.B, f.H = A, B, C
+        f.x, f.P, f.Q, f.R = x0[:, None].copy(), np.diag(Q), np.diag(Q), np.array([[0.01]])
+        for k in range(z.shape[1]):
+            f.predict(u=u[k][:, None])
+            f.update(z[r, k])
+            out[r, k] = f.x[3, 0]
+    return out
+
+
+def dynamax_kf(A, B, C, x0, u):
+    """A jitted function of ``z`` giving dynamax's Kalman filter's filtered means, or
+    ``None``."""
+    try:
+        import jax
+        import jax.numpy as jnp
+        from dynamax.linear_gaussian_ssm import ParamsLGSSM, lgssm_filter
+        from dynamax.linear_gaussian_ssm.inference import (
+            ParamsLGSSMDynamics,
+            ParamsLGSSMEmissions,
+            ParamsLGSSMInitial,
+        )
+    except ImportError:
+        return None
+    jax.config.update("jax_enable_x64", True)
+    Qm = np.diag(Q)
+    xp, Pp = A @ x0 + B @ u[0], A @ Qm @ A.T + Qm
+    params = ParamsLGSSM(
+        initial=ParamsLGSSMInitial(mean=jnp.asarray(xp), cov=jnp.asarray(Pp)),
+        dynamics=ParamsLGSSMDynamics(weights=jnp.asarray(A), bias=jnp.zeros(4),
+                                     input_weights=jnp.asarray(B), cov=jnp.asarray(Qm)),
+        emissions=ParamsLGSSMEmissions(weights=jnp.asarray(C), bias=jnp.zeros(1),
+                                       input_weights=jnp.zeros((1, 1)),
+                                       cov=jnp.array([[0.01]])))
+    inputs = jnp.asarray(u)
+    return batched(jax, jnp, lambda z: lgssm_filter(params, z, inputs).filtered_means)
+
+
+def compare(label, contenders_of, rounds: int) -> list[dict]:
+    """Rows of run-steps per second for each library at each run count: ``contenders_of(
+    runs)`` gives ``{name: (fn, timed_runs)}``, each ``fn()`` the filtered drain voltage of
+    its runs; estim first."""
     rows = []
     for runs in RUN_COUNTS:
-        z = z_all[:runs]
-        fp_runs = min(runs, FILTERPY_RUNS)
-        contenders = {
-            "estim": (lambda z=z: ekf.run(model, z, u, dt, x0=x0).y_hat[..., 0], runs),
-            "filterpy": (lambda z=z[:fp_runs]: filterpy_ekf(model, x0, z, u, dt,
-                                                  "exponential")[..., 0], fp_runs),
-        }
-        if dyn is not None:
-            contenders["dynamax"] = (lambda z=z: dyn(z)[..., 3], runs)
+        contenders = contenders_of(runs)
         outputs = {name: fn() for name, (fn, _) in contenders.items()}   # compile, warm up
         rates = {name: [] for name in contenders}
-        for _ in range(args.rounds):
+        for _ in range(rounds):
             for name, (fn, timed_runs) in contenders.items():
                 start = time.perf_counter()
                 fn()
@@ -132,12 +260,46 @@ def main(argv: list[str] | None = None) -> None:
         for name in contenders:
             done = outputs[name].shape[0]
             agree = np.max(np.abs(outputs[name] - outputs["estim"][:done]))
-            rows.append({"runs": runs, "filter": name, "run-steps per s": median[name],
+            rows.append({"filter": label, "runs": runs, "library": name,
+                         "run-steps per s": median[name],
                          "estim / this": median["estim"] / median[name],
                          "max difference from estim [V]": float(agree)})
-            print(f"{runs:5d} runs  {name:9s} {median[name]:12.0f} run-steps/s   "
+            print(f"{label:4s} {runs:5d} runs  {name:9s} {median[name]:12.0f} run-steps/s   "
                   f"estim/this {median['estim'] / median[name]:8.2f}   "
                   f"max |diff| {agree:.1e} V")
+    return rows
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rounds", type=int, default=7)
+    args = parser.parse_args(argv)
+    model, x0, z_all, u, dt = problem(max(RUN_COUNTS), STEPS)
+    ekf = ExtendedKalmanFilter(Q=Q, R=0.01, P0=Q, discretization="exponential")
+    ukf = UnscentedKalmanFilter(Q=Q, R=0.01, P0=Q, discretization="exponential", alpha=1e-3)
+    A, B, C = linearised(model, x0, dt)
+    kf = KalmanFilter(A=A.tolist(), B=B.tolist(), C=C.tolist(), Q=Q, R=0.01, P0=Q,
+                      x0=x0.tolist())
+    peers = {"EKF": dynamax_ekf(model, x0, u, dt), "UKF": dynamax_ukf(ukf, model, x0, u, dt),
+             "KF": dynamax_kf(A, B, C, x0, u)}
+    ours = {"EKF": lambda z: ekf.run(model, z, u, dt, x0=x0).y_hat[..., 0],
+            "UKF": lambda z: ukf.run(model, z, u, dt, x0=x0).y_hat[..., 0],
+            "KF": lambda z: kf.run(None, z, u).y_hat[..., 0]}
+    theirs = {"EKF": lambda z: filterpy_ekf(model, x0, z, u, dt, "exponential")[..., 0],
+              "UKF": lambda z: filterpy_ukf(ukf, model, x0, z, u, dt)[..., 0],
+              "KF": lambda z: filterpy_kf(A, B, C, x0, z, u)[..., 0]}
+
+    rows = []
+    for label in ("KF", "EKF", "UKF"):
+        def contenders_of(runs, label=label):
+            z = z_all[:runs]
+            fp = min(runs, FILTERPY_RUNS)
+            out = {"estim": (lambda: ours[label](z), runs),
+                   "filterpy": (lambda: theirs[label](z[:fp]), fp)}
+            if peers[label] is not None:
+                out["dynamax"] = (lambda: peers[label](z)[..., 3], runs)
+            return out
+        rows += compare(label, contenders_of, args.rounds)
     record.save("peers", rows, __doc__)
 
 
