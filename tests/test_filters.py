@@ -199,6 +199,8 @@ def test_q_and_p0_by_state_name_are_the_diagonal_in_the_models_order():
     ({"v_G": 1e-4, "v_X": 1e-4, "*": 1e-4}, "Q: no state named 'v_X'; the states are v_G, "
                                             "v_B, v_S, v_D"),
     ({"v_G": 1e-4, "v_D": 1e-4}, "Q: no variance for v_B, v_S: name every state or give '*'"),
+    ({"v_G": -1.0, "*": 1e-4}, "Q: expected a mapping of state names to variances (numbers "
+                               ">= 0), got"),
 ])
 def test_a_wrong_state_name_in_a_config_is_one_error_at_its_key_path(Q, message):
     """An unknown name, or a state left without a variance, fails when the config is loaded,

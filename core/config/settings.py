@@ -1,8 +1,6 @@
 """A setting is declared once: a field of a frozen dataclass with its type, check, default,
-unit and one-line doc.
-
-Every config block, estimator and model declares its settings this way. From that one
-declaration come
+unit and one-line doc. Every config block, estimator and model declares its settings this
+way. From that one declaration come
 
 * the schema that validates a config (:meth:`Settings.schema`, checked by :func:`validate`,
   whose errors name the file and the key path);
@@ -175,18 +173,15 @@ def matrix(v):
 def covariance(definite: bool = False, by_name: bool = False):
     """A :func:`matrix` that is a covariance: symmetric and positive semidefinite (positive
     definite with ``definite``): a number ``>= 0`` (``> 0``), a diagonal of such numbers, or
-    a symmetric matrix whose smallest eigenvalue is so (to rounding). With ``by_name`` also
-    a diagonal given by state name, ``{name: variance}`` (``"*"``: every state not named),
-    whose names the filter checks against its model."""
+    a symmetric matrix whose smallest eigenvalue is so (to rounding); with ``by_name`` also
+    ``{state name: variance}`` (the filter checks the names against its model)."""
     kind = "positive definite" if definite else "positive semidefinite"
-    variance = number(minimum=0.0)
 
     def check(v):
         if by_name and isinstance(v, dict):
-            if 0 < len(v) <= 256 and all(isinstance(k, str) and variance(x) is None
-                                         for k, x in v.items()):
-                return None
-            return "a mapping of state names to variances (numbers >= 0)"
+            ok = 0 < len(v) <= 256 and all(isinstance(k, str) and number(minimum=0.0)(x) is None
+                                           for k, x in v.items())
+            return None if ok else "a mapping of state names to variances (numbers >= 0)"
         problem = matrix(v)
         if problem:
             return problem
@@ -262,10 +257,8 @@ def _check(value: Any, spec: Any, source: str, path: str, errors: list) -> Any:
                 if default is REQUIRED:
                     errors.append(ConfigError(source, sub_path, "missing required key"))
                     continue
-                # a copy: the items of a list share one schema, and a filled-in default
-                # (an estimator's settings) is completed in place later
                 out[key] = _validate(default, sub, source, sub_path, errors) if isinstance(
-                    sub, dict) and default is not None else copy.deepcopy(default)
+                    sub, dict) and default is not None else copy.deepcopy(default)  # own copy
                 continue
             out[key] = _validate(value[key], sub, source, sub_path, errors)
         return out
