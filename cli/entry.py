@@ -32,6 +32,10 @@ SHORT_HELP = {
 }
 """One line per command of :mod:`estim.cli.main` (a test keeps the two in step)."""
 
+OWN_MODULE = {"list": ("estim.cli.listing", "list_configs")}
+"""Commands that load from a module of their own, without :mod:`estim.cli.main` and what it
+imports: (module, name of the command)."""
+
 
 class LazyGroup(Group):
     """A group whose commands live in :mod:`estim.cli.main` and load on first use."""
@@ -42,6 +46,9 @@ class LazyGroup(Group):
     def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
         if name not in SHORT_HELP:
             return None
+        if name in OWN_MODULE:
+            module, attribute = OWN_MODULE[name]
+            return getattr(importlib.import_module(module), attribute)
         return importlib.import_module("estim.cli.main").main.commands.get(name)
 
     def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:

@@ -89,10 +89,36 @@ def test_validate_again_reads_the_kept_dc_point_and_loads_no_solver(tmp_path):
     assert not again & {"numba", "scipy.optimize", "estim.numerics.kernels"}, again
 
 
-def test_list_reads_configs_without_building_their_plans():
-    loaded = loaded_by("list")
-    assert not loaded & {"numba", "estim.numerics.kernels", "matplotlib", "pandas",
-                         "scipy.optimize", "scipy.sparse", "skimage"}, loaded
+def test_list_reads_only_the_configs_heads():
+    """estim list imports neither numpy nor any analysis: it reads each config's head."""
+    found = probe("list", "--json")
+    assert not found["ANALYSES"], found
+    out = subprocess.run([sys.executable, "-c", "import sys\nfrom estim.cli.entry import main\n"
+                          "try:\n    main(['list'], standalone_mode=False)\nfinally:\n"
+                          "    print('NUMPY', 'numpy' in sys.modules)"],
+                         capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert out.returncode == 0 and "NUMPY False" in out.stdout, out.stdout + out.stderr
+
+
+def test_a_config_head_is_what_the_full_loader_reads(tmp_path):
+    """Every shipped config's head (name, title, analysis, tables) equals the validated
+    config's; a head that is not plain is read by the full loader, whose error it gives."""
+    from estim.config.header import read_head
+    from estim.config.loading import load_file
+    from estim.errors import ConfigError
+
+    for path in sorted(p for folder in ("", "studies", "netlist")
+                       for p in (ROOT / "configs" / folder).glob("*.yaml")):
+        head, exp = read_head(path), load_file(path, plan=False)
+        assert (head.name, head.title, head.analysis, list(head.reproduces)) == \
+            (exp.name, exp.spec["title"], exp.analysis, list(exp.spec["reproduces"])), path
+    bad = ROOT / "configs" / "mosfet_saturation.yaml"
+    text = bad.read_text().replace('reproduces: ["3.2", "3.4"]', "reproduces: [3.2, 3.4]")
+    assert text != bad.read_text()
+    copy = tmp_path / "head.yaml"
+    copy.write_text(text)
+    with pytest.raises(ConfigError, match="reproduces"):
+        read_head(copy)
 
 
 def test_table_reads_csv_without_drawing_or_compiling():

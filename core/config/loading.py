@@ -34,7 +34,7 @@ from estim.config.settings import (
     text,
     validate,
 )
-from estim.config.yaml_reader import load_yaml
+from estim.config.yaml_reader import load_yaml, read_config
 from estim.errors import ConfigError, ConfigErrors, UsageError
 
 
@@ -320,10 +320,6 @@ def _check_tolerances(spec: dict, module, source: str) -> None:
                               "is the number of runs")
 
 
-MAX_CONFIG_BYTES = 1 << 20
-"""Largest config file read."""
-
-
 _CELLS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
@@ -354,24 +350,7 @@ def load_file(path: Path, overrides: dict | None = None, max_work: int = MAX_WOR
     ``overrides`` (key path -> value) applied first; with ``quick``, shrunk to its analysis'
     quick profile (``tiny``: the first cell of a sweep) and validated again."""
     path = Path(path)
-    try:
-        info = path.stat()
-        if not stat.S_ISREG(info.st_mode):
-            raise ConfigError(str(path), "", "not a regular file")
-        if info.st_size > MAX_CONFIG_BYTES:
-            raise ConfigError(str(path), "", f"larger than {MAX_CONFIG_BYTES // 1024} KiB")
-        with path.open("rb") as fh:
-            raw = fh.read(MAX_CONFIG_BYTES + 1)
-    except FileNotFoundError:
-        raise ConfigError(str(path), "", "no such file") from None
-    except OSError as exc:
-        raise ConfigError(str(path), "", f"cannot read ({exc.strerror or exc})") from None
-    if len(raw) > MAX_CONFIG_BYTES:
-        raise ConfigError(str(path), "", f"larger than {MAX_CONFIG_BYTES // 1024} KiB")
-    try:
-        text_ = raw.decode("utf-8")
-    except UnicodeDecodeError:
-        raise ConfigError(str(path), "", "not a UTF-8 text file") from None
+    text_ = read_config(path)
     return load_data(load_yaml(text_, str(path)), str(path), path.stem, overrides, max_work,
                      quick, plan)
 

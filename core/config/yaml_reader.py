@@ -4,6 +4,8 @@ duplicate keys, merge keys, and limits on aliases, depth and the number of value
 from __future__ import annotations
 
 import re
+import stat
+from pathlib import Path
 from typing import Any
 
 import yaml
@@ -150,3 +152,30 @@ def load_yaml(text_: str, source: str) -> dict:
         raise ConfigError(source, "", f"expected a mapping, got {type(data).__name__}")
     _count_values(data, source)
     return data
+
+
+MAX_CONFIG_BYTES = 1 << 20
+"""Largest config file read."""
+
+
+def read_config(path: Path) -> str:
+    """The text of the config file ``path``: a regular file of at most
+    :data:`MAX_CONFIG_BYTES` of UTF-8, every problem a one-line :class:`ConfigError`."""
+    try:
+        info = path.stat()
+        if not stat.S_ISREG(info.st_mode):
+            raise ConfigError(str(path), "", "not a regular file")
+        if info.st_size > MAX_CONFIG_BYTES:
+            raise ConfigError(str(path), "", f"larger than {MAX_CONFIG_BYTES // 1024} KiB")
+        with path.open("rb") as fh:
+            raw = fh.read(MAX_CONFIG_BYTES + 1)
+    except FileNotFoundError:
+        raise ConfigError(str(path), "", "no such file") from None
+    except OSError as exc:
+        raise ConfigError(str(path), "", f"cannot read ({exc.strerror or exc})") from None
+    if len(raw) > MAX_CONFIG_BYTES:
+        raise ConfigError(str(path), "", f"larger than {MAX_CONFIG_BYTES // 1024} KiB")
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError:
+        raise ConfigError(str(path), "", "not a UTF-8 text file") from None
