@@ -6,7 +6,6 @@ from pathlib import Path
 
 from estim.cli.group import fail
 from estim.config.overrides import OVERRIDE_KEY, parse_override
-from estim.engine import runner
 from estim.errors import UsageError
 
 
@@ -33,6 +32,8 @@ def shard(text_: str) -> tuple[int, int]:
 
 def metrics_help() -> str:
     """The metrics of the registered analyses, for ``estim table --help``."""
+    from estim.engine import runner
+
     lines = ["\b", "Metrics (analyses that write them):"]
     for metric, specs in sorted(runner.table_specs().items()):
         titles = {s.title for s in specs.values() if s.title}

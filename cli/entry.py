@@ -32,7 +32,8 @@ SHORT_HELP = {
 }
 """One line per command of :mod:`estim.cli.main` (a test keeps the two in step)."""
 
-OWN_MODULE = {"list": ("estim.cli.listing", "list_configs")}
+OWN_MODULE = {"list": ("estim.cli.listing", "list_configs"),
+              "validate": ("estim.cli.validating", "validate")}
 """Commands that load from a module of their own, without :mod:`estim.cli.main` and what it
 imports: (module, name of the command)."""
 

@@ -11,7 +11,7 @@ import click
 from estim import store
 from estim.cli import arguments, output, project
 from estim.cli.group import LazyChoice, LazyEpilog, fail
-from estim.cli.options import NamedPath, max_work_option
+from estim.cli.options import NamedPath
 from estim.config import loading as config
 from estim.config.registry import ANALYSES
 from estim.engine import runner
@@ -59,18 +59,6 @@ def table(metric, experiments, results, fmt, thesis, partial, width) -> None:
     text_ = tables.stored(results, metric, fmt, thesis, partial, ANALYSES,
                           only=tuple(experiments), width=width)
     click.echo(text_, nl=not text_.endswith("\n"))
-
-
-@click.command()
-@click.argument("configs", nargs=-1, required=True)
-@max_work_option
-def validate(configs, max_work) -> None:
-    """Check CONFIGS without running them (overrides KEY.PATH=VALUE as for run)."""
-    paths, overrides = arguments.split_arguments(configs)
-    if not paths:
-        fail("no config file given")
-    for exp in config.load_files(paths, overrides, max_work=max_work):
-        click.echo(f"{exp.source}: ok ({exp.name})")
 
 
 @click.command(name="report")

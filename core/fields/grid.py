@@ -1,15 +1,18 @@
 """The 3-D grid of the field model (:mod:`estim.fields.fdtd`): points, spacing and the
 sparse operators of :mod:`estim.fields.operators`, without the compiled time stepping (a
-config check builds a grid without loading numba)."""
+config check builds a grid without loading numba, and without scipy.sparse: the operators
+are made on first use)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.sparse as sp
 
-from estim.fields import operators as ops
+if TYPE_CHECKING:
+    import scipy.sparse as sp
 
 
 @dataclass
@@ -19,14 +22,26 @@ class Grid:
 
     n: int
     spacing: float
-    laplacian: sp.csr_matrix = field(init=False, repr=False)
-    grad: sp.csr_matrix = field(init=False, repr=False)
-    curl: sp.csr_matrix = field(init=False, repr=False)
+
+    @cached_property
+    def laplacian(self) -> sp.csr_matrix:
+        from estim.fields import operators
+
+        return operators.laplacian(self.n, self.spacing)
+
+    @cached_property
+    def grad(self) -> sp.csr_matrix:
+        from estim.fields import operators
+
+        return operators.gradient(self.n, self.spacing)
+
+    @cached_property
+    def curl(self) -> sp.csr_matrix:
+        from estim.fields import operators
+
+        return operators.curl(self.n, self.spacing)
 
     def __post_init__(self) -> None:
-        self.laplacian = ops.laplacian(self.n, self.spacing)
-        self.grad = ops.gradient(self.n, self.spacing)
-        self.curl = ops.curl(self.n, self.spacing)
         x = (np.arange(self.n) - (self.n - 1) / 2) * self.spacing
         self.axis = x
         X, Y, Z = np.meshgrid(x, x, x, indexing="ij")
