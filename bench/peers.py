@@ -273,6 +273,9 @@ def compare(label, contenders_of, rounds: int) -> list[dict]:
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=7)
+    parser.add_argument("--filters", nargs="+", choices=("KF", "EKF", "UKF"),
+                        default=("KF", "EKF", "UKF"),
+                        help="only these filters: printed, not recorded")
     args = parser.parse_args(argv)
     model, x0, z_all, u, dt = problem(max(RUN_COUNTS), STEPS)
     ekf = ExtendedKalmanFilter(Q=Q, R=0.01, P0=Q, discretization="exponential")
@@ -290,7 +293,7 @@ def main(argv: list[str] | None = None) -> None:
               "KF": lambda z: filterpy_kf(A, B, C, x0, z, u)[..., 0]}
 
     rows = []
-    for label in ("KF", "EKF", "UKF"):
+    for label in args.filters:
         def contenders_of(runs, label=label):
             z = z_all[:runs]
             fp = min(runs, FILTERPY_RUNS)
@@ -300,7 +303,8 @@ def main(argv: list[str] | None = None) -> None:
                 out["dynamax"] = (lambda: peers[label](z)[..., 3], runs)
             return out
         rows += compare(label, contenders_of, args.rounds)
-    record.save("peers", rows, __doc__)
+    if len(args.filters) == 3:
+        record.save("peers", rows, __doc__)
 
 
 if __name__ == "__main__":

@@ -139,10 +139,10 @@ def test_a_filter_that_overrides_cycle_keeps_the_numpy_loop():
 
 def kf_both(kf, z, u, monkeypatch):
     """The KF's estimate through the compiled loop, then through the numpy loop."""
-    assert kf.compiled(z.shape[0])
+    assert kf.compiled()
     fast = kf.run(None, z, u)
     with monkeypatch.context() as patch:
-        patch.setattr(KalmanFilter, "compiled", lambda self, runs: False)
+        patch.setattr(KalmanFilter, "compiled", lambda self: False)
         slow = kf.run(None, z, u)
     return fast, slow
 
@@ -184,6 +184,32 @@ def test_a_kf_run_that_overflows_is_broken_from_the_same_step_in_both_loops(monk
     assert np.flatnonzero(np.isnan(fast.x_hat[1, :, 0]))[0] == 6
     assert np.isfinite(fast.x_hat[[0, 2]]).all()
     assert_same(fast, slow, 1e-12)
+
+
+def test_kf_runs_share_one_covariance_and_blocks_of_runs_keep_each_run_its_own():
+    """70 runs (the compiled loop's blocks of 32, and a last one of 6), then run 40
+    overflowing at step 6: every run's estimate is the one it gets filtered alone, bit for bit; ``P``
+    and ``S`` are one read-only copy the runs share while no run breaks, and each run's own
+    (NaN from its break on) when one does."""
+    rng = np.random.default_rng(3)
+    A = np.array([[1.2, 0.1], [-0.1, 0.9]])
+    kf = KalmanFilter(A=A.tolist(), B=[[1.0], [0.5]], C=[[1.0, 0.0]], Q=[[1e-3, 0], [0, 1e-3]],
+                      R=0.04, P0=1.0)
+    z, u = rng.normal(size=(70, 30, 1)), rng.normal(size=(70, 30, 1))
+    together = kf.run(None, z, u)
+    assert not together.P.flags.writeable and together.P.strides[0] == 0
+    for r in (0, 31, 32, 63, 64, 69):
+        alone = kf.run(None, z[r:r + 1], u[r:r + 1])
+        assert alone.x_hat.tobytes() == together.x_hat[r:r + 1].tobytes()
+        assert alone.P.tobytes() == together.P[r:r + 1].tobytes()
+    steep = KalmanFilter(A=[[1e10, 0.0], [0.0, 0.9]], B=[[0.0], [0.0]], C=[[1.0, 0.0]],
+                         Q=[[1.0, 0], [0, 1.0]], R=1.0, P0=1.0)
+    z[40, 5:] = 1e300                  # followed at step 5, its prediction at 6 overflows
+    broken = steep.run(None, z, u)
+    assert broken.broken.tolist() == [r == 40 for r in range(70)]
+    assert np.isnan(broken.P[40, 6:]).all() and np.isfinite(broken.P[40, :6]).all()
+    assert np.isfinite(broken.P[41]).all()
+    assert broken.x_hat[41].tobytes() == steep.run(None, z[41:42], u[41:42]).x_hat.tobytes()
 
 
 @pytest.mark.parametrize("scale", [1e-3, 1.0, 30.0, 1e4])

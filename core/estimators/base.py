@@ -190,7 +190,9 @@ class Estimate:
     x_hat : ``(runs, steps, n)`` posterior state estimate, or ``None`` for output-only filters.
     P : ``(runs, steps, n, n)`` posterior state covariance, or ``None``.
     S : ``(runs, steps, m, m)`` innovation covariance the filter assumed, or ``None`` for a
-        filter with no noise model (RLS).
+        filter with no noise model (RLS). A filter whose covariances do not depend on the
+        data (the KF) may give ``P`` and ``S`` as read-only views of one copy shared by the
+        runs.
     diagnostics : per-run extras, name -> ``(runs,)`` (RLS: regressor excitation).
     """
 

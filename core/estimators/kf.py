@@ -19,7 +19,7 @@ from estim.util import lazy
 kf_compiled = lazy.load("estim.estimators.kf_compiled")   # numba: imported when a filter runs
 
 
-COMPILED_RUNS = 100
+COMPILED_RUNS = 10**9
 """The largest batch the KF steps through in its compiled loop (:meth:`KalmanFilter.compiled`):
 measured on 2,000 steps, the compiled loop is 2-60x faster than numpy's at 1-30 runs, even at
 300 runs for 2-4 states, and 0.4-0.5x as fast at 300-3,000 runs of one state."""
@@ -98,46 +98,70 @@ class KalmanFilter(NoiseCovariances, name="kf"):
         u = batch_input(u, runs)
         start = self.x0 if self.x0 is not None else (np.zeros(n) if x0 is None else x0)
         x = np.broadcast_to(np.asarray(start, float), (runs, n)).copy()
-        loop = kf_compiled.run if self.compiled(runs) else numpy_loop
+        loop = kf_compiled.run if self.compiled() else numpy_loop
         x_hat, P_hist, S_hist, innovation, alive = loop(x, P0, z, u, A, B, C, Q, R)
         with np.errstate(all="ignore"):
             y_hat = x_hat @ C.T
         return Estimate(y_hat=y_hat, innovation=innovation, broken=~alive, x_hat=x_hat,
                         P=P_hist, S=S_hist)
 
-    def compiled(self, runs: int) -> bool:
-        """Whether :meth:`run` steps a batch of ``runs`` through time in the compiled loop
-        (:mod:`estim.estimators.kf_compiled`; numba installed) or in :func:`numpy_loop`: the
-        compiled one up to :data:`COMPILED_RUNS` runs, where numpy's fixed cost per step
-        dominates; above, numpy's loop over the whole batch at once is as fast or faster
-        (``bench/peers.py``; a run-step of the compiled loop costs about 1-2 us)."""
-        return kf_compiled.AVAILABLE and runs <= COMPILED_RUNS
+    def compiled(self) -> bool:
+        """Whether :meth:`run` steps the batch through time in the compiled loop
+        (:mod:`estim.estimators.kf_compiled`; numba installed) or in :func:`numpy_loop`.
+        Both compute the covariances once for the batch; the compiled loop steps the means
+        of 32 runs side by side, where numpy pays a fixed cost per step whatever the batch
+        (``bench/peers.py``)."""
+        return kf_compiled.AVAILABLE
 
 
 def numpy_loop(x, P0, z, u, A, B, C, Q, R) -> tuple[np.ndarray, ...]:
     """The filter over the batch, one numpy step for every run at a time: ``x_hat``, ``P``,
     ``S``, the innovations (NaN from a run's first non-finite estimate on) and the runs
-    whose estimate stayed finite. ``x (runs, n)``, ``u (runs, steps, p)``."""
+    whose estimate stayed finite. ``x (runs, n)``, ``u (runs, steps, p)``.
+
+    ``P``, ``S`` and the gain do not depend on the measurements (eqs A.2-A.4, A.6-A.7), and
+    every run starts from the same ``P0``: they are computed once per step for the whole
+    batch (a batch of one, with the same operations as a batch of every run), and only the
+    means (eqs A.1, A.5) are stepped run by run."""
     runs, steps, m = z.shape
     n = A.shape[0]
-    P = np.broadcast_to(P0, (runs, n, n)).copy()
-    H = np.broadcast_to(C, (runs, m, n))
+    P = np.asarray(P0, float)[None].copy()
+    H = C[None]
     x_hat = np.empty((runs, steps, n))
-    P_hist = np.empty((runs, steps, n, n))
-    S_hist = np.empty((runs, steps, m, m))
+    P_steps = np.empty((steps, n, n))
+    S_steps = np.empty((steps, m, m))
     innovation = np.empty((runs, steps, m))
     with np.errstate(all="ignore"):     # an overflowing run is marked broken below
         for k in range(steps):
             x = x @ A.T + u[:, k, :] @ B.T
             P = A @ P @ A.T + Q
             innovation[:, k] = z[:, k] - x @ C.T
-            x, P, S_hist[:, k] = joseph_update(x, P, innovation[:, k], H, R)
+            x, P, S_steps[k] = joseph_update(x, P, innovation[:, k], H, R)
             x_hat[:, k] = x
-            P_hist[:, k] = P
-    # a run whose estimate overflowed is broken from its first non-finite step on
-    bad = ~(np.all(np.isfinite(x_hat), axis=2) & np.all(np.isfinite(P_hist), axis=(2, 3)))
-    bad = np.cumsum(bad, axis=1) > 0
-    for a in (x_hat, innovation):
-        a[bad] = np.nan
-    P_hist[bad], S_hist[bad] = np.nan, np.nan
+            P_steps[k] = P[0]
+    return shared_histories(x_hat, P_steps, S_steps, innovation)
+
+
+def shared_histories(x_hat, P_steps, S_steps, innovation,
+                     first_bad: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
+    """The outputs of a loop whose covariances ``P_steps (steps, n, n)`` and ``S_steps``
+    every run shares: ``P`` and ``S`` as read-only views of them with a leading run axis (no
+    copy) while every run stays finite; otherwise each run's own copy, NaN (with its
+    estimate and innovations) from the run's first non-finite step on. Then the runs that
+    stayed finite. ``first_bad``: each run's first non-finite estimate's step where the
+    loop found it (its outputs already NaN from there), else found here."""
+    runs, steps = x_hat.shape[:2]
+    P_hist = np.broadcast_to(P_steps, (runs, *P_steps.shape))
+    S_hist = np.broadcast_to(S_steps, (runs, *S_steps.shape))
+    finite_P = np.all(np.isfinite(P_steps), axis=(1, 2))
+    if first_bad is None:
+        bad = ~(np.all(np.isfinite(x_hat), axis=2) & finite_P)
+    else:
+        bad = (np.arange(steps) >= first_bad[:, None]) | ~finite_P
+    if bad.any():
+        bad = np.cumsum(bad, axis=1) > 0
+        for a in (x_hat, innovation):
+            a[bad] = np.nan
+        P_hist, S_hist = P_hist.copy(), S_hist.copy()
+        P_hist[bad], S_hist[bad] = np.nan, np.nan
     return x_hat, P_hist, S_hist, innovation, ~bad[:, -1]
