@@ -32,6 +32,8 @@ COMMANDS = (("validate", "configs/mosfet_saturation.yaml"),
             ("validate", "configs/dipole_field.yaml"),
             ("validate", "configs/diffamp_distortion.yaml"),
             ("list",),
+            ("table", "distortion", "diffamp_distortion"),
+            ("table", "rmse", "mosfet_saturation"),
             ("table", "distortion"),
             ("table", "rmse"))
 

@@ -33,7 +33,8 @@ SHORT_HELP = {
 """One line per command of :mod:`estim.cli.main` (a test keeps the two in step)."""
 
 OWN_MODULE = {"list": ("estim.cli.listing", "list_configs"),
-              "validate": ("estim.cli.validating", "validate")}
+              "validate": ("estim.cli.validating", "validate"),
+              "table": ("estim.cli.tabling", "table")}
 """Commands that load from a module of their own, without :mod:`estim.cli.main` and what it
 imports: (module, name of the command)."""
 

@@ -135,6 +135,21 @@ class LazyChoice(click.Choice):
         return self._listed
 
 
+class DeferredChoice(LazyChoice):
+    """A :class:`LazyChoice` that takes any value when the command line is parsed; the
+    command calls :meth:`check` only when the value finds nothing, so a valid value never
+    lists the choices (listing the table metrics imports every analysis)."""
+
+    def convert(self, value, param, ctx):
+        return value
+
+    def check(self, value: str) -> None:
+        """A click usage error, as a ``Choice`` gives, unless ``value`` is a choice."""
+        ctx = click.get_current_context()
+        param = next(p for p in ctx.command.params if p.type is self)
+        click.Choice.convert(self, value, param, ctx)
+
+
 class LazyEpilog(click.Command):
     """A command whose help epilog is made when its help is shown (``epilog_from``)."""
 

@@ -15,7 +15,7 @@ import click
 
 import estim
 from estim import store
-from estim.cli import arguments, listing, project, results, validating
+from estim.cli import arguments, listing, project, results, tabling, validating
 from estim.cli.group import Group, debug_option, fail
 from estim.cli.options import NamedPath, jobs_option, max_work_option
 from estim.cli.output import (
@@ -372,7 +372,7 @@ def spice(config, executable, reltol, fmt) -> None:
                    "bars", err=True)
 
 
-for _command in (results.table, validating.validate, results.report_page, results.summary,
+for _command in (tabling.table, validating.validate, results.report_page, results.summary,
                  results.settings, listing.list_configs):
     main.add_command(_command)
 

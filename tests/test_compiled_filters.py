@@ -188,9 +188,9 @@ def test_a_kf_run_that_overflows_is_broken_from_the_same_step_in_both_loops(monk
 
 def test_kf_runs_share_one_covariance_and_blocks_of_runs_keep_each_run_its_own():
     """70 runs (the compiled loop's blocks of 32, and a last one of 6), then run 40
-    overflowing at step 6: every run's estimate is the one it gets filtered alone, bit for bit; ``P``
-    and ``S`` are one read-only copy the runs share while no run breaks, and each run's own
-    (NaN from its break on) when one does."""
+    overflowing at step 6: every run's estimate is the one it gets filtered alone, bit for
+    bit; ``P`` and ``S`` are one read-only copy the runs share while no run breaks, and each
+    run's own (NaN from its break on) when one does."""
     rng = np.random.default_rng(3)
     A = np.array([[1.2, 0.1], [-0.1, 0.9]])
     kf = KalmanFilter(A=A.tolist(), B=[[1.0], [0.5]], C=[[1.0, 0.0]], Q=[[1e-3, 0], [0, 1e-3]],

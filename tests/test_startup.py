@@ -121,11 +121,17 @@ def test_a_config_head_is_what_the_full_loader_reads(tmp_path):
         read_head(copy)
 
 
-def test_table_reads_csv_without_drawing_or_compiling():
+def test_table_reads_csv_without_pandas_drawing_or_compiling():
     loaded = loaded_by("table", "distortion")
-    assert "pandas" in loaded                      # the probe sees a real load
-    assert not loaded & {"numba", "estim.numerics.kernels", "matplotlib", "scipy.stats",
-                         "scipy.optimize", "skimage", "pywt"}, loaded
+    assert not loaded & {"pandas", "numba", "estim.numerics.kernels", "matplotlib",
+                         "scipy.stats", "scipy.optimize", "skimage", "pywt"}, loaded
+    assert "pandas" in loaded_by("summary")        # the probe sees a real load
+
+
+def test_table_of_one_experiment_loads_only_its_analysis():
+    found = probe("table", "rmse", "mosfet_saturation", "--thesis")
+    assert found["ANALYSES"] == {"estim.experiments.estimation"}, found
+    assert not found["LOADED"] & {"pandas", "matplotlib"}, found
 
 
 def test_a_dc_point_is_kept_on_disk_and_read_back_bit_for_bit(tmp_path, monkeypatch):

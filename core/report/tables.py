@@ -1,5 +1,7 @@
 """Rendering result tables for the terminal, Markdown, CSV and LaTeX, with the thesis' rows
-beside ours (:mod:`estim.reference` joins them).
+beside ours (:mod:`estim.reference` joins them). Tables are plain columns
+(:class:`estim.util.columns.Table`), so ``estim table`` runs without pandas; a DataFrame given
+to :func:`render` is read into one.
 """
 
 from __future__ import annotations
@@ -11,10 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from estim.errors import ReferenceJoinError
-from estim.reference import sweep_columns, view, with_reference
-from estim.util import lazy
-
-pd = lazy.load("pandas")
+from estim.reference import join_reference, sweep_columns, view
+from estim.util.columns import Table, is_missing
 
 TEXT_WIDTH = 100
 """``estim table``'s text output wraps its columns into blocks of at most this many
@@ -41,7 +41,7 @@ def number(value) -> str:
         if math.isfinite(v) and v == round(v) and abs(v) < 1e9:
             return str(int(round(v)))
         return f"{v:.4g}"
-    if value is None or value is pd.NA:
+    if is_missing(value):
         return "--"
     if isinstance(value, (bool, np.bool_)):
         return str(bool(value))
@@ -81,28 +81,39 @@ def text_blocks(columns: list[list[str]], width: int = TEXT_WIDTH) -> str:
     return "\n\n".join(blocks)
 
 
-def render(df: pd.DataFrame, fmt: str) -> str:
+def render(table, fmt: str) -> str:
     """Text (wrapped at :data:`TEXT_WIDTH`), CSV, Markdown or LaTeX (booktabs, escaped)
-    rendering of a table."""
+    rendering of a table (a :class:`Table` or a DataFrame)."""
+    if not isinstance(table, Table):
+        table = Table.from_frame(table)
     if fmt == "csv":
-        return df.to_csv(index=False)
-    if fmt == "text" and len(df) and len(df.columns):
-        return text_blocks([[str(name), *map(number, df[name].tolist())] for name in df.columns])
-    cells = df.astype(object).map(number) if len(df) else df.astype(object)
+        return table.to_csv()
+    if fmt == "text" and len(table) and table.names:
+        return text_blocks([[str(name), *map(number, table[name])] for name in table.names])
+    if fmt == "text":
+        return table.to_frame().to_string(index=False, line_width=TEXT_WIDTH)
+    rows = [[number(v) for v in row] for row in table.rows()] if table.names else []
+    numeric = [table.kinds[c] in "if" for c in table.names]
     if fmt == "markdown":
-        align = ["right" if df[c].dtype.kind in "iuf" else "left" for c in df.columns]
-        return cells.to_markdown(index=False, disable_numparse=True, colalign=align)
-    if fmt == "latex":
-        head = " & ".join(latex_escape(c) for c in df.columns)
-        body = [" & ".join(latex_escape(v) for v in row) + r" \\" for row in cells.to_numpy()]
-        align = "".join("r" if df[c].dtype.kind in "iuf" else "l" for c in df.columns)
-        return "\n".join(["% needs \\usepackage{booktabs}", f"\\begin{{tabular}}{{{align}}}",
-                          r"\toprule", head + r" \\", r"\midrule", *body, r"\bottomrule",
-                          r"\end{tabular}"]) + "\n"
-    return cells.to_string(index=False, line_width=TEXT_WIDTH)
+        from tabulate import tabulate
+
+        return tabulate(rows, headers=table.names, tablefmt="pipe", disable_numparse=True,
+                        colalign=["right" if n else "left" for n in numeric],
+                        showindex=False)
+    head = " & ".join(latex_escape(c) for c in table.names)
+    body = [" & ".join(latex_escape(v) for v in row) + r" \\" for row in rows]
+    align = "".join("r" if n else "l" for n in numeric)
+    return "\n".join(["% needs \\usepackage{booktabs}", f"\\begin{{tabular}}{{{align}}}",
+                      r"\toprule", head + r" \\", r"\midrule", *body, r"\bottomrule",
+                      r"\end{tabular}"]) + "\n"
 
 
-def fit(df: pd.DataFrame, spec, width: int) -> tuple[pd.DataFrame, list[str]]:
+def _distinct(values) -> int:
+    """How many different values, a missing one counted once (``nunique(dropna=False)``)."""
+    return len({None if is_missing(v) else v for v in values})
+
+
+def fit(df: Table, spec, width: int) -> tuple[Table, list[str]]:
     """``df`` cut to ``width`` characters of text, and the notes saying how: a column with
     one value in every row is said once in a note, a key the other keys determine (a
     table id, a zone's βr) is left out; then the table's keys, each printed value with the
@@ -113,33 +124,31 @@ def fit(df: pd.DataFrame, spec, width: int) -> tuple[pd.DataFrame, list[str]]:
     if width <= 0 or not len(df):
         return df, []
     notes = []
-    same = [c for c in df.columns if df[c].nunique(dropna=False) <= 1]
+    same = [c for c in df.names if _distinct(df[c]) <= 1]
     if same and len(df) > 1:
-        notes.append("in every row: " + ", ".join(f"{c} = {number(df[c].iloc[0])}"
-                                                   for c in same))
-        df = df.drop(columns=same)
-    keys = [c for c in df.columns if c in spec.keys or c.startswith(("sweep:",))]
+        notes.append("in every row: " + ", ".join(f"{c} = {number(df[c][0])}" for c in same))
+        df = df.drop(same)
+    keys = [c for c in df.names if c in spec.keys or c.startswith(("sweep:",))]
     implied = []
     for k in list(keys):
         others = [c for c in keys if c != k and c not in implied]
-        if others and (df.groupby(others, sort=False, dropna=False)[k]
-                       .nunique(dropna=False).max() <= 1):
+        if others and _determined(df, others, k):
             implied.append(k)
     if implied:
         notes.append(f"{', '.join(implied)}: given by the other keys, left out")
-        df = df.drop(columns=implied)
+        df = df.drop(implied)
         keys = [k for k in keys if k not in implied]
     df, shortened = _shorten_keys(df, keys, KEYS_SHARE * width)
     if shortened:
         notes.append(f"long cells of {', '.join(shortened)} shortened (…)")
     printed = [c for r in spec.reference for c in (r, f"thesis_{r}", f"ratio_{r}")
-               if c in df.columns]
-    words = [c for c in spec.text if c in df.columns]
+               if c in df]
+    words = [c for c in spec.text if c in df]
     first = keys + printed + words
-    order = first + [c for c in df.columns if c not in first]
+    order = first + [c for c in df.names if c not in first]
 
     def cost(c: str) -> int:
-        return max(len(str(c)), *(len(number(v)) for v in df[c].tolist())) + 1
+        return max(len(str(c)), *(len(number(v)) for v in df[c])) + 1
     used, shown, dropped = 0, [], []
     for c in order:
         if c in keys or used + cost(c) <= width:
@@ -150,7 +159,18 @@ def fit(df: pd.DataFrame, spec, width: int) -> tuple[pd.DataFrame, list[str]]:
     if dropped:
         notes.append(f"left out for a width of {width}: {', '.join(dropped)} "
                      "(--width 0 or --format csv shows every column)")
-    return df[shown], [textwrap.fill(n, width - 2, break_on_hyphens=False) for n in notes]
+    return df.select(shown), [textwrap.fill(n, width - 2, break_on_hyphens=False)
+                              for n in notes]
+
+
+def _determined(df: Table, others: list[str], k: str) -> bool:
+    """Whether the columns ``others`` determine ``k``: one value of ``k`` (a missing one
+    counted as a value) in each group of rows alike in ``others``."""
+    seen: dict = {}
+    for row, value in zip(df.rows(others), df[k], strict=True):
+        group = tuple(None if is_missing(v) else v for v in row)
+        seen.setdefault(group, set()).add(None if is_missing(value) else value)
+    return max(map(len, seen.values()), default=0) <= 1
 
 
 KEYS_SHARE = 0.6
@@ -160,29 +180,28 @@ SHORTEST = 12
 """No text cell is shortened below this many characters."""
 
 
-def _shorten_keys(df: pd.DataFrame, keys: list[str], room: float) -> tuple[pd.DataFrame, list]:
+def _shorten_keys(df: Table, keys: list[str], room: float) -> tuple[Table, list]:
     """``df`` with the text cells of its widest key columns cut (ending in "…") until the
     keys take at most ``room`` characters or no column can be cut further (none is cut so
     far that two of its cells would read the same); the columns cut."""
     cut, whole = [], set()
     while True:
-        cells = {k: max(len(number(v)) for v in df[k].tolist()) for k in keys}
+        cells = {k: max(len(number(v)) for v in df[k]) for k in keys}
         widths = {k: max(len(k), cells[k]) + 1 for k in keys}
         if sum(widths.values()) <= room:
             return df, cut
         floor = {k: max(len(k), SHORTEST) for k in keys}
-        text_keys = [k for k in keys if not pd.api.types.is_numeric_dtype(df[k])
+        text_keys = [k for k in keys if df.kinds[k] not in "ifb"
                      and cells[k] > floor[k] and k not in whole]
         if not text_keys:
             return df, cut
         k = max(text_keys, key=cells.get)
         limit = max(floor[k], cells[k] - (sum(widths.values()) - int(room)))
-        short = [v if len(str(v)) <= limit else str(v)[:limit - 1] + "…"
-                 for v in df[k].tolist()]
-        if len(set(short)) < df[k].nunique():          # two cells would read the same
-            whole.add(k)
+        short = [v if len(str(v)) <= limit else str(v)[:limit - 1] + "…" for v in df[k]]
+        if len(set(short)) < len({v for v in df[k] if not is_missing(v)}):
+            whole.add(k)                              # two cells would read the same
             continue
-        df = df.assign(**{k: short})
+        df = df.with_column(k, short, "O")
         if k not in cut:
             cut.append(k)
 
@@ -193,8 +212,8 @@ def stored(results, metric: str, fmt: str, thesis: bool, partial: bool,
     ``results`` in ``fmt`` (text, csv, markdown, latex), with the printed values and the
     ratios beside ours when ``thesis``. csv is one table over all experiments (an
     ``experiment`` column first); the others one table per experiment under its title.
-    ``only``: just these experiments (folder names); ``width``: text cut to it
-    (:func:`fit`). With ``thesis``, the experiments with
+    ``only``: just these experiments (folder names; only their analyses are loaded);
+    ``width``: text cut to it (:func:`fit`). With ``thesis``, the experiments with
     no printed table are left out and named in one closing line (the only line when no
     experiment has one). A thesis join that fails, an experiment of ``only`` that holds no
     such table, or no values at all, is a ``UsageError``."""
@@ -202,35 +221,36 @@ def stored(results, metric: str, fmt: str, thesis: bool, partial: bool,
     from estim.errors import UsageError
     from estim.store import stored_tables
 
-    found = list(stored_tables(results, metric, analyses))
+    found = list(stored_tables(results, metric, analyses, only))
     names = [stored.name for stored, _ in found]
     for name in only:
         if name not in names:
+            names = [stored.name for stored, _ in stored_tables(results, metric, analyses)]
             raise UsageError(f"{name}: no stored {metric} table under {results}/"
                              f"{did_you_mean(name, names)}; experiments with one: "
                              f"{', '.join(sorted(names)) or 'none'}")
     parts, frames, unprinted = [], [], []
     for stored, spec in found:
         folder, path = stored.folder, stored.table_path(spec)
-        if only and folder.name not in only:
+        df = view(stored.columns(spec), spec)
+        values = df.drop([*spec.keys, *sweep_columns(df)])
+        if all(is_missing(v) for c in values.names for v in values[c]):
             continue
-        df = view(stored.table(spec), spec)
-        values = df.drop(columns=[*spec.keys, *sweep_columns(df)], errors="ignore")
-        if values.isna().all().all():
-            continue
-        printed = spec.join and "table_id" in df and df["table_id"].astype(str).str.len().any()
+        printed = spec.join and "table_id" in df and any(len(str(t)) for t in df["table_id"])
         if thesis and not printed:
             unprinted.append(folder.name)
             continue
         if thesis and spec.join and "table_id" in df:
             try:
-                df = with_reference(df, spec, allow_unmatched=partial)
+                df = join_reference(df, spec, allow_unmatched=partial)
             except ReferenceJoinError as exc:
                 raise UsageError(f"{path}: {exc}") from None
         if fmt == "csv":
-            frames.append(df.assign(experiment=folder.name)[["experiment", *df.columns]])
+            frames.append(Table({"experiment": [folder.name] * len(df), **df.columns},
+                                {"experiment": "O", **df.kinds}))
             continue
-        ids = ", ".join(sorted({str(t) for t in df.get("table_id", []) if t},
+        ids = ", ".join(sorted({str(t) for t in (df["table_id"] if "table_id" in df else [])
+                                if t},
                                key=lambda t: [int(x) if x.isdigit() else x
                                               for x in t.split(".")]))
         note = f" (thesis Table {ids})" if ids else ""
@@ -245,7 +265,7 @@ def stored(results, metric: str, fmt: str, thesis: bool, partial: bool,
                                      break_on_hyphens=False)
         parts.append(f"{head}\n" + "".join(f"({n})\n" for n in notes) + render(df, fmt))
     if frames:
-        parts.append(render(pd.concat(frames, ignore_index=True), "csv").rstrip("\n"))
+        parts.append(render(Table.concat(frames), "csv").rstrip("\n"))
     if unprinted and (parts or not frames) and fmt != "csv":
         parts.append(f"(--thesis: left out {len(unprinted)} experiment(s) with no printed "
                      f"{metric} table to compare with: {', '.join(unprinted)}; leave out "

@@ -66,14 +66,8 @@ def stored_table_path(folder: Path, spec) -> Path | None:
     return path
 
 
-def read_table(path: Path, spec=None, data: bytes | None = None) -> pd.DataFrame:
-    """A stored result table, with an empty ``table_id`` kept as an empty string (``data``:
-    the file's bytes, already read and checked by :meth:`estim.store.stored.Stored.read`).
-
-    Raises :class:`UsageError` naming the file when it cannot be read as a table: not a
-    regular file, over :data:`MAX_TABLE_BYTES`, empty or a header alone, not CSV, ragged
-    rows, missing columns of ``spec``, or text in one of its value columns.
-    """
+def _table_text(path: Path, data: bytes | None) -> str:
+    """The text of a stored table with its rows checked (see :func:`read_table`)."""
     try:
         if data is None:
             data = read_stored(path, MAX_TABLE_BYTES, "table")
@@ -89,6 +83,40 @@ def read_table(path: Path, spec=None, data: bytes | None = None) -> pd.DataFrame
     for number, row in enumerate(rows[1:], start=2):
         if len(row) != width:
             raise UsageError(f"{path}: line {number} has {len(row)} fields, the header {width}")
+    return text_
+
+
+def _check_columns(path: Path, spec, names: list[str], numeric, values) -> None:
+    """``spec``'s columns are among ``names``, and each of its value columns that is not
+    ``numeric(column)`` holds only numbers, True/False and missing cells (``values(column)``
+    its cells)."""
+    from estim.util.columns import is_missing
+
+    missing = [c for c in spec.columns if c not in names]
+    if missing:
+        raise UsageError(f"{path}: no column {missing[0]!r}")
+    for column in (c for c in spec.values if c not in spec.text):
+        if numeric(column):
+            continue
+        for i, cell in enumerate(values(column)):
+            if is_missing(cell) or str(cell) in ("True", "False"):
+                continue
+            try:
+                float(cell)
+            except ValueError:
+                raise UsageError(f"{path}: line {i + 2}, column {column}: "
+                                 f"{str(cell)[:40]!r} is not a number") from None
+
+
+def read_table(path: Path, spec=None, data: bytes | None = None) -> pd.DataFrame:
+    """A stored result table, with an empty ``table_id`` kept as an empty string (``data``:
+    the file's bytes, already read and checked by :meth:`estim.store.stored.Stored.read`).
+
+    Raises :class:`UsageError` naming the file when it cannot be read as a table: not a
+    regular file, over :data:`MAX_TABLE_BYTES`, empty or a header alone, not CSV, ragged
+    rows, missing columns of ``spec``, or text in one of its value columns.
+    """
+    text_ = _table_text(path, data)
     try:
         df = pd.read_csv(io.StringIO(text_), dtype={"table_id": str}, keep_default_na=False,
                          na_values=["", "NaN", "nan", "<NA>"])
@@ -97,20 +125,22 @@ def read_table(path: Path, spec=None, data: bytes | None = None) -> pd.DataFrame
     if "table_id" in df:
         df["table_id"] = df["table_id"].fillna("")
     if spec is not None:
-        missing = [c for c in spec.columns if c not in df.columns]
-        if missing:
-            raise UsageError(f"{path}: no column {missing[0]!r}")
-        for column in (c for c in spec.values if c not in spec.text):
-            if not pd.api.types.is_numeric_dtype(df[column]):
-                for i, cell in enumerate(df[column]):
-                    if pd.isna(cell) or str(cell) in ("True", "False"):
-                        continue
-                    try:
-                        float(cell)
-                    except ValueError:
-                        raise UsageError(f"{path}: line {i + 2}, column {column}: "
-                                         f"{str(cell)[:40]!r} is not a number") from None
+        _check_columns(path, spec, list(df.columns),
+                       lambda c: pd.api.types.is_numeric_dtype(df[c]), lambda c: df[c])
     return df
+
+
+def read_columns(path: Path, spec=None, data: bytes | None = None):
+    """:func:`read_table` as plain columns (:class:`estim.util.columns.Table`), read without
+    pandas: the same checks, column types and values."""
+    from estim.util.columns import Table
+
+    text_ = _table_text(path, data)
+    table = Table.from_csv(text_, text_columns=("table_id",))
+    if spec is not None:
+        _check_columns(path, spec, table.names, lambda c: table.kinds[c] in "ifb",
+                       lambda c: table[c])
+    return table
 
 
 def read_manifest(folder: Path) -> dict | None:

@@ -17,6 +17,7 @@ from estim.errors import UsageError
 from estim.store.read import (
     MAX_MANIFEST_BYTES,
     MAX_TABLE_BYTES,
+    read_columns,
     read_manifest,
     read_run_record,
     read_stored,
@@ -128,6 +129,14 @@ class Stored:
         data = self.read(path, MAX_TABLE_BYTES, "table")
         return read_table(path, spec, data=data)
 
+    def columns(self, spec):
+        """:meth:`table` as plain columns (:func:`estim.store.read.read_columns`, no
+        pandas)."""
+        path = self.table_path(spec)
+        if path is None:
+            return None
+        return read_columns(path, spec, data=self.read(path, MAX_TABLE_BYTES, "table"))
+
     def figures(self) -> list[Path]:
         """The figure files under ``figures/`` (PNG, SVG, PDF), by name."""
         return sorted(p for p in (self.folder / "figures").glob("*")
@@ -176,17 +185,19 @@ def open_stored(folder: Path, analyses: dict) -> Stored:
     return Stored(folder, manifest, analyses[name])
 
 
-def stored_folders(results: Path, analyses: dict) -> list[Stored]:
+def stored_folders(results: Path, analyses: dict, only: tuple[str, ...] = ()) -> list[Stored]:
     """Every experiment stored under ``results`` (each folder with a manifest.json, by
-    name), each opened by :func:`open_stored`."""
+    name), each opened by :func:`open_stored`; ``only``: just the folders of these names."""
     return [open_stored(m.parent, analyses)
-            for m in sorted(Path(results).glob("*/manifest.json"))]
+            for m in sorted(Path(results).glob("*/manifest.json"))
+            if not only or m.parent.name in only]
 
 
-def stored_tables(results: Path, metric: str, analyses: dict):
+def stored_tables(results: Path, metric: str, analyses: dict, only: tuple[str, ...] = ()):
     """``(Stored, TableSpec)`` of every experiment stored under ``results`` that has the
-    table ``metric`` (:func:`stored_folders`: a damaged manifest is a ``UsageError``)."""
-    for stored in stored_folders(results, analyses):
+    table ``metric`` (:func:`stored_folders`: a damaged manifest is a ``UsageError``);
+    ``only``: of the folders of these names."""
+    for stored in stored_folders(results, analyses, only):
         spec = stored.analysis.TABLES.get(metric)
         if spec is not None and stored.table_path(spec) is not None:
             yield stored, spec

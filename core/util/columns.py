@@ -30,14 +30,14 @@ def is_missing(value) -> bool:
 
 def _as_int(cell: str) -> int | None:
     try:
-        return int(cell) if cell.strip() == cell and "_" not in cell else None
+        return int(cell) if "_" not in cell else None
     except ValueError:
         return None
 
 
 def _as_float(cell: str) -> float | None:
     try:
-        return float(cell) if cell.strip() == cell and "_" not in cell else None
+        return float(cell) if "_" not in cell else None
     except ValueError:
         return None
 
@@ -104,6 +104,11 @@ class Table:
 
     def drop(self, names) -> Table:
         return self.select([n for n in self.columns if n not in set(names)])
+
+    def renamed(self, names: dict[str, str]) -> Table:
+        """This table with the columns of ``names`` renamed (others as they are)."""
+        return Table({names.get(n, n): v for n, v in self.columns.items()},
+                     {names.get(n, n): k for n, k in self.kinds.items()})
 
     def with_column(self, name: str, values: list, kind: str) -> Table:
         """This table with ``name`` set to ``values`` (appended if new)."""
@@ -182,11 +187,10 @@ class Table:
         """This table as a DataFrame (imports pandas)."""
         import pandas as pd
 
-        frame = pd.DataFrame({n: pd.Series(v, dtype=object) for n, v in self.columns.items()})
+        frame = pd.DataFrame(self.columns)
         for name, kind in self.kinds.items():
-            if kind in "ifb":
-                frame[name] = frame[name].astype({"i": "int64", "f": "float64",
-                                                  "b": "bool"}[kind])
+            if kind in "if" and frame[name].dtype.kind != kind:
+                frame[name] = frame[name].astype("int64" if kind == "i" else "float64")
         return frame
 
     def to_csv(self) -> str:
