@@ -33,6 +33,14 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def row(runs: int):
+    """The row's truth model, its start, the input of its ``runs`` runs on each interval, the
+    sample interval and the config's simulation settings."""
+    truth, x0, _, u, dt, sim = row_with_source(runs)
+    return truth, x0, u, dt, sim
+
+
+def row_with_source(runs: int):
+    """:func:`row` with the sampled source ``(runs, steps + 1, 1)`` the input is made from."""
     spec = yaml.safe_load((ROOT / "configs" / "mosfet_saturation.yaml").read_text())
     spec["monte_carlo"]["runs"] = runs
     exp = parse_data(spec, "mosfet_saturation.yaml", "mosfet_saturation")
@@ -46,7 +54,8 @@ def row(runs: int):
     source = clean[None] + point.sigma * rng.standard_normal((runs, steps + 1, 1))
     source[:, 0] = clean[0]
     truth = exp.plan.truth
-    return truth, exp.plan.x0, truth.source_to_input(source, dt), dt, exp.spec["simulation"]
+    return (truth, exp.plan.x0, source, truth.source_to_input(source, dt), dt,
+            exp.spec["simulation"])
 
 
 def netlist_twin(model, x0):

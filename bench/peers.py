@@ -1,7 +1,12 @@
-"""estim's KF, EKF and UKF beside their peers, filterpy and dynamax (JAX), at the run counts
-people use.
+"""estim beside its peers: the KF, EKF and UKF beside filterpy and dynamax (JAX) at the run
+counts people use; the stiff integrator beside scipy and ngspice
+(:mod:`peers_integrator`); the LETKF beside DAPPER (:mod:`peers_letkf`).
 
-    pip install '.[bench]' && python bench/peers.py [--rounds 7]
+    pip install '.[bench]' && python bench/peers.py [--rounds 7] \
+        [--parts filters integrator letkf] [--dapper-python .venv-dapper/bin/python]
+
+Each part records its own table (peers.csv; peers_integrator.csv and
+peers_integrator_matched.csv; peers_letkf.csv). The filters:
 
 The problem is bench_filters.py's: the EKV MOSFET (eq 3.12 law, 4 states), 200 steps, the
 exponential discretisation, measured drain voltage. Every library runs the same filter:
@@ -23,8 +28,9 @@ exponential discretisation, measured drain voltage. Every library runs the same 
   dynamax's ``unscented_kalman_filter``, its dynamics the exponential step in JAX.
 * **KF**: the circuit linearised at its operating point and discretised exactly
   (``exp`` of ``[[J, b], [0, 0]] T``), input the source's slope. estim: ``KalmanFilter.run``
-  (its compiled loop, :mod:`estim.estimators.kf_compiled`, up to 100 runs; numpy's loop over
-  the batch above); filterpy's ``KalmanFilter``; dynamax's ``lgssm_filter``.
+  (its compiled loop, :mod:`estim.estimators.kf_compiled`: the covariances once for the
+  batch, the means of 32 runs side by side); filterpy's ``KalmanFilter``; dynamax's
+  ``lgssm_filter``.
 
 filterpy is looped over runs (timed on at most 20 runs and scaled: its time is linear in
 the runs); dynamax runs under ``jax.jit`` and ``jax.vmap`` over runs, in float64, and its
@@ -55,6 +61,7 @@ from estim.estimators.kf import KalmanFilter  # noqa: E402
 from estim.estimators.ukf import UnscentedKalmanFilter  # noqa: E402
 from estim.numerics import discretize  # noqa: E402
 
+ROOT = Path(__file__).resolve().parents[1]
 RUN_COUNTS = (1, 30, 1000)
 STEPS = 200
 FILTERPY_RUNS = 20
@@ -276,7 +283,22 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--filters", nargs="+", choices=("KF", "EKF", "UKF"),
                         default=("KF", "EKF", "UKF"),
                         help="only these filters: printed, not recorded")
+    parser.add_argument("--parts", nargs="+", choices=("filters", "integrator", "letkf"),
+                        default=("filters", "integrator", "letkf"))
+    parser.add_argument("--dapper-python", default=str(ROOT / ".venv-dapper/bin/python"),
+                        help="DAPPER's interpreter, for the LETKF part")
     args = parser.parse_args(argv)
+    if "integrator" in args.parts:
+        import peers_integrator
+
+        peers_integrator.main(["--rounds", str(min(args.rounds, 3))])
+    if "letkf" in args.parts:
+        import peers_letkf
+
+        peers_letkf.main(["--rounds", str(min(args.rounds, 3)),
+                          "--dapper-python", args.dapper_python])
+    if "filters" not in args.parts:
+        return
     model, x0, z_all, u, dt = problem(max(RUN_COUNTS), STEPS)
     ekf = ExtendedKalmanFilter(Q=Q, R=0.01, P0=Q, discretization="exponential")
     ukf = UnscentedKalmanFilter(Q=Q, R=0.01, P0=Q, discretization="exponential", alpha=1e-3)

@@ -25,6 +25,10 @@ SECTIONS = (
     ("startup", "Start-up of the small commands"),
     ("first_run", "The first run's numba compile"),
     ("peers", "The KF, EKF and UKF beside filterpy and dynamax (JAX)"),
+    ("peers_integrator_matched", "The stiff integrator beside scipy and ngspice, at matched "
+                                 "accuracy"),
+    ("peers_integrator", "The stiff integrator beside scipy and ngspice, every setting"),
+    ("peers_letkf", "The LETKF beside DAPPER"),
     ("filters", "Batched filters against filterpy"),
     ("ekf_steps", "Where an EKF step's time goes"),
     ("simulate", "The actual signal: integrators"),
