@@ -211,13 +211,17 @@ class Estimate:
 
 
 def run_batch(cycle, x0: np.ndarray, P0: np.ndarray, z: np.ndarray, u: np.ndarray,
-              bound: float) -> tuple[np.ndarray, ...]:
+              bound: float, carry: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
     """The batch bookkeeping every state filter shares: ``cycle(x, P, z_k, u_k)`` (one
     prediction and update for the runs still alive, returning the prediction, the updated
     state and covariance, ``S`` and the innovation) is applied step by step; a run whose
     estimate or prediction becomes non-finite or leaves ``|x| <= bound`` is marked broken
     and frozen, its outputs NaN from that step on. Returns ``x_hat``, ``P``, ``S``, the
-    innovations and the runs still alive at the end."""
+    innovations and the runs still alive at the end.
+
+    ``carry``: what an ensemble or particle filter carries from step to step beside its
+    estimate (its members, ``(runs, members, n)``); ``cycle`` is then called with the alive
+    runs' part of it last and returns the new part last, kept for the runs that go on."""
     runs, steps, m = z.shape
     n = np.shape(x0)[-1]
     x = np.broadcast_to(x0, (runs, n)).copy()
@@ -232,12 +236,18 @@ def run_batch(cycle, x0: np.ndarray, P0: np.ndarray, z: np.ndarray, u: np.ndarra
         if idx.size == 0:
             break
         with np.errstate(all="ignore"):
-            xp, xu, Pu, S, nu = cycle(x[idx], P[idx], z[idx, k], u[idx, k])
+            if carry is None:
+                xp, xu, Pu, S, nu = cycle(x[idx], P[idx], z[idx, k], u[idx, k])
+            else:
+                xp, xu, Pu, S, nu, carried = cycle(x[idx], P[idx], z[idx, k], u[idx, k],
+                                                   carry[idx])
         ok = (np.all(np.isfinite(xu), axis=1) & np.all(np.isfinite(Pu), axis=(1, 2))
               & np.all(np.abs(xu) <= bound, axis=1) & np.all(np.abs(xp) <= bound, axis=1))
         alive[idx[~ok]] = False
         keep = idx[ok]
         x[keep], P[keep] = xu[ok], Pu[ok]
+        if carry is not None:
+            carry[keep] = carried[ok]
         x_hat[keep, k] = xu[ok]
         P_hist[keep, k] = Pu[ok]
         S_hist[keep, k] = S[ok]
