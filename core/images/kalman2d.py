@@ -62,10 +62,10 @@ def _product(A, B, out, add):  # pragma: no cover
     call and its temporaries cost more than the arithmetic; from :data:`BLAS_FROM` states
     (M = 2: 13) BLAS is faster again (measured, bench/bench_image.py)."""
     if A.shape[0] >= BLAS_FROM:
-        if add:
-            out += A @ B
-        else:
-            out[:, :] = A @ B
+        product = A @ B
+        for i in range(out.shape[0]):
+            for j in range(out.shape[1]):
+                out[i, j] = out[i, j] + product[i, j] if add else product[i, j]
         return
     for i in range(A.shape[0]):
         for j in range(B.shape[1]):
@@ -90,7 +90,10 @@ def _sandwich(F, P, out, tmp):  # pragma: no cover
     """``out += F P F'`` (``tmp``: scratch of ``F``'s shape)."""
     n = F.shape[0]
     if n >= BLAS_FROM:
-        out += F @ P @ F.T
+        product = F @ P @ F.T
+        for i in range(n):
+            for j in range(n):
+                out[i, j] += product[i, j]
         return
     _product(F, P, tmp, False)
     for i in range(n):
@@ -112,18 +115,22 @@ def _step(Xa, Pa, m, c, F10, F01, M, sigma_e2, sigma_v2, y):  # pragma: no cover
     up = np.empty(n)
     _matvec(F10, left_x, xb)
     _matvec(F01, up_x, up)
-    xb += up
+    for i in range(n):
+        xb[i] += up[i]
     tmp = np.empty((n, n))
     Pb = np.zeros((n, n))
     _sandwich(F10, left_P, Pb, tmp)
     _sandwich(F01, up_P, Pb, tmp)
     Pb[0, 0] += sigma_e2
     S = Pb[0, 0] + sigma_v2
-    K = Pb[:, 0] / S
     z = y - xb[0]
-    xa = xb + K * z
-    L = np.eye(n)
-    L[:, 0] -= K
+    K, xa, L = np.empty(n), np.empty(n), np.zeros((n, n))
+    for i in range(n):
+        K[i] = Pb[i, 0] / S
+        xa[i] = xb[i] + K[i] * z
+        L[i, i] = 1.0
+    for i in range(n):
+        L[i, 0] -= K[i]
     Pj = np.zeros((n, n))
     _sandwich(L, Pb, Pj, tmp)
     P = np.empty((n, n))
@@ -133,9 +140,20 @@ def _step(Xa, Pa, m, c, F10, F01, M, sigma_e2, sigma_v2, y):  # pragma: no cover
     for i in range(n):
         for j in range(i + 1, n):
             P[i, j] = P[j, i] = 0.5 * (P[i, j] + P[j, i])
-    Xa[m + 1, c + 1] = xa
-    Pa[m + 1, c + 1] = P
+    for i in range(n):
+        Xa[m + 1, c + 1, i] = xa[i]
+        for j in range(n):
+            Pa[m + 1, c + 1, i, j] = P[i, j]
     return xa, P, K, z, S, L, Pb
+
+
+@njit(cache=True)
+def _norm(a):  # pragma: no cover
+    """The Frobenius norm, summed in C order (as ``np.sqrt(np.sum(a * a))`` in numba)."""
+    s = 0.0
+    for v in a.ravel():
+        s += v * v
+    return np.sqrt(s)
 
 
 @njit(cache=True)
@@ -154,8 +172,8 @@ def _filter(y, A10, A01, left, sigma_e2, sigma_v2, boundary_variance, M):  # pra
             xa, P, K, z[m, c], s[m, c], _, _ = _step(Xa, Pa, m, c, A10, A01, M, sigma_e2,
                                                   sigma_v2, y[m, c])
             out[m, c] = xa[0]
-            p_norm[m, c] = np.sqrt(np.sum(P * P))
-            k_norm[m, c] = np.sqrt(np.sum(K * K))
+            p_norm[m, c] = _norm(P)
+            k_norm[m, c] = _norm(K)
     return out, p_norm, k_norm, z, s
 
 
@@ -206,7 +224,8 @@ def _gain_derivative(F10, F01, pmat, pcol, left_P, up_P, dleft, dup, Pb, K, L, S
     r = np.empty(n)
     g = np.empty(n)
     _matvec(L, Pb[0], g)                                        # P_b is symmetric
-    g[:] = K * sigma_v2 - g                                     # K s_v^2 - L P_b[0]
+    for i in range(n):                                          # K s_v^2 - L P_b[0]
+        g[i] = K[i] * sigma_v2 - g[i]
     for j in range(d):
         if pmat[j] == 0:
             _matvec(F10, left_P[pcol[j]], r)
@@ -229,6 +248,31 @@ def _gain_derivative(F10, F01, pmat, pcol, left_P, up_P, dleft, dup, Pb, K, L, S
 
 
 @njit(cache=True)
+def _zero(rows, k):  # pragma: no cover
+    """``rows[k] = 0``: the ring of two rows of :func:`_adaptive` (its whole row ``k``)."""
+    flat = rows.reshape(rows.shape[0], -1)
+    for i in range(flat.shape[1]):
+        flat[k, i] = 0.0
+
+
+@njit(cache=True)
+def _add(a, b, out):  # pragma: no cover
+    """``out = a + b`` for 2-D arrays. Loops, not array expressions, here and in the
+    other kernels of this module: numba compiles each array expression into a loop of its
+    own, seconds of a first run's compile; the loops do the same arithmetic, element by
+    element in the same order."""
+    for i in range(a.shape[0]):
+        for j in range(a.shape[1]):
+            out[i, j] = a[i, j] + b[i, j]
+
+
+@njit(cache=True)
+def _add_first_row(S, row):  # pragma: no cover
+    for j in range(row.size):
+        S[0, j] += row[j]
+
+
+@njit(cache=True)
 def _adaptive(y, A10, A01, left, pmat, pcol, phi0, sigma_e2, sigma_v2, boundary_variance, M,
               H0, lambda0, v0, mu_u, trace_row, full):  # pragma: no cover
     rows, cols = y.shape
@@ -245,26 +289,33 @@ def _adaptive(y, A10, A01, left, pmat, pcol, phi0, sigma_e2, sigma_v2, boundary_
     dP_rows = np.zeros((2, cols + M + 1, d, n, n))
     for m in range(rows):
         here, above = (m + 1) % 2, m % 2
-        Sa_rows[here] = 0.0
-        dP_rows[here] = 0.0
+        _zero(Sa_rows, here)
+        _zero(dP_rows, here)
         if m > 0:
             _carry_left(Xa, Pa, left, m)
             if full:
                 for r in range(left.shape[0]):
                     i, col, jj = left[r, 0], left[r, 1], left[r, 2]
-                    Sa_rows[here, 0, i] = Sa_rows[above, col + 1, jj]
-                    dP_rows[here, 0, :, i, i] = dP_rows[above, col + 1, :, jj, jj]
-        phi = phi0.copy()                        # the adaptation restarts at every row
-        H = H0 * np.eye(d)
+                    for q in range(d):
+                        Sa_rows[here, 0, i, q] = Sa_rows[above, col + 1, jj, q]
+                        dP_rows[here, 0, q, i, i] = dP_rows[above, col + 1, q, jj, jj]
+        phi = np.empty(d)                        # the adaptation restarts at every row
+        H = np.empty((d, d))
+        for i in range(d):
+            phi[i] = phi0[i]
+            for j in range(d):
+                H[i, j] = H0 * (1.0 if i == j else 0.0)
         lam, v = lambda0, v0
         Sb = np.zeros((n, d))                    # Sigma_b(0) = Gamma(0): first row -mu, mu, ...
-        Sb[0, :] = mu_u
+        for j in range(d):
+            Sb[0, j] = mu_u
         Sb[0, 0] = -mu_u
         F10, F01 = A10.copy(), A01.copy()
         _set_phi(F10, F01, pmat, pcol, phi)
         if full and m > 0:                       # eq 21a at the row's first pixel too
-            Sb = F10 @ Sa_rows[here, 0] + F01 @ Sa_rows[above, 1 + M]
-            Sb[0] += _regressors(Xa, m, 0, pmat, pcol, M, cols)
+            Sb = np.empty((n, d))
+            _add(F10 @ Sa_rows[here, 0], F01 @ Sa_rows[above, 1 + M], Sb)
+            _add_first_row(Sb, _regressors(Xa, m, 0, pmat, pcol, M, cols))
         for c in range(cols):
             xa, P, K, z, Rz, L, Pb = _step(Xa, Pa, m, c, F10, F01, M, sigma_e2, sigma_v2,
                                            y[m, c])
@@ -276,19 +327,29 @@ def _adaptive(y, A10, A01, left, pmat, pcol, phi0, sigma_e2, sigma_v2, boundary_
             # Table I, in its order: Delta, H, phi, Sigma_a, Gamma, Sigma_b(k+1)
             lam = 0.99 * lam + 0.01
             v = 1.0 / (1.0 + lam / v)
-            delta = Sb[0, :].copy()
+            delta = np.empty(d)
+            for i in range(d):
+                delta[i] = Sb[0, i]
             for i in range(d):
                 for j in range(d):
                     H[i, j] = H[i, j] + v * (delta[i] * delta[j] / Rz - H[i, j])
-            phi = phi + v * np.linalg.solve(H, delta) * (z / Rz)
+            step = np.linalg.solve(H, delta)
+            scale = z / Rz
+            for i in range(d):
+                phi[i] = phi[i] + v * step[i] * scale
             Sa = np.empty((n, d))
             _product(L, Sb, Sa, False)
             if full:
                 for i in range(n):
                     for j in range(d):
                         Sa[i, j] += kappa[i, j] * z
-                Sa_rows[here, c + 1] = Sa
-                dP_rows[here, c + 1] = dPa
+                for i in range(n):
+                    for j in range(d):
+                        Sa_rows[here, c + 1, i, j] = Sa[i, j]
+                for q in range(d):
+                    for i in range(n):
+                        for j in range(n):
+                            dP_rows[here, c + 1, q, i, j] = dPa[q, i, j]
             _set_phi(F10, F01, pmat, pcol, phi)
             # Sigma_b for the next pixel (eq 21a): A10 Sigma_a(left) + A01 Sigma_a(above)
             # + Gamma, the regressors of the next pixel
@@ -296,13 +357,15 @@ def _adaptive(y, A10, A01, left, pmat, pcol, phi0, sigma_e2, sigma_v2, boundary_
             _product(F10, Sa, Sb, False)
             if full:
                 _product(F01, Sa_rows[above, min(c + 2 + M, cols + M)], Sb, True)
-            Sb[0] += _regressors(Xa, m, c + 1, pmat, pcol, M, cols)
+            _add_first_row(Sb, _regressors(Xa, m, c + 1, pmat, pcol, M, cols))
             out[m, c] = xa[0]
-            sens[m, c] = Sa[0]
-            p_norm[m, c] = np.sqrt(np.sum(P * P))
-            k_norm[m, c] = np.sqrt(np.sum(K * K))
+            for j in range(d):
+                sens[m, c, j] = Sa[0, j]
+            p_norm[m, c] = _norm(P)
+            k_norm[m, c] = _norm(K)
             if m == trace_row:
-                trace[c] = phi
+                for j in range(d):
+                    trace[c, j] = phi[j]
     return out, p_norm, k_norm, trace, sens
 
 
