@@ -108,8 +108,14 @@ def _means(x0, z, u, A, B, C, K_steps):
                 for q in range(nb):
                     x[a, q] = xp[a, q] + acc[q]
                     x_hat[r0 + q, k, a] = x[a, q]
-        for r in range(r0, r0 + nb):                  # a run stops at its first
-            for k in range(steps):                    # non-finite estimate
+        for q in range(nb):                           # a run stops at its first
+            finite = True                             # non-finite estimate; once non-finite
+            for a in range(n):                        # it stays so (0 * inf is NaN), so a
+                finite &= np.isfinite(x[a, q])        # run finite at the end never broke
+            if finite:
+                continue
+            r = r0 + q
+            for k in range(steps):
                 ok = True
                 for a in range(n):
                     ok &= np.isfinite(x_hat[r, k, a])
