@@ -94,15 +94,21 @@ class ExtendedKalmanFilter(GaussianFilter, name="ekf"):
         return ekf_compiled.run(plan, x0, P0, z, u, dt, Q, R, self.discretization,
                                 self.substeps, self.divergence_bound)
 
-    def run(self, model, z: np.ndarray, u: np.ndarray, dt: float,
-            x0: np.ndarray | None = None) -> Estimate:
-        runs, _, m = z.shape
+    def start(self, model, m: int, x0: np.ndarray | None) -> tuple[np.ndarray, ...]:
+        """``Q``, ``P0`` (in the model's units), ``R`` for ``m`` measured values, and the
+        initial estimate: the ``x0`` setting, else the ``x0`` given, else the model's
+        operating point."""
         Q, P0 = self.state_covariances(model)
-        R = as_matrix(self.R, m, "R")
         if self.x0 is not None:
             x0 = np.asarray(self.x0, float)
         elif x0 is None:
             x0 = model.operating_point()
+        return Q, P0, as_matrix(self.R, m, "R"), x0
+
+    def run(self, model, z: np.ndarray, u: np.ndarray, dt: float,
+            x0: np.ndarray | None = None) -> Estimate:
+        runs, _, m = z.shape
+        Q, P0, R, x0 = self.start(model, m, x0)
         plan = self.compiled_plan(model)
         if plan is not None:
             x_hat, P_hist, S_hist, innovation, alive = self.run_compiled(

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from estim.config.settings import integer, setting, settings_class
-from estim.estimators.base import Estimate, as_matrix, batch_input, run_batch
+from estim.estimators.base import Estimate, batch_input, run_batch
 from estim.estimators.ekf import ExtendedKalmanFilter
 from estim.estimators.ukf import sqrt_psd
 from estim.numerics import discretize
@@ -51,12 +51,7 @@ class EnsembleFilter(ExtendedKalmanFilter):
         """The batch; ``rng``: the generator of every draw (none given: a fixed seed, 0)."""
         rng = np.random.default_rng(0) if rng is None else rng
         runs, _, m = z.shape
-        Q, P0 = self.state_covariances(model)
-        R = as_matrix(self.R, m, "R")
-        if self.x0 is not None:
-            x0 = np.asarray(self.x0, float)
-        elif x0 is None:
-            x0 = model.operating_point()
+        Q, P0, R, x0 = self.start(model, m, x0)
         n = model.n_states
         start = np.broadcast_to(np.asarray(x0, float), (runs, n))
         Q_root, P0_root = sqrt_psd(np.stack([Q, P0]))
