@@ -284,3 +284,17 @@ def test_the_compiled_square_root_falls_back_to_the_symmetric_root():
     L = np.empty((4, 4))
     ukf_compiled.sqrt_psd(M @ M.T + np.eye(4), L)
     np.testing.assert_allclose(L, np.linalg.cholesky(M @ M.T + np.eye(4)), rtol=1e-13)
+
+
+def test_a_kf_makes_its_matrices_once_and_leaves_the_callers_arrays_alone(oscillator):
+    """The matrices are made and the covariances checked once per filter (a run of one
+    Monte Carlo run is otherwise mostly that), as read-only copies: the arrays given stay
+    the caller's and writable; the sizes against a model are still checked at every run."""
+    A = np.array([[0.9]])
+    kf = KalmanFilter(A=A, B=[[0.0]], C=[[1.0]], Q=1e-3, R=0.1, P0=1.0)
+    assert kf.matrices() is kf.matrices() and A.flags.writeable
+    assert not kf.matrices()[0].flags.writeable and kf.matrices()[0] is not A
+    kf.run(None, np.zeros((1, 5, 1)), np.zeros((5, 1)))
+    for _ in range(2):
+        with pytest.raises(ValueError, match="A: 1 rows, but the model"):
+            kf.run(oscillator, np.zeros((1, 5, 1)), np.zeros((5, 1)), 0.1)

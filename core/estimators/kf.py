@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from estim.config.settings import REQUIRED, matrix, setting, settings_class
@@ -50,7 +52,12 @@ class KalmanFilter(NoiseCovariances, name="kf"):
 
     def matrices(self) -> tuple[np.ndarray, ...]:
         """``A, B, C, Q, R, P0`` as arrays; ``ValueError`` naming the setting whose shape does
-        not fit the others."""
+        not fit the others. Made once per filter (its settings are frozen): a run of one
+        Monte Carlo run is otherwise mostly this and :meth:`validate`'s checks."""
+        return self._matrices
+
+    @functools.cached_property
+    def _matrices(self) -> tuple[np.ndarray, ...]:
         A = np.atleast_2d(np.asarray(self.A, float))
         n = A.shape[0]
         if A.shape != (n, n):
@@ -64,8 +71,12 @@ class KalmanFilter(NoiseCovariances, name="kf"):
             raise SettingError("C", f"expected {n} columns (one per state), got shape {C.shape}")
         if self.x0 is not None and np.size(self.x0) != n:
             raise SettingError("x0", f"expected {n} values, got {np.size(self.x0)}")
-        return (A, B, C, as_matrix(self.Q, n, "Q"), as_matrix(self.R, C.shape[0], "R"),
-                as_matrix(self.P0, n, "P0"))
+        out = tuple(np.array(a) for a in (A, B, C, as_matrix(self.Q, n, "Q"),
+                                          as_matrix(self.R, C.shape[0], "R"),
+                                          as_matrix(self.P0, n, "P0")))
+        for a in out:                             # copies (never the caller's arrays), shared
+            a.flags.writeable = False             # by every run of this filter
+        return out
 
     def measured(self, model) -> int | None:
         return self.matrices()[2].shape[0]
@@ -86,9 +97,16 @@ class KalmanFilter(NoiseCovariances, name="kf"):
             if B.size and B.shape[1] != model.n_inputs:
                 raise SettingError("B", f"{B.shape[1]} columns, but the model {model.name} has "
                                  f"{model.n_inputs} inputs")
-        check_covariance(Q, n, "Q")
-        check_covariance(P0, n, "P0")
+        self._covariances_checked  # noqa: B018 - raises for a covariance that is not one
+
+    @functools.cached_property
+    def _covariances_checked(self) -> bool:
+        """The covariances: finite, symmetric, positive (semi)definite (checked once)."""
+        A, _, C, Q, R, P0 = self.matrices()
+        check_covariance(Q, A.shape[0], "Q")
+        check_covariance(P0, A.shape[0], "P0")
         check_covariance(R, C.shape[0], "R", definite=True)
+        return True
 
     def run(self, model, z: np.ndarray, u: np.ndarray, dt: float | None = None,
             x0: np.ndarray | None = None) -> Estimate:
