@@ -58,7 +58,7 @@ def write(tmp_path: Path, spec: dict, name: str = "tiny.yaml") -> Path:
     ({"input.frequencies_hz": []}, "input.frequencies_hz", "non-empty list"),
     ({"model.name": "bjt_magic"}, "model.name", "mosfet_ekv"),
     ({"estimators.0.type": "pf"}, "estimators[0].type",
-     "'ekf', 'kf', 'kronecker_ekf', 'rls', 'ukf'"),
+     "'bootstrap_pf', 'ekf', 'enkf', 'kf', 'kronecker_ekf', 'rls', 'ukf'"),
     ({"estimators.1.settings": {"orderr": 3}}, "estimators[1].settings.orderr", "order"),
     ({"model.params": {"V_GG": 1.0}}, "model.params.V_GG", "unknown parameter"),
     ({"model.params": {"drain_current": "spice"}}, "model.params", "drain_current"),
