@@ -51,21 +51,18 @@ def infer(cells: list[str], text_only: bool = False) -> tuple[list, str]:
     if text_only:
         return ["" if c in MISSING else c for c in cells], "O"
     present = [c for c in cells if c not in MISSING]
-    missing = len(present) < len(cells)
-    if present and len(present) <= len(cells):
-        ints = [_as_int(c) for c in present]
-        if all(v is not None for v in ints) and all(abs(v) < 2**63 for v in ints):
-            if not missing:
-                return ints, "i"
-            return [NAN if c in MISSING else float(int(c)) for c in cells], "f"
-        floats = [_as_float(c) for c in present]
-        if all(v is not None for v in floats):
-            return [NAN if c in MISSING else float(c) for c in cells], "f"
-        if all(c in _TRUE or c in _FALSE for c in present):
-            values = [NAN if c in MISSING else c in _TRUE for c in cells]
-            return values, "O" if missing else "b"
     if not present:
         return [NAN] * len(cells), "f"
+    missing = len(present) < len(cells)
+    ints = [_as_int(c) for c in present]
+    if all(v is not None and abs(v) < 2**63 for v in ints):
+        if not missing:
+            return ints, "i"
+        return [NAN if c in MISSING else float(int(c)) for c in cells], "f"
+    if all(_as_float(c) is not None for c in present):
+        return [NAN if c in MISSING else float(c) for c in cells], "f"
+    if all(c in _TRUE or c in _FALSE for c in present):
+        return [NAN if c in MISSING else c in _TRUE for c in cells], "O" if missing else "b"
     return [NAN if c in MISSING else c for c in cells], "O"
 
 
