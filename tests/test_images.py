@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from estim.images import kalman2d, nshp
+from estim.images import kalman2d, nshp, wavefront
 
 A_TRUE = np.array([0.6, 0.3, 0.5, -0.45])        # M = 1: (0,1), (1,-1), (1,0), (1,1)
 
@@ -117,17 +117,17 @@ def test_table_i_through_the_exact_filter_identifies_phi_within_0_05(seed):
     u -= u.mean()
     sigma_v2 = u.var() / 10**0.5
     noisy = u + np.sqrt(sigma_v2) * rng.standard_normal(u.shape)
-    out = kalman2d.restore_adaptive_exact(noisy, 0.5 * A_TRUE, 1, 1.0, sigma_v2,
+    out = wavefront.restore_adaptive_exact(noisy, 0.5 * A_TRUE, 1, 1.0, sigma_v2,
                                           {"H0": 1.0, "lambda0": 0.95, "v0": 1.0})
     half = out["trace"][out["trace"].shape[0] // 2:]
     assert np.abs(half - A_TRUE).max() < 0.05
-    known = kalman2d.restore_exact(noisy, A_TRUE, 1, 1.0, sigma_v2)["image"]
+    known = wavefront.restore_exact(noisy, A_TRUE, 1, 1.0, sigma_v2)["image"]
 
     def snr(est):
         return 10 * np.log10(u.var() / np.mean((u - est) ** 2))
 
     assert abs(snr(out["image"]) - snr(known)) < 0.3
-    held = kalman2d.restore_adaptive_exact(noisy, A_TRUE, 1, 1.0, sigma_v2,
+    held = wavefront.restore_adaptive_exact(noisy, A_TRUE, 1, 1.0, sigma_v2,
                                            {"H0": 1.0, "lambda0": 0.95, "v0": 1e-300})
     np.testing.assert_allclose(held["image"], known, atol=1e-12)
 
@@ -267,7 +267,7 @@ def test_the_exact_filter_is_the_conditional_mean_of_the_field(M):
          + np.sqrt(sigma_v2) * rng.standard_normal((rows, cols))).ravel()
     ref = [Cu[k, :k + 1] @ np.linalg.solve(Cu[:k + 1, :k + 1] + sigma_v2 * np.eye(k + 1),
                                            y[:k + 1]) for k in range(n)]
-    out = kalman2d.restore_exact(y.reshape(rows, cols), a, M, sigma_e2, sigma_v2)
+    out = wavefront.restore_exact(y.reshape(rows, cols), a, M, sigma_e2, sigma_v2)
     np.testing.assert_allclose(out["image"].ravel(), ref, atol=1e-12)
 
 
@@ -277,7 +277,7 @@ def test_the_reduced_filter_of_eq_13b_predicts_worse_than_the_exact_filter():
     u, noisy, sigma_v2 = noisy_field(4, (400, 30))
     A10, A01, _ = nshp.state_matrices(A_TRUE, 1)
     reduced = kalman2d.restore(noisy, A10, A01, 1.0, sigma_v2, 1)
-    exact = kalman2d.restore_exact(noisy, A_TRUE, 1, 1.0, sigma_v2)
+    exact = wavefront.restore_exact(noisy, A_TRUE, 1, 1.0, sigma_v2)
     rows = slice(20, None)
     assert np.mean(exact["innovation"][rows] ** 2) < 0.99 * np.mean(
         reduced["innovation"][rows] ** 2)
