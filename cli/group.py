@@ -92,7 +92,7 @@ class Group(click.Group):
         try:
             return super().invoke(ctx)
         except (KeyboardInterrupt, click.Abort):
-            from estim.cli.interrupt import exit_status, interrupt_line
+            from estim.util.interrupt import exit_status, interrupt_line
 
             click.echo(interrupt_line(), err=True)
             sys.exit(exit_status())
@@ -105,10 +105,10 @@ class Group(click.Group):
             click.echo(f"error: {bounded(f'{exc.strerror or exc}{where}')}", err=True)
             sys.exit(3)
         except Exception as exc:  # noqa: BLE001 - last line of defence, reported
-            from estim.cli.interrupt import interrupted
+            from estim.util.interrupt import interrupted
 
             if interrupted():                       # e.g. a worker pool the Ctrl-C broke
-                from estim.cli.interrupt import exit_status, interrupt_line
+                from estim.util.interrupt import exit_status, interrupt_line
 
                 click.echo(interrupt_line(), err=True)
                 sys.exit(exit_status())

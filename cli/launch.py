@@ -12,7 +12,7 @@ import os
 import signal
 import sys
 
-from estim.cli.interrupt import arm, exit_status, interrupt_line, interrupted, on_interrupt
+from estim.util.interrupt import arm, exit_status, interrupt_line, interrupted, on_interrupt
 
 
 def _quiet_hooks() -> None:

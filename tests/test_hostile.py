@@ -893,8 +893,8 @@ def test_ctrl_c_while_python_imports_is_one_line_and_exit_130(delay):
     no program can answer; so the child installs the handler as main's first line does, says
     so, and the clock starts there (a fixed 5 ms after 'in' raced main's own first line on a
     machine running two CI jobs: an interrupt before the launcher's ``try`` is now recorded
-    and raised inside it, :func:`estim.cli.interrupt.arm`)."""
-    child = ("import signal, sys; from estim.cli import interrupt, launch; "
+    and raised inside it, :func:`estim.util.interrupt.arm`)."""
+    child = ("import signal, sys; from estim.cli import launch; from estim.util import interrupt; "
              "signal.signal(signal.SIGINT, interrupt.on_interrupt); "     # as main's first line
              "sys.stderr.write('in\\n'); sys.stderr.flush(); launch.main()")
     launch = [sys.executable, "-c", child, "validate", "configs/mosfet_saturation.yaml"]
@@ -912,7 +912,8 @@ def test_ctrl_c_inside_clicks_argument_parsing_is_exit_130_not_aborted(monkeypat
     """A SIGINT that lands in click's own parsing, after the commands are imported and before
     any command runs (click's standalone mode prints "Aborted!" and exits 1 there), is one
     line and exit 130 like every other interrupt."""
-    from estim.cli import entry, interrupt, launch
+    from estim.cli import entry, launch
+    from estim.util import interrupt
 
     def interrupted_while_parsing(*args, **kwargs):
         interrupt.on_interrupt(signal.SIGINT, None)       # what the real SIGINT runs

@@ -166,6 +166,73 @@ def test_ctrl_c_during_a_shared_reproduce_is_one_line_exit_130_and_stops_the_wor
     assert left.stdout.strip() == "", left.stdout
 
 
+@pytest.fixture
+def armed():
+    """This process as the console script leaves it: its interrupt handler armed (and no
+    interrupt recorded afterwards, for the tests that follow in this worker)."""
+    from estim.util import interrupt
+
+    interrupt.ARMED[0] = True
+    yield interrupt
+    interrupt.INTERRUPTED[0] = interrupt.ARMED[0] = False
+
+
+def test_an_interrupt_python_swallowed_is_raised_where_the_drivers_are_waited_for(armed):
+    """A Ctrl-C whose KeyboardInterrupt was lost (recorded by the handler, raised nowhere)
+    still stops the wait for the drivers, within a fraction of a second."""
+    def work(item):
+        if item == "a":
+            armed.INTERRUPTED[0] = True         # what the handler records
+        time.sleep(3.0 if item == "b" else 0.0)
+        return item
+
+    began = time.perf_counter()
+    with pytest.raises(KeyboardInterrupt):
+        list(scheduler.run_each(["a", "b"], work, threads=2))
+    assert time.perf_counter() - began < 2.5
+
+
+def test_an_interrupt_python_swallowed_stops_map_tasks_before_the_next_unit(armed):
+    done = []
+
+    def unit(i):
+        done.append(i)
+        armed.INTERRUPTED[0] = True
+        return i
+
+    with pytest.raises(KeyboardInterrupt):
+        map_tasks(unit, range(4))
+    assert done == [0]
+
+
+def test_python_swallows_an_interrupt_inside_a_lazy_import_and_estim_raises_it(tmp_path):
+    """CPython 3.11 clears an error raised while its import statement reads a lazily loaded
+    module's ``__spec__``: a SIGINT that lands while the module runs is lost there. The
+    handler has recorded it, and the next place estim waits (here, importing the rest of the
+    lazy modules) raises it."""
+    import subprocess
+    import sys
+
+    (tmp_path / "slowmod.py").write_text(
+        "import os, signal\nos.kill(os.getpid(), signal.SIGINT)\nVALUE = 1\n")
+    child = "\n".join([
+        "import signal, sys",
+        f"sys.path.insert(0, {str(tmp_path)!r})",
+        "from estim.util import interrupt, lazy",
+        "signal.signal(signal.SIGINT, interrupt.on_interrupt)",
+        "interrupt.arm()",
+        "lazy.load('slowmod')",
+        "import slowmod",
+        "print('went on', interrupt.interrupted())",
+        "try:",
+        "    lazy.import_all_now()",
+        "except KeyboardInterrupt:",
+        "    print('raised')"])
+    done = subprocess.run([sys.executable, "-c", child], capture_output=True, text=True,
+                          timeout=60, preexec_fn=interruptible)
+    assert done.stdout.split("\n")[:2] == ["went on True", "raised"], done.stderr
+
+
 @pytest.mark.slow
 def test_run_of_several_configs_shares_the_pool_and_writes_what_jobs_1_writes(tmp_path):
     paths = []

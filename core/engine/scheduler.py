@@ -24,11 +24,16 @@ from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any, TypeVar
 
+from estim.util.interrupt import raise_if_interrupted
 from estim.util.processes import ignore_interrupts, stop
 
 T = TypeVar("T")
 
 _DONE = object()
+
+POLL_S = 0.25
+"""Seconds between two looks at :func:`estim.util.interrupt.raise_if_interrupted` while the
+caller's thread waits for the drivers."""
 
 
 @contextlib.contextmanager
@@ -40,6 +45,7 @@ def process_pool(jobs: int) -> Iterator[ProcessPoolExecutor]:
     pool = ProcessPoolExecutor(max_workers=jobs, initializer=ignore_interrupts)
     try:
         pool.submit(int).result()
+        raise_if_interrupted()
         yield pool
     except BaseException:
         stop(pool)
@@ -86,7 +92,11 @@ def _concurrently(items: list, work: Callable, threads: int,
         threading.Thread(target=driver, daemon=True, name="estim-driver").start()
     running, first = count if items else 0, None
     while running:
-        got = results.get()
+        try:
+            got = results.get(timeout=POLL_S)
+        except queue.Empty:
+            raise_if_interrupted()
+            continue
         if got is _DONE:
             running -= 1
             continue

@@ -15,6 +15,8 @@ from types import ModuleType
 
 import lazy_loader
 
+from estim.util.interrupt import raise_if_interrupted
+
 _registered: list[ModuleType] = []
 _eager = False
 
@@ -41,7 +43,8 @@ def import_all_now() -> None:
     (``ImportError: cannot import name 'scoreatpercentile' from 'scipy.stats'`` with two
     configs at once). So :mod:`estim.engine.scheduler`'s callers import them in their own thread
     before any driver thread starts. A module that cannot be imported is left to fail where
-    it is used, as it would have."""
+    it is used, as it would have. An interrupt that landed while a module loaded is raised
+    here (Python's import statement may have swallowed it, :mod:`estim.util.interrupt`)."""
     global _eager
     _eager = True
     for module in _registered:
@@ -49,3 +52,4 @@ def import_all_now() -> None:
             _ = module.__name__                 # the first read imports it
         except ImportError:
             pass
+    raise_if_interrupted()

@@ -9,7 +9,7 @@ from concurrent.futures import Executor
 def ignore_interrupts() -> None:
     """Workers leave Ctrl-C to the parent, which stops them and reports once; SIGTERM, by
     which the parent stops them, ends them at once (a forked worker would otherwise inherit
-    the parent's handler, :mod:`estim.cli.interrupt`)."""
+    the parent's handler, :mod:`estim.util.interrupt`)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
 

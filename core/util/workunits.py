@@ -20,6 +20,7 @@ from contextvars import ContextVar
 from dataclasses import dataclass, field
 from typing import Any
 
+from estim.util.interrupt import raise_if_interrupted
 from estim.util.processes import ignore_interrupts, stop
 
 
@@ -134,33 +135,43 @@ def map_tasks(fn: Callable[[Any], Any], tasks: Iterable, jobs: int = 1,
         for i, value in ctx.executor(fn, {i: tasks[i] for i in pending}):
             finished(i, value)
     elif ctx is not None and ctx.pool is not None and pending:
-        futures = {ctx.pool.submit(fn, tasks[i]): i for i in pending}
-        left = set(futures)
-        try:
-            while left:
-                done, left = wait(left, timeout=1.0, return_when=FIRST_COMPLETED)
-                for future in done:
-                    finished(futures[future], future.result())
-                if any(future.cancelled() for future in left):   # a cancel wakes no waiter
-                    raise CancelledError("the shared pool was stopped")
-        except BaseException:
-            for future in futures:
-                future.cancel()
-            raise
+        _on_pool(ctx.pool, fn, tasks, pending, finished)
     elif jobs > 1 and len(pending) > 1:
         pool = ProcessPoolExecutor(max_workers=min(jobs, len(pending)),
                                    initializer=ignore_interrupts)
         try:
-            for i, value in zip(pending, pool.map(fn, [tasks[i] for i in pending]),
-                                strict=True):
-                finished(i, value)
+            _on_pool(pool, fn, tasks, pending, finished)
         except BaseException:
             stop(pool)
             raise
         pool.shutdown()
     else:
         for i in pending:
+            raise_if_interrupted()
             finished(i, fn(tasks[i]))
     if others:
         raise ShardDone
     return out
+
+
+def _on_pool(pool: Executor, fn: Callable[[Any], Any], tasks: list, pending: list[int],
+             finished: Callable[[int, Any], None]) -> None:
+    """``finished(i, fn(tasks[i]))`` for every ``i`` of ``pending``, the calls on ``pool``,
+    in the order they finish. The wait looks up every second for an interrupt Python may have
+    swallowed (:func:`estim.util.interrupt.raise_if_interrupted`) and for units cancelled by a
+    stopped shared pool (a cancel wakes no waiter); on any error the units not started are
+    cancelled."""
+    futures = {pool.submit(fn, tasks[i]): i for i in pending}
+    left = set(futures)
+    try:
+        while left:
+            done, left = wait(left, timeout=1.0, return_when=FIRST_COMPLETED)
+            for future in done:
+                finished(futures[future], future.result())
+            raise_if_interrupted()
+            if any(future.cancelled() for future in left):
+                raise CancelledError("the shared pool was stopped")
+    except BaseException:
+        for future in futures:
+            future.cancel()
+        raise

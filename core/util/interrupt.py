@@ -1,8 +1,15 @@
 """Whether this process has been interrupted: the SIGINT and SIGTERM handler the console
-script installs first (:mod:`estim.cli.launch`) records it here, where the commands ask
-(standard library only, so the launcher can import it before anything else). Both signals
-unwind the command as Ctrl-C does, so what it started (a worker pool, an ngspice run, a
-result folder being written) is stopped or left whole on the way out."""
+script installs first (:mod:`estim.cli.launch`) records it here, where the commands and the
+work-unit engine ask (standard library only, so the launcher can import it before anything
+else). Both signals unwind the command as Ctrl-C does, so what it started (a worker pool, an
+ngspice run, a result folder being written) is stopped or left whole on the way out.
+
+The handler's ``KeyboardInterrupt`` can be lost: Python clears an error raised while its
+import statement reads a lazily loaded module's ``__spec__`` (CPython 3.11's
+``_PyModuleSpec_IsInitializing``), so a Ctrl-C that lands while such a module loads is
+recorded here and raised nowhere. The places a run waits call :func:`raise_if_interrupted`
+and raise it there (before they did, a shared ``estim reproduce`` interrupted while it
+imported its analyses went on to its end)."""
 
 from __future__ import annotations
 
@@ -36,6 +43,14 @@ def arm() -> None:
 def interrupted() -> bool:
     """Whether this process has received SIGINT or SIGTERM."""
     return INTERRUPTED[0]
+
+
+def raise_if_interrupted() -> None:
+    """Raise the ``KeyboardInterrupt`` of an interrupt this process has received since the
+    launcher armed its handler (nothing when estim is used as a library, where no handler
+    of estim's is installed)."""
+    if INTERRUPTED[0] and ARMED[0]:
+        raise KeyboardInterrupt
 
 
 def exit_status() -> int:
