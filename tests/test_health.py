@@ -189,13 +189,14 @@ def test_a_run_notes_each_estimator_that_broke_in_every_run_of_some_rows():
 
     from estim.experiments import estimation
     from estim.experiments.base import Result
+    from estim.experiments.estimation import printing
 
     rmse = pd.DataFrame({
         "measurement": ["noisy"] * 4, "noise_reading": ["sigma"] * 4, "noise_param": [0.1] * 4,
         "frequency_hz": [100.0, 100.0, 1000.0, 1000.0], "estimator": ["UKF", "EKF"] * 2,
         "rmse": [float("inf"), 0.1, float("inf"), float("inf")], "runs": [5] * 4,
         "diverged": [5, 0, 5, 4]})
-    lines = estimation.broken_lines(rmse)
+    lines = printing.broken_lines(rmse)
     assert lines == [lines[0]] and lines[0].startswith("note: UKF broke in every run of 2 of 2 "
                                                        "rows")
     text = estimation.printout(Result(tables={"rmse": rmse}))

@@ -2,9 +2,10 @@
 
 For each sweep point (noise reading x noise level x input frequency, in thesis row order):
 
-1. the source is the nominal sine plus white Gaussian noise at every sample after ``t_0``
-   (the "Gaussian noise at input source" of Tables 3.1-3.5), piecewise linear between
-   samples;
+1. the source is the nominal waveform (the thesis' sine, or a pulse, step, piecewise-linear
+   or recorded one: :mod:`estim.experiments.estimation.source`) plus white Gaussian noise at
+   every sample after ``t_0`` (the "Gaussian noise at input source" of Tables 3.1-3.5), held
+   over each sample interval as the model maps it;
 2. the actual circuit is integrated with a stiff solver (:mod:`estim.numerics.simulate`; the batched
    Radau IIA by default, scipy's ``solve_ivp`` with ``simulation.solver: scipy``) from its DC
    operating point;
@@ -42,8 +43,10 @@ from estim.estimators import kalman_differentiator
 from estim.estimators.base import GENERATOR_KEY, takes_generator
 from estim.experiments.base import Quote, Result
 from estim.experiments.estimation import figures as estimation_figures
+from estim.experiments.estimation import source as waveforms
 from estim.experiments.estimation.config import Config
 from estim.experiments.estimation.figures import FIGURE_KINDS
+from estim.experiments.estimation.printing import printout as printout  # the protocol's printout
 from estim.experiments.shared import claims, pipeline
 from estim.numerics import signals
 from estim.numerics.simulate import SOLVERS
@@ -102,6 +105,8 @@ class Plan:
     x0: object
     inputs: tuple = ()
     """Per estimator: its ``(input_derivative, derivative_bandwidth)``."""
+    knots: object = None
+    """The ``(t, w)`` knots of a ``pwl`` or ``file`` source (:mod:`.source`)."""
 
 
 def prepare(config: Config, source: str) -> Plan:
@@ -114,18 +119,20 @@ def prepare(config: Config, source: str) -> Plan:
                           "give exactly one of input.periods and input.duration_s")
     for key in ("bias_v", "mix"):
         check_input_vector(getattr(inp, key), model_cls, source, f"input.{key}")
+    knots = waveforms.check(inp, source)
+    freqs = waveforms.frequencies(inp)
     if noise.pairs:
-        if len(noise.input_levels) != len(inp.frequencies_hz):
+        if len(noise.input_levels) != len(freqs):
             raise ConfigError(source, "noise.pairs", "with pairs: true, noise.input_levels and "
                               "input.frequencies_hz must have the same length")
-        cells = list(zip(noise.input_levels, inp.frequencies_hz, strict=True))
+        cells = list(zip(noise.input_levels, freqs, strict=True))
         for i, cell in enumerate(cells):
             if cell in cells[:i]:
                 raise ConfigError(source, f"input.frequencies_hz[{i}]",
                                   f"repeats the (noise level, frequency) pair {cell}")
     else:
         for key, values in (("noise.input_levels", noise.input_levels),
-                            ("input.frequencies_hz", inp.frequencies_hz)):
+                            ("input.frequencies_hz", freqs)):
             for i, v in enumerate(values):
                 if v in values[:i]:
                     raise ConfigError(source, f"{key}[{i}]", f"repeats {v!r}")
@@ -133,7 +140,9 @@ def prepare(config: Config, source: str) -> Plan:
         raise ConfigError(source, "noise.input_sensor_sigma", "applies only when the filters "
                           "see the noisy source (noise.filters_see: noisy)")
     truth = build_model(model_cls, variant, config.model.params, source, "model.params")
-    x0 = operating_point(truth, inp.bias_v, source, "model.params")
+    held = (np.asarray(inp.bias_v, float)
+            + waveforms.start(inp, knots) * np.asarray(inp.mix, float))
+    x0 = operating_point(truth, held, source, "model.params")
     filters, labels = [], []
     for i, est in enumerate(config.estimators):
         path = f"estimators[{i}]"
@@ -154,6 +163,12 @@ def prepare(config: Config, source: str) -> Plan:
             raise ConfigError(source, f"{path}.input_derivative",
                               f"model {config.model.name}'s input is not the derivative of "
                               "its source; only 'difference' (the model's own mapping) applies")
+        if ((est.input_derivative == "analytic" and inp.waveform != "sine")
+                or (est.input_derivative == "kalman" and inp.waveform not in waveforms.PERIODIC)):
+            raise ConfigError(source, f"{path}.input_derivative",
+                              f"{est.input_derivative!r} needs a "
+                              f"{'sine' if est.input_derivative == 'analytic' else 'periodic'} "
+                              f"input, not {inp.waveform}; use 'difference'")
     regime = config.regime
     if regime is not None and regime not in truth.regimes:
         raise ConfigError(source, "regime", f"expected one of {list(truth.regimes)} for "
@@ -179,13 +194,16 @@ def prepare(config: Config, source: str) -> Plan:
                               f"{extra.name!r} is already the file of {used[extra.name]}")
         used[extra.name] = f"figures.extra_noisy[{i}].name"
     dt = inp.sample_time_s
-    if dt is not None and dt * max(inp.frequencies_hz) > 10:
+    if dt is not None and inp.waveform in waveforms.PERIODIC and dt * max(freqs) > 10:
         raise ConfigError(source, "input.sample_time_s",
                           f"{dt:g} s samples the highest input frequency "
-                          f"{max(inp.frequencies_hz):g} Hz fewer than once in ten periods")
+                          f"{max(freqs):g} Hz fewer than once in ten periods")
+    if dt is not None and inp.duration_s is not None and dt > inp.duration_s:
+        raise ConfigError(source, "input.sample_time_s",
+                          f"{dt:g} s is longer than the record (input.duration_s)")
     inputs = tuple((e.input_derivative, e.derivative_bandwidth)
                    for e in config.estimators)
-    return Plan(truth=truth, filters=tuple(filters), x0=x0, inputs=inputs)
+    return Plan(truth=truth, filters=tuple(filters), x0=x0, inputs=inputs, knots=knots)
 
 
 def work_size(config: Config) -> int:
@@ -193,7 +211,7 @@ def work_size(config: Config) -> int:
     n = len(registry.MODELS[config.model.name].state_names)
     inp, mc = config.input, config.monte_carlo
     per_freq = 0
-    for f in inp.frequencies_hz:
+    for f in waveforms.frequencies(inp):
         dt = inp.sample_time_s or 1.0 / (inp.samples_per_period * f)
         span = inp.duration_s if inp.duration_s is not None else (
             (inp.periods or 1) / f)
@@ -207,13 +225,16 @@ def work_size(config: Config) -> int:
 
 
 def tiny(config: Config) -> dict:
-    """Seconds of work: one frequency, one noise level and reading, two periods, 3 runs."""
+    """Seconds of work: one frequency, one noise level and reading, two periods (a waveform
+    that does not repeat keeps its record), 3 runs."""
     inp, noise = config.input, config.noise
-    out = {"input.frequencies_hz": inp.frequencies_hz[:1]}
-    if inp.periods is not None:
-        out["input.periods"] = 2
-    else:
-        out["input.duration_s"] = 2.0 / inp.frequencies_hz[0]
+    out: dict = {}
+    if inp.waveform in waveforms.PERIODIC:          # else one record, as the config has it
+        out["input.frequencies_hz"] = inp.frequencies_hz[:1]
+        if inp.periods is not None:
+            out["input.periods"] = 2
+        else:
+            out["input.duration_s"] = 2.0 / inp.frequencies_hz[0]
     return {**out, "noise.input_levels": noise.input_levels[:1],
             "noise.readings": (noise.readings or ["sigma"])[:1],
             "noise.measurement": (noise.measurement or ["noisy"])[:1],
@@ -237,10 +258,11 @@ def sweep(exp: Experiment) -> list[SweepPoint]:
     of ``measurement_sigma``; ``noise_free``, the actual output itself (the filters keep
     their ``R``)."""
     noise, inp = exp.config.noise, exp.config.input
+    freqs = waveforms.frequencies(inp)
     if noise.pairs:
-        cells = list(zip(noise.input_levels, inp.frequencies_hz, strict=True))
+        cells = list(zip(noise.input_levels, freqs, strict=True))
     else:
-        cells = [(level, f) for level in noise.input_levels for f in inp.frequencies_hz]
+        cells = [(level, f) for level in noise.input_levels for f in freqs]
     points = []
     for measurement in noise.measurement:
         for reading in noise.readings:
@@ -271,7 +293,7 @@ def simulate_point(exp: Experiment, frequency_hz: float, sigma: float, runs: int
     dt, steps = sampling(exp, frequency_hz)
     t = np.arange(steps + 1) * dt
     mix, bias = np.asarray(inp.mix, float), np.asarray(inp.bias_v, float)
-    clean = bias + signals.sine(inp.amplitude_v, frequency_hz, t) * mix
+    clean = bias + waveforms.waveform(inp, exp.plan.knots, frequency_hz, t) * mix
     input_noise = sigma * rng.standard_normal((runs, steps + 1, 1)) * mix
     input_noise[:, 0] = 0.0    # the circuit starts at its operating point with v_in(t_0) known
     source = clean[None] + input_noise
@@ -356,7 +378,7 @@ def figure_cases(exp: Experiment) -> list[tuple[str, float, float, str]]:
     """``(key, frequency, noise level, reading)`` of every noisy figure batch: the figure's
     point and each ``figures.extra_noisy`` case."""
     fig = exp.config.figures
-    f = fig.frequency_hz or exp.config.input.frequencies_hz[0]
+    f = fig.frequency_hz or waveforms.frequencies(exp.config.input)[0]
     level = fig.noise_level or exp.config.noise.input_levels[0]
     reading = fig.reading or exp.config.noise.readings[0]
     cases = [("noisy", f, level, reading)]
@@ -436,34 +458,6 @@ def figures(exp: Experiment, known: dict) -> dict:
     :func:`estim.experiments.estimation.figures.figures`."""
     _, f, level, reading = figure_cases(exp)[0]
     return estimation_figures.figures(exp, figure_traces(exp, known), f, level, reading)
-
-
-def printout(result: Result) -> str:
-    """RMSE by estimator (columns) and sweep point (rows), then a line for each estimator
-    that broke in every run of some rows (:func:`broken_lines`)."""
-    df = result.tables.get("rmse")
-    if df is None:
-        return ""
-    view = df.pivot(index=["measurement", "noise_reading", "noise_param", "frequency_hz"],
-                    columns="estimator", values="rmse")
-    return "\n".join([view.to_string(float_format=lambda v: f"{v:.4g}"), *broken_lines(df)])
-
-
-def broken_lines(rmse) -> list[str]:
-    """One line per estimator whose every run broke (its estimate became non-finite or left
-    the filter's bound) in some rows of the ``rmse`` table: those rows' RMSEs are infinite
-    and their health columns empty, which a reader should not have to find out alone."""
-    lines = []
-    if not {"estimator", "runs", "diverged"} <= set(rmse.columns):
-        return lines
-    for name, rows in rmse.groupby("estimator", sort=False):
-        every = rows[(rows["runs"] > 0) & (rows["diverged"] >= rows["runs"])]
-        if len(every):
-            lines.append(f"note: {name} broke in every run of {len(every)} of {len(rows)} "
-                         "rows (a non-finite estimate or one beyond divergence_bound): its "
-                         "RMSE is inf there; for a UKF, a smaller alpha keeps its sigma "
-                         "points inside the circuit's range (docs/your-circuit.md)")
-    return lines
 
 
 TUNE_SEED_KEY = 2**32

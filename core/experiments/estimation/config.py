@@ -33,6 +33,9 @@ from estim.experiments.shared.blocks import (
     simulation,
 )
 
+WAVEFORMS = ("sine", "pulse", "step", "pwl", "file")
+"""The source waveforms (:func:`estim.experiments.estimation.source.waveform`)."""
+
 DERIVATIVE_METHODS = {"difference", "analytic", "kalman"}
 """How a filter gets ``dv_in/dt`` for a model whose input is the source's slope (eq 3.26):
 the difference of the samples it sees on each interval (the default), the nominal sine's
@@ -43,9 +46,30 @@ derivative at the interval's midpoint, or the Kalman differentiator of the sampl
 
 @settings_class
 class Input(Sine):
-    """The source: a sine, sampled, with a DC level per model input."""
+    """The source: a waveform (a sine by default), sampled, with a DC level per model input
+    (:mod:`estim.experiments.estimation.source`)."""
 
-    waveform: str = setting("sine", text({"sine"}), doc="the source's waveform")
+    waveform: str = setting("sine", text(set(WAVEFORMS)),
+                            doc="the source's waveform: sine, pulse (both repeat at each of "
+                                "frequencies_hz), step, pwl (points) or file (a CSV)")
+    amplitude_v: float | None = setting(None, number(minimum=0.0, maximum=MAX_VOLTS), unit="V",
+                                        doc="peak of the sine, height of the pulse or step "
+                                            "(not for pwl or file)")
+    frequencies_hz: list | None = setting(None, list_of(number(minimum=1e-3, maximum=1e9)),
+                                          unit="Hz", doc="the table's input frequencies (sine "
+                                                         "and pulse only: the others have one, "
+                                                         "1 / duration_s)")
+    delay_s: float = setting(0.0, number(minimum=0.0, maximum=1e4), unit="s",
+                             doc="pulse and step: the time the source first rises")
+    duty: float = setting(0.5, number(positive=True, below=1.0),
+                          doc="pulse: the fraction of each period it is high")
+    points: list | None = setting(None, list_of(list_of(number(minimum=-1e4, maximum=1e4),
+                                                        max_length=2), max_length=100_000),
+                                  unit="s, V", doc="pwl: [time, volts] knots, linear between, "
+                                                   "held after the last")
+    file: str | None = setting(None, text(max_length=1000),
+                               doc="file: a CSV (header, then time in s and volts), relative "
+                                   "to the config's folder; linear between its rows")
     samples_per_period: int = setting(10, integer(2, 10_000),
                                       doc="samples per period of each frequency")
     sample_time_s: float | None = setting(None, number(minimum=1e-12, maximum=1e3), unit="s",

@@ -4,6 +4,7 @@ the batches the analysis simulated (:mod:`estim.experiments.estimation` chooses 
 from __future__ import annotations
 
 from estim.config.experiment import Experiment
+from estim.experiments.estimation import source as waveforms
 from estim.experiments.shared import plots
 from estim.numerics import metrics
 
@@ -38,9 +39,10 @@ def figures(exp: Experiment, data: dict, f: float, level: float, reading: str) -
         return (f"input noise σ = {level:g} V" if reading == "sigma"
                 else f"input noise variance = {level:g} V²")
 
-    where = f"{f:g} Hz, {noise(level, reading)}"
+    source = waveforms.label(exp.config.input, f)
+    where = f"{source}, {noise(level, reading)}"
     makers = {
-        "noiseless": lambda: plots.estimates(data["noiseless"], f"{what}; {f:g} Hz, no input "
+        "noiseless": lambda: plots.estimates(data["noiseless"], f"{what}; {source}, no input "
                                              "noise", period),
         "noisy": lambda: plots.estimates(data["noisy"], f"{what}; {where}", period),
         "rmse": lambda: plots.running_rmse(data["noisy"], f"RMSE over runs: {what}; {where}"),
@@ -48,6 +50,6 @@ def figures(exp: Experiment, data: dict, f: float, level: float, reading: str) -
     }
     out = {names.get(kind, kind): makers[kind]() for kind in FIGURE_KINDS}
     for extra in exp.config.figures.extra_noisy:
-        title = f"{what}; {f:g} Hz, {noise(extra.noise_level, extra.reading)}"
+        title = f"{what}; {source}, {noise(extra.noise_level, extra.reading)}"
         out[extra.name] = plots.estimates(data[extra.name], title, period)
     return out
