@@ -123,3 +123,21 @@ def test_the_sine_is_the_default_and_needs_its_frequencies():
     spec = tiny_config(**{"input.frequencies_hz": DELETE})
     with pytest.raises(ConfigError, match="input.frequencies_hz.*required for waveform sine"):
         estim.experiment(spec)
+
+
+def test_results_stored_before_a_setting_existed_are_of_the_config_that_has_its_default():
+    """estim check reads the stored config again with today's settings: a key added since
+    (here the pulse's duty and delay) takes its default, which is how the stored run
+    behaved; a key the stored run had with another value is another config."""
+    import copy
+
+    from estim.engine.check import same_settings
+
+    exp = estim.experiment(tiny_config())
+    before = copy.deepcopy(exp.spec)
+    del before["input"]["duty"], before["input"]["delay_s"]
+    assert same_settings({"config": before, "config_sha256": "0" * 64}, exp)
+    other = copy.deepcopy(before)
+    other["input"]["periods"] = 3
+    assert not same_settings({"config": other, "config_sha256": "0" * 64}, exp)
+    assert not same_settings({"config": None, "config_sha256": "0" * 64}, exp)

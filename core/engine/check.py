@@ -3,6 +3,7 @@ of its tables with the stored ones under the config's tolerances (docs/checking.
 
 from __future__ import annotations
 
+import copy
 import time
 from collections.abc import Callable
 from concurrent.futures import Executor
@@ -10,9 +11,10 @@ from pathlib import Path
 
 from estim import reference, store
 from estim.config.experiment import Experiment
+from estim.config.loading import load_data
 from estim.config.registry import ANALYSES
 from estim.engine import compare, runner
-from estim.errors import ReferenceJoinError, UsageError
+from estim.errors import ConfigError, ReferenceJoinError, UsageError
 from estim.store import read_table
 
 
@@ -27,6 +29,24 @@ def config_differences(stored: dict, current: dict, path: str = "") -> list[str]
     if stored != current:
         return [f"{path or '(config)'}: stored {stored!r}, config {current!r}"]
     return []
+
+
+def same_settings(manifest: dict, exp: Experiment) -> bool:
+    """Whether the stored results were made with ``exp``'s config: the manifest's hash is
+    that of ``exp``'s resolved config, or the config the manifest records, read again by
+    today's settings, is ``exp``'s. The second case is a setting added since the results were
+    stored, which the reading fills with its default: the behaviour the stored run had, or
+    the tables that ``estim check`` compares next show the difference."""
+    if manifest.get("config_sha256") == store.spec_hash(exp.spec):
+        return True
+    recorded = manifest.get("config")
+    if not isinstance(recorded, dict):
+        return False
+    try:
+        again = load_data(copy.deepcopy(recorded), exp.source, exp.name)
+    except (ConfigError, UsageError):
+        return False
+    return store.spec_hash(again.spec) == store.spec_hash(exp.spec)
 
 
 def check(exp: Experiment, stored_dir: Path, tmp: Path, jobs: int, say: Callable[[str], None],
@@ -52,7 +72,7 @@ def check(exp: Experiment, stored_dir: Path, tmp: Path, jobs: int, say: Callable
     if damaged:
         return len(damaged)
     manifest = stored.manifest
-    if same_config and manifest.get("config_sha256") != store.spec_hash(exp.spec):
+    if same_config and not same_settings(manifest, exp):
         changes = config_differences(manifest.get("config"), exp.spec)
         shown = "; ".join(changes[:5]) + (f"; and {len(changes) - 5} more" if
                                           len(changes) > 5 else "")
