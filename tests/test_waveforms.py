@@ -84,8 +84,8 @@ def test_the_circuit_starts_at_its_dc_point_with_the_source_where_the_waveform_s
     ({"input.frequencies_hz": [1000]}, "input.frequencies_hz", "does not repeat"),
     ({"input.sample_time_s": DELETE}, "input.sample_time_s", "required for waveform pwl"),
     ({"input.points": DELETE}, "input.points", "required for waveform pwl"),
-    ({"input.points": [[0.0, 0.0], [0.0, 1.0]]}, "input.points", "must start at 0 s or later "
-                                                                 "and increase"),
+    ({"input.points": [[0.0, 0.0], [-1.0, 1.0]]}, "input.points", "must start at 0 s or "
+                                                                  "later and not decrease"),
     ({"input.points": [[0.0, 0.0, 1.0]]}, "input.points", "at most 2"),
     ({"input.amplitude_v": 0.1}, "input.amplitude_v", "gives its own values"),
     ({"input.file": "x.csv"}, "input.file", "only for waveform file"),

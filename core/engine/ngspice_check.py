@@ -2,7 +2,7 @@
 (``estim spice CONFIG``).
 
 For each case of the config (a perturbation config: each distinct amplitude and frequency of
-its rows; an estimation config: each input frequency, the clean sine plus one draw of input
+its rows; an estimation config: each input frequency, the clean waveform plus one draw of input
 noise at the largest level, as the "actual" signal is made) both simulators start from their
 own DC point and follow the same input: estim's integrator at a tight tolerance, ngspice's
 transient analysis (gear, ``reltol`` 1e-7 by default, tightened tenfold up to twice
@@ -55,8 +55,6 @@ FLOORS = {"v": 1e-6, "i": 1e-12}
 def cases(exp) -> list[tuple[str, object, np.ndarray, float, float | None]]:
     """``(label, model, source (steps + 1, p), dt, frequency or None)`` for each case of
     ``exp`` (the frequency of its sine, where the AC gain is compared)."""
-    from estim.numerics import signals
-
     config = exp.config
     out = []
     if exp.analysis == "perturbation":
@@ -75,19 +73,20 @@ def cases(exp) -> list[tuple[str, object, np.ndarray, float, float | None]]:
             out.append((label, exp.plan.models[row.s_no], src[0], dt, row.frequency_hz))
     elif exp.analysis == "estimation":
         from estim.experiments import estimation
+        from estim.experiments.estimation import source as waveforms
 
         inp, noise = config.input, config.noise
         mix, bias = np.asarray(inp.mix, float), np.asarray(inp.bias_v, float)
         level = max(noise.input_levels)
         rng = exp.config.monte_carlo.rng()
-        for f in sorted(set(inp.frequencies_hz)):
+        for f in sorted(set(waveforms.frequencies(inp))):
             dt, steps = estimation.sampling(exp, f)
             t = np.arange(steps + 1) * dt
-            clean = bias + signals.sine(inp.amplitude_v, f, t) * mix
+            clean = bias + waveforms.waveform(inp, exp.plan.knots, f, t) * mix
             noisy = level * rng.standard_normal((steps + 1, 1)) * mix
             noisy[0] = 0.0
-            out.append((f"{f:g} Hz, input noise sigma {level:g}", exp.plan.truth,
-                        clean + noisy, dt, f))
+            out.append((f"{waveforms.label(inp, f)}, input noise sigma {level:g}",
+                        exp.plan.truth, clean + noisy, dt, f if inp.waveform == "sine" else None))
     else:
         raise ConfigError(exp.source, "analysis", f"estim spice compares the circuits of "
                           f"perturbation and estimation configs, not {exp.analysis!r}")

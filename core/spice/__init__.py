@@ -18,6 +18,7 @@ from estim.config.settings import shown
 from estim.errors import ConfigError, Notice
 from estim.spice.netlist_model import model_class, rebuild
 from estim.spice.parser import NetlistError
+from estim.spice.sources import input_from_netlist
 from estim.util.shipped import shipped_folder
 
 __all__ = ["NetlistError", "find_netlist", "model_class", "rebuild", "resolve_model_block"]
@@ -97,11 +98,14 @@ def resolve_model_block(data: dict, source: str) -> None:
             cls().thesis_map  # noqa: B018 (building the map checks the quantities)
         except NetlistError as exc:
             raise ConfigError(source, "model.thesis_states", exc.message) from None
-    for name in cls.circuit.inputs:
-        wave = cls.circuit.netlist.element(name).waveform
-        if wave[0] != "dc":
-            warnings.warn(f"{source}: the netlist's {wave[0].upper()} waveform on input "
-                          f"{name.upper()} is replaced by the config's input block (estim "
-                          "drives a netlist model's inputs with the config's waveform)", Notice,
-                          stacklevel=2)
+    if data.get("analysis") == "estimation":
+        input_from_netlist(data, cls, source)
+    else:
+        for name in cls.circuit.inputs:
+            wave = cls.circuit.netlist.element(name).waveform
+            if wave[0] != "dc":
+                warnings.warn(f"{source}: the netlist's {wave[0].upper()} waveform on input "
+                              f"{name.upper()} is replaced by the config's rows (a "
+                              f"{data.get('analysis')} config gives its own inputs)", Notice,
+                              stacklevel=2)
     block["name"] = cls.name

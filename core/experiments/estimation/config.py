@@ -52,9 +52,10 @@ class Input(Sine):
     waveform: str = setting("sine", text(set(WAVEFORMS)),
                             doc="the source's waveform: sine, pulse (both repeat at each of "
                                 "frequencies_hz), step, pwl (points) or file (a CSV)")
-    amplitude_v: float | None = setting(None, number(minimum=0.0, maximum=MAX_VOLTS), unit="V",
-                                        doc="peak of the sine, height of the pulse or step "
-                                            "(not for pwl or file)")
+    amplitude_v: float | None = setting(None, number(minimum=-MAX_VOLTS, maximum=MAX_VOLTS),
+                                        unit="V", doc="peak of the sine, height of the pulse "
+                                                      "or step (below 0: it falls; not for "
+                                                      "pwl or file)")
     frequencies_hz: list | None = setting(None, list_of(number(minimum=1e-3, maximum=1e9)),
                                           unit="Hz", doc="the table's input frequencies (sine "
                                                          "and pulse only: the others have one, "

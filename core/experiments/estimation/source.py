@@ -90,9 +90,9 @@ def _knots(knots: np.ndarray, where: str, source: str) -> np.ndarray:
     if len(knots) < 1 or not np.all(np.isfinite(knots)):
         raise ConfigError(source, where.split(" ")[-1].strip("()"),
                           f"{where}: expected finite times and volts")
-    if np.any(np.diff(knots[:, 0]) <= 0) or knots[0, 0] < 0:
+    if np.any(np.diff(knots[:, 0]) < 0) or knots[0, 0] < 0:
         raise ConfigError(source, where.split(" ")[-1].strip("()"),
-                          f"{where}: times must start at 0 s or later and increase")
+                          f"{where}: times must start at 0 s or later and not decrease")
     return knots
 
 
