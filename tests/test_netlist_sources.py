@@ -22,7 +22,7 @@ R1 out 0 10k
 
 def project(tmp_path, source: str, **inp) -> "estim.config.experiment.Experiment":
     (tmp_path / "rectifier.cir").write_text(RECTIFIER.format(source=source))
-    spec = {"title": "rectifier", "analysis": "estimation",
+    spec = {"title": "rectifier",                  # analysis: estimation by default
             "model": {"netlist": "rectifier.cir", "input": "VIN", "output": "v(out)"},
             "input": inp, "noise": {"input_levels": [0.05], "measurement_sigma": 0.02},
             "estimators": [{"label": "EKF", "type": "ekf",

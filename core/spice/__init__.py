@@ -98,7 +98,7 @@ def resolve_model_block(data: dict, source: str) -> None:
             cls().thesis_map  # noqa: B018 (building the map checks the quantities)
         except NetlistError as exc:
             raise ConfigError(source, "model.thesis_states", exc.message) from None
-    if data.get("analysis") == "estimation":
+    if data.get("analysis", "estimation") == "estimation":
         input_from_netlist(data, cls, source)
     else:
         for name in cls.circuit.inputs:
