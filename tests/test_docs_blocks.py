@@ -22,6 +22,7 @@ ELSEWHERE = {
     ("extending.md", "yaml"): "tests/test_guide.py (the guide's config, run)",
     ("your-circuit.md", "spice"): "tests/test_guide.py (the netlist, run)",
     ("your-circuit.md", "yaml"): "tests/test_guide.py (the netlist's config, run)",
+    ("your-data.md", "yaml"): "tests/test_guide.py (the measured record's config, run)",
     ("layout.md", ""): "tests/test_layout.py (the tree against the package and the contract)",
 }
 """Blocks another test runs, by page and language."""

@@ -1,4 +1,5 @@
-"""The docs' guides (docs/extending.md, docs/your-circuit.md), followed as written: the
+"""The docs' guides (docs/extending.md, docs/your-circuit.md, docs/your-data.md), followed as
+written: the
 model, estimator and config files are taken from their code blocks, run through the CLI,
 and seen in the tables; the Python example runs as written from another folder."""
 
@@ -19,7 +20,7 @@ from estim.cli.main import main
 ROOT = Path(__file__).resolve().parents[1]
 
 
-GUIDES = ("extending.md", "your-circuit.md")
+GUIDES = ("extending.md", "your-circuit.md", "your-data.md")
 """The docs pages whose guides this follows."""
 
 
@@ -186,6 +187,28 @@ def test_your_own_circuit_runs_as_written(tmp_path, monkeypatch):
     checked = runner.invoke(main, ["spice", "rectifier_spice.yaml"])
     assert checked.exit_code == 0, checked.output
     assert "within their bars" in checked.output
+
+
+def test_your_own_data_runs_as_written(tmp_path, monkeypatch):
+    """The measured-data guide (docs/your-data.md): the shipped record copied as its step 1
+    says, the config from its block, `estim run`, and the tables it names."""
+    import shutil
+
+    files = saved_files("# Your own data", tmp_path)
+    assert set(files) == {"my_record.yaml"}
+    shutil.copy(ROOT / "configs" / "data" / "rectifier_measured.csv", tmp_path / "record.csv")
+    monkeypatch.chdir(tmp_path)
+    result = CliRunner().invoke(main, ["run", "my_record.yaml", "--quiet"])
+    assert result.exit_code == 0, result.output
+    folder = tmp_path / "scratch" / "my_record"
+    rows = pd.read_csv(folder / "innovation.csv")
+    assert list(rows["estimator"]) == ["last measurement", "EKF", "RLS"]
+    claims = pd.read_csv(folder / "claims.csv").set_index("claim")
+    assert claims.loc["EKF prediction MSE < last measurement prediction MSE",
+                      "verdict"] == "holds"
+    estimates = pd.read_csv(folder / "estimates.csv")
+    assert {"v(out)", "output"} <= set(estimates["quantity"])
+    assert (folder / "figures" / "estimates.png").is_file()
 
 
 def test_settings_lists_a_plugin_only_when_named_and_names_a_bad_one(tmp_path, monkeypatch):

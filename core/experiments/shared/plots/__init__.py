@@ -16,6 +16,7 @@ from estim.experiments.shared.plots.traces import (
                                                    estimates_clipped,
                                                    output_limits,
                                                    perturbation,
+                                                   predictions,
                                                    residuals,
                                                    running_rmse,
                                                    with_unit,
@@ -24,4 +25,4 @@ from estim.experiments.shared.plots.traces import (
 __all__ = ["absolute_errors", "burden", "burden_timing", "differentiator_response",
            "ensemble_rank", "estimates", "estimates_clipped", "field_slices", "field_study",
            "image_panels", "noisy_signal", "output_limits", "perturbation", "pixel_series",
-           "relative_error_curves", "residuals", "running_rmse", "with_unit"]
+           "predictions", "relative_error_curves", "residuals", "running_rmse", "with_unit"]

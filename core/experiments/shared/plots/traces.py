@@ -193,6 +193,23 @@ def _series(trace: dict, key: str, ylabel: str, title: str) -> Figure:
 
 
 @drawn
+def predictions(t: np.ndarray, measured: np.ndarray, predicted: dict, title: str) -> Figure:
+    """A measured record (no truth) and each filter's one-step prediction of its samples
+    after the first (:mod:`estim.experiments.measured`)."""
+    fig, ax = subplots(figsize=(10.0, 4.5))
+    t_ms = np.asarray(t, float) * 1e3
+    ax.plot(t_ms, measured, ls="None", marker=".", ms=3.0, color="0.55", label="measured")
+    for i, (label, values) in enumerate(predicted.items()):
+        ax.plot(t_ms[1:], values, lw=1.0, **series_style(i), label=f"{label}, predicted")
+    ax.set_xlabel("time [ms]")
+    ax.set_ylabel("output [V]")
+    ax.set_title(textwrap.fill(title, 70))
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    tight_layout(fig)
+    return fig
+
+
+@drawn
 def running_rmse(trace: dict, title: str) -> Figure:
     """RMSE across the Monte Carlo runs that did not diverge, at each sample (Fig 3.6)."""
     return _series(trace, "running_rmse", "RMSE over runs [V]", title)
