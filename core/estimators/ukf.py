@@ -58,8 +58,11 @@ class UnscentedKalmanFilter(ExtendedKalmanFilter, name="ukf"):
     """UKF with additive ``Q`` and ``R``; see the module docstring. Settings: the EKF's and
     the sigma points' scaling."""
 
-    alpha: float = setting(1.0, number(positive=True, maximum=10.0),
-                           doc="spread of the sigma points")
+    alpha: float = setting(1e-3, number(positive=True, maximum=10.0),
+                           doc="spread of the sigma points: about alpha sqrt(n P) from the "
+                               "estimate (1e-3, Wan and van der Merwe's choice, keeps them "
+                               "where a junction's exponential stays in range; 1 is the "
+                               "unscaled transform, D39)")
     beta: float = setting(2.0, number(minimum=0.0, maximum=100.0),
                           doc="prior knowledge of the distribution (2: Gaussian)")
     kappa: float = setting(0.0, number(minimum=-100.0, maximum=100.0),
