@@ -62,6 +62,10 @@ def both(ekf, model, z, u, dt, x0, monkeypatch):
 
 def assert_same(fast, slow, rtol):
     np.testing.assert_array_equal(fast.broken, slow.broken)
+    assert set(fast.diagnostics) == set(slow.diagnostics)
+    for key in ("broken_step", "broken_state", "broken_cause"):     # why each run broke
+        if key in slow.diagnostics:
+            np.testing.assert_array_equal(fast.diagnostics[key], slow.diagnostics[key], key)
     for name in ("x_hat", "P", "S", "innovation", "y_hat"):
         a, b = getattr(fast, name), getattr(slow, name)
         np.testing.assert_array_equal(np.isnan(a), np.isnan(b), err_msg=name)
@@ -115,6 +119,10 @@ def test_a_broken_run_is_broken_at_the_same_step_in_both_loops(monkeypatch):
     first = np.flatnonzero(np.isnan(fast.x_hat[1, :, 0]))[0]
     assert first == 20
     assert_same(fast, slow, 1e-9)
+    why = fast.diagnostics
+    assert why["broken_step"].tolist() == [-1, 20, -1, -1]
+    assert why["broken_cause"][1] == "estimate beyond the bound"
+    assert abs(fast.x_hat[1, 19, why["broken_state"][1]]) <= 5.0   # a state the bound stopped
 
 
 def test_a_filter_that_overrides_cycle_keeps_the_numpy_loop():

@@ -236,6 +236,7 @@ def test_the_default_sigma_point_spread_keeps_the_amplifiers_ukf_where_alpha_1_b
     """Issue 47, item 7: the unscaled transform (alpha 1) puts the UKF's sigma points so far
     out on the amplifier's emitter node that every run of a row breaks (D39); the default
     spread runs the same row with no run broken, as the config's own alpha 0.1 does."""
+    import pandas as pd
     import yaml
 
     import estim
@@ -247,9 +248,14 @@ def test_the_default_sigma_point_spread_keeps_the_amplifiers_ukf_where_alpha_1_b
         entry["settings"].pop("alpha", None)
         if alpha is not None:
             entry["settings"]["alpha"] = alpha
-        rows = estim.run(spec, quick=True).tables["rmse"]
-        return rows[rows["estimator"] == "UKF"].iloc[0]
+        tables = estim.run(spec, quick=True).tables
+        return tuple(t[t["estimator"] == "UKF"].iloc[0] for t in (tables["rmse"],
+                                                                  tables["health"]))
 
-    wide, default = ukf_row(1.0), ukf_row(None)
+    (wide, why), (default, fine) = ukf_row(1.0), ukf_row(None)
     assert wide["diverged"] == wide["runs"] and not np.isfinite(wide["rmse"])
     assert default["diverged"] == 0 and np.isfinite(default["rmse"])
+    # health.csv says where and why (issue 47, item 7): the emitter node's prediction
+    assert (why["first_break_state"], why["first_break_cause"]) == ("v_E",
+                                                                   "prediction not finite")
+    assert why["first_break_step"] >= 1 and pd.isna(fine["first_break_step"])

@@ -615,6 +615,9 @@ def test_the_netlist_estimation_configs_remake_chapter_3(hand, netlist, ukf_gap)
       gives another set): its RMSE moves, by ``ukf_gap`` at most (README, D77), on the
       configs whose cells agree to rounding.
 
+    The state a run first broke in is named as each model names it (``v_G`` against the
+    netlist's node ``v(b)``), so that column is not compared.
+
     mosfet_conduction's tolerances are statistical (runs near divergence flip with the last
     bit of rounding: means within 4 standard errors, divergence counts within 4 binomial
     deviations, medians and verdicts following the counts not compared), and its twin holds
@@ -646,7 +649,8 @@ def test_the_netlist_estimation_configs_remake_chapter_3(hand, netlist, ukf_gap)
             assert not (nees[~ukf] >= 1e-4).any()          # NaN: RLS and measurement rows
             assert (ours["nees_mean"].isna() == theirs["nees_mean"].isna()).all()
         differing = compare.compare_tables(theirs, ours, tol)
-        exempt = [d for d in differing if d["column"] in ("regime", "regime_fraction")
+        exempt = [d for d in differing if d["column"] in ("regime", "regime_fraction",
+                                                          "first_break_state")
                   or (ukf_gap and ukf[d["row"]])
                   or (ukf_gap and table == "claims" and d["column"] in paired)
                   or (ukf_gap and table == "health" and d["column"] == "nees_mean")]

@@ -30,7 +30,7 @@ from pathlib import Path
 
 NOT_REGISTERED = ("base", "kalman_differentiator", "passive_network",
                   "wavelet_lms_compiled", "ekf_compiled", "kf_compiled", "ukf_compiled",
-                  "compiled_steps", "ensemble")
+                  "compiled_steps", "ensemble", "breaks")
 """Modules of the model and estimator packages that hold no registered class: the base
 classes, compiled kernels, and the estimators of the papers that their analyses call
 directly (they take no config block)."""

@@ -36,6 +36,7 @@ from estim.config.settings import (
     vector,
 )
 from estim.errors import SettingError
+from estim.estimators import breaks
 from estim.numerics import linalg
 
 
@@ -211,7 +212,8 @@ class Estimate:
 
 
 def run_batch(cycle, x0: np.ndarray, P0: np.ndarray, z: np.ndarray, u: np.ndarray,
-              bound: float, carry: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
+              bound: float, carry: np.ndarray | None = None,
+              why: dict | None = None) -> tuple[np.ndarray, ...]:
     """The batch bookkeeping every state filter shares: ``cycle(x, P, z_k, u_k)`` (one
     prediction and update for the runs still alive, returning the prediction, the updated
     state and covariance, ``S`` and the innovation) is applied step by step; a run whose
@@ -221,7 +223,8 @@ def run_batch(cycle, x0: np.ndarray, P0: np.ndarray, z: np.ndarray, u: np.ndarra
 
     ``carry``: what an ensemble or particle filter carries from step to step beside its
     estimate (its members, ``(runs, members, n)``); ``cycle`` is then called with the alive
-    runs' part of it last and returns the new part last, kept for the runs that go on."""
+    runs' part of it last and returns the new part last, kept for the runs that go on.
+    ``why``: a dict filled with each run's break (:func:`estim.estimators.breaks.reasons`)."""
     runs, steps, m = z.shape
     n = np.shape(x0)[-1]
     x = np.broadcast_to(x0, (runs, n)).copy()
@@ -231,6 +234,7 @@ def run_batch(cycle, x0: np.ndarray, P0: np.ndarray, z: np.ndarray, u: np.ndarra
     S_hist = np.full((runs, steps, m, m), np.nan)
     innovation = np.full((runs, steps, m), np.nan)
     alive = np.ones(runs, bool)
+    cause, state, step = np.zeros(runs, int), np.full(runs, -1), np.full(runs, -1)
     for k in range(steps):
         idx = np.flatnonzero(alive)
         if idx.size == 0:
@@ -244,6 +248,9 @@ def run_batch(cycle, x0: np.ndarray, P0: np.ndarray, z: np.ndarray, u: np.ndarra
         ok = (np.all(np.isfinite(xu), axis=1) & np.all(np.isfinite(Pu), axis=(1, 2))
               & np.all(np.abs(xu) <= bound, axis=1) & np.all(np.abs(xp) <= bound, axis=1))
         alive[idx[~ok]] = False
+        for i in np.flatnonzero(~ok):
+            cause[idx[i]], state[idx[i]] = breaks.cause_of(xp[i], xu[i], Pu[i], bound)
+            step[idx[i]] = k
         keep = idx[ok]
         x[keep], P[keep] = xu[ok], Pu[ok]
         if carry is not None:
@@ -252,6 +259,8 @@ def run_batch(cycle, x0: np.ndarray, P0: np.ndarray, z: np.ndarray, u: np.ndarra
         P_hist[keep, k] = Pu[ok]
         S_hist[keep, k] = S[ok]
         innovation[keep, k] = nu[ok]
+    if why is not None:
+        why.update(breaks.reasons(cause, state, step))
     return x_hat, P_hist, S_hist, innovation, alive
 
 

@@ -94,13 +94,42 @@ predict = jit(_predict)
 
 def _history(runs, steps, n, m):
     """What a filter returns for a batch, before any step: ``x_hat``, ``P``, ``S`` and the
-    innovations all NaN, and every run alive."""
+    innovations all NaN, every run alive, and for each run the cause, state and step of its
+    break (:func:`broke`; 0 and -1 while it has not broken)."""
     return (np.full((runs, steps, n), np.nan), np.full((runs, steps, n, n), np.nan),
             np.full((runs, steps, m, m), np.nan), np.full((runs, steps, m), np.nan),
-            np.ones(runs, np.bool_))
+            np.ones(runs, np.bool_), np.zeros(runs, np.int64), np.full(runs, -1, np.int64),
+            np.full(runs, -1, np.int64))
 
 
 history = jit(_history)
+
+
+def _broke(r, k, cause, state, out):
+    """Mark run ``r`` broken at step ``k`` in :func:`history`'s ``out``, with the cause (its
+    number in :data:`estim.estimators.breaks.CAUSES`) and the state (-1: none)."""
+    out[4][r] = False
+    out[5][r] = cause
+    out[6][r] = state
+    out[7][r] = k
+
+
+broke = jit(_broke)
+
+
+def _first_bad(v, bound):
+    """``(cause offset, index)`` of the first entry of ``v`` not finite (0) or beyond
+    ``bound`` (1), else ``(-1, -1)``."""
+    for a in range(v.shape[0]):
+        if not np.isfinite(v[a]):
+            return 0, a
+    for a in range(v.shape[0]):
+        if abs(v[a]) > bound:
+            return 1, a
+    return -1, -1
+
+
+first_bad = jit(_first_bad)
 
 
 def _record(r, k, x, P, S, nu, out):
@@ -115,16 +144,23 @@ record = jit(_record)
 
 
 def _keep(r, k, ok, x, xp, bound, P, S, nu, out):
-    """Whether run ``r`` goes on after step ``k``: its update was finite (``ok``), and its
-    estimate ``x`` is finite, and ``x`` and the prediction ``xp`` are within ``bound``.
-    Records the step into :func:`history`'s ``out`` if so, else marks the run broken."""
-    for a in range(x.shape[0]):
-        ok &= np.isfinite(x[a]) and abs(x[a]) <= bound and abs(xp[a]) <= bound
-    if ok:
-        record(r, k, x, P, S, nu, out)
-    else:
-        out[4][r] = False
-    return ok
+    """Whether run ``r`` goes on after step ``k``: its prediction ``xp`` is finite and within
+    ``bound``, its update succeeded (``ok``), and its estimate ``x`` is finite and within
+    ``bound``. Records the step into :func:`history`'s ``out`` if so, else marks the run
+    broken with the first of these that failed (:func:`broke`)."""
+    bad, a = first_bad(xp, bound)
+    if bad >= 0:
+        broke(r, k, 1 + bad, a, out)
+        return False
+    if not ok:
+        broke(r, k, 3, -1, out)
+        return False
+    bad, a = first_bad(x, bound)
+    if bad >= 0:
+        broke(r, k, 4 + bad, a, out)
+        return False
+    record(r, k, x, P, S, nu, out)
+    return True
 
 
 keep = jit(_keep)

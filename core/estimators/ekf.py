@@ -88,11 +88,12 @@ class ExtendedKalmanFilter(GaussianFilter, name="ekf"):
             return None
         return ekf_compiled.usable(model, self.discretization)
 
-    def run_compiled(self, plan: tuple, x0, P0, z, u, dt, Q, R) -> tuple[np.ndarray, ...]:
+    def run_compiled(self, plan: tuple, x0, P0, z, u, dt, Q, R,
+                     why: dict | None = None) -> tuple[np.ndarray, ...]:
         """The batch through the compiled loop: what :func:`~estim.estimators.base.run_batch`
-        returns for :meth:`cycle`."""
+        returns (and fills ``why`` with) for :meth:`cycle`."""
         return ekf_compiled.run(plan, x0, P0, z, u, dt, Q, R, self.discretization,
-                                self.substeps, self.divergence_bound)
+                                self.substeps, self.divergence_bound, why)
 
     def start(self, model, m: int, x0: np.ndarray | None) -> tuple[np.ndarray, ...]:
         """``Q``, ``P0`` (in the model's units), ``R`` for ``m`` measured values, and the
@@ -110,14 +111,15 @@ class ExtendedKalmanFilter(GaussianFilter, name="ekf"):
         runs, _, m = z.shape
         Q, P0, R, x0 = self.start(model, m, x0)
         plan = self.compiled_plan(model)
+        why: dict = {}
         if plan is not None:
             x_hat, P_hist, S_hist, innovation, alive = self.run_compiled(
-                plan, x0, P0, z, batch_input(u, runs), dt, Q, R)
+                plan, x0, P0, z, batch_input(u, runs), dt, Q, R, why)
         else:
             x_hat, P_hist, S_hist, innovation, alive = run_batch(
                 lambda x, P, zk, uk: self.cycle(model, x, P, zk, uk, dt, Q, R),
-                x0, P0, z, batch_input(u, runs), self.divergence_bound)
+                x0, P0, z, batch_input(u, runs), self.divergence_bound, why=why)
         with np.errstate(all="ignore"):
             y_hat = model.h(x_hat)
         return Estimate(y_hat=y_hat, innovation=innovation, broken=~alive, x_hat=x_hat,
-                        P=P_hist, S=S_hist)
+                        P=P_hist, S=S_hist, diagnostics=why)

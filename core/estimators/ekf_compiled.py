@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from estim.estimators import breaks
 from estim.estimators.compiled_steps import (
     METHODS,
     history,
@@ -88,12 +89,16 @@ def usable(model, discretization: str) -> tuple | None:
 
 def run(plan: tuple, x0: np.ndarray, P0: np.ndarray, z: np.ndarray, u: np.ndarray, dt: float,
         Q: np.ndarray, R: np.ndarray, discretization: str, substeps: int,
-        bound: float) -> tuple[np.ndarray, ...]:
+        bound: float, why: dict | None = None) -> tuple[np.ndarray, ...]:
     """:func:`estim.estimators.base.run_batch` of the EKF's cycle for ``plan`` (from
-    :func:`usable`): ``x_hat``, ``P``, ``S``, the innovations and the runs alive at the end."""
+    :func:`usable`): ``x_hat``, ``P``, ``S``, the innovations and the runs alive at the end;
+    ``why`` is filled as ``run_batch`` fills it."""
     kind, Pk, H, c = plan
     runs, _, n = z.shape[0], z.shape[1], np.shape(x0)[-1]
     X0 = np.broadcast_to(np.asarray(x0, float), (runs, n))
-    return runs_compiled(int(kind), plain(Pk), plain(X0), plain(P0), plain(z), plain(u),
-                         float(dt), plain(Q), plain(R), plain(H), plain(c),
-                         METHODS[discretization], int(substeps), float(bound))
+    out = runs_compiled(int(kind), plain(Pk), plain(X0), plain(P0), plain(z), plain(u),
+                        float(dt), plain(Q), plain(R), plain(H), plain(c),
+                        METHODS[discretization], int(substeps), float(bound))
+    if why is not None:
+        why.update(breaks.reasons(out[5], out[6], out[7]))
+    return out[:5]

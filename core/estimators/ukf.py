@@ -102,12 +102,13 @@ class UnscentedKalmanFilter(ExtendedKalmanFilter, name="ukf"):
             return None
         return ekf_compiled.usable(model, self.discretization)
 
-    def run_compiled(self, plan: tuple, x0, P0, z, u, dt, Q, R) -> tuple[np.ndarray, ...]:
+    def run_compiled(self, plan: tuple, x0, P0, z, u, dt, Q, R,
+                     why: dict | None = None) -> tuple[np.ndarray, ...]:
         n = np.shape(x0)[-1]
         return ukf_compiled.run(plan, x0, P0, z, u, dt, Q, R,
                                 self.discretization, self.substeps,
                                 self.divergence_bound, self.weights(n),
-                                np.sqrt(n + self.scaling(n)))
+                                np.sqrt(n + self.scaling(n)), why)
 
     def cycle(self, model, x: np.ndarray, P: np.ndarray, z: np.ndarray, u: np.ndarray,
               dt: float, Q: np.ndarray, R: np.ndarray):

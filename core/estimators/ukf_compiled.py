@@ -17,8 +17,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from estim.estimators import breaks
 from estim.estimators.compiled_steps import (
     METHODS,
+    broke,
+    first_bad,
     history,
     joseph_update,
     keep,
@@ -136,11 +139,12 @@ def _runs(kind, Pk, x0, P0, z, u, dt, Q, R, H, c, method, substeps, bound, wm, w
                     mean = 0.5 * (P[a, b] + P[b, a])
                     P[a, b] = mean
                     P[b, a] = mean
-            ok = finite(P)
-            for a in range(n):
-                ok &= np.isfinite(xp[a]) and abs(xp[a]) <= bound
-            if not ok:
-                out[4][r] = False
+            bad, a = first_bad(xp, bound)
+            if bad >= 0:
+                broke(r, k, 1 + bad, a, out)
+                break
+            if not finite(P):
+                broke(r, k, 6, -1, out)
                 break
             sigma_points(xp, P, spread, L, X)        # redrawn, through h = H x + c
             for j in range(points):
@@ -178,16 +182,20 @@ runs_compiled = jit(_runs)
 
 def run(plan: tuple, x0: np.ndarray, P0: np.ndarray, z: np.ndarray, u: np.ndarray, dt: float,
         Q: np.ndarray, R: np.ndarray, discretization: str, substeps: int, bound: float,
-        weights: tuple[np.ndarray, np.ndarray], spread: float) -> tuple[np.ndarray, ...]:
+        weights: tuple[np.ndarray, np.ndarray], spread: float,
+        why: dict | None = None) -> tuple[np.ndarray, ...]:
     """:func:`estim.estimators.base.run_batch` of the UKF's cycle for ``plan`` (from
     :func:`estim.estimators.ekf_compiled.usable`) with the sigma points' ``weights`` (mean,
     covariance) and ``spread = sqrt(n + lambda)``: ``x_hat``, ``P``, ``S``, the innovations
-    and the runs alive at the end."""
+    and the runs alive at the end; ``why`` is filled as ``run_batch`` fills it."""
     kind, Pk, H, c = plan
     runs, n = z.shape[0], np.shape(x0)[-1]
     X0 = np.broadcast_to(np.asarray(x0, float), (runs, n))
-    return runs_compiled(int(kind), plain(Pk), plain(X0), plain(P0), plain(z), plain(u),
-                         float(dt), plain(Q), plain(R), plain(H), plain(c),
-                         METHODS[discretization],
-                         int(substeps), float(bound), plain(weights[0]), plain(weights[1]),
-                         float(spread))
+    out = runs_compiled(int(kind), plain(Pk), plain(X0), plain(P0), plain(z), plain(u),
+                        float(dt), plain(Q), plain(R), plain(H), plain(c),
+                        METHODS[discretization],
+                        int(substeps), float(bound), plain(weights[0]), plain(weights[1]),
+                        float(spread))
+    if why is not None:
+        why.update(breaks.reasons(out[5], out[6], out[7]))
+    return out[:5]

@@ -69,8 +69,10 @@ TABLES = {
                       reference_ids=("3.1", "3.2", "3.5")),
     "health": TableSpec("health.csv", _ROW_KEYS,
                         (*pipeline.HEALTH_VALUES, "regressor_rank", "regressor_size",
-                         "lambda_at_floor", "p_max_eig"),
-                        title="filter health: divergence, consistency, whiteness, excitation"),
+                         "lambda_at_floor", "p_max_eig", *pipeline.BREAK_VALUES),
+                        title="filter health: divergence, consistency, whiteness, excitation, "
+                              "the first break",
+                        text=pipeline.BREAK_VALUES[1:]),
     "residual": TableSpec("residual.csv", _ROW_KEYS,
                           ("residual_mean", "residual_mean_se", "residual_variance",
                            "residual_variance_se", "runs", "diverged"),
@@ -390,8 +392,9 @@ def figure_cases(exp: Experiment) -> list[tuple[str, float, float, str]]:
 def result_table(rows: list[dict], metric: str, table_id: str | None) -> pd.DataFrame:
     """The ``metric`` table from the sweep's rows, with thesis table id and row number."""
     df = pd.DataFrame(rows)
-    if "inconsistent" in df:
-        df["inconsistent"] = pd.array(df["inconsistent"], dtype="Float64").astype("Int64")
+    for column in ("inconsistent", "first_break_step"):
+        if column in df:
+            df[column] = pd.array(df[column], dtype="Float64").astype("Int64")
     df.insert(0, "table_id", table_id if table_id and table_id != reference.OWN_TABLE else "")
     df.insert(1, "s_no", pipeline.thesis_row_numbers(df, table_id))
     return df[TABLES[metric].columns].reset_index(drop=True)

@@ -11,6 +11,7 @@ import numpy as np
 from estim import reference
 from estim.config.experiment import Experiment
 from estim.errors import ConfigError
+from estim.estimators import breaks
 from estim.experiments.shared import claims, health
 from estim.numerics import metrics
 from estim.util import lazy
@@ -27,6 +28,10 @@ error), its standard error and median, the runs and how many diverged, and the R
 the runs that did not diverge."""
 HEALTH_VALUES = ("runs", "broken", "diverged", "inconsistent", "nees_mean", "nees_in_band",
                  "nis_mean", "nis_in_band", "white_fraction", "whiteness_lag")
+BREAK_VALUES = ("first_break_step", "first_break_state", "first_break_cause")
+"""The earliest broken run of a row (:func:`estim.estimators.breaks.first_break`): its step
+(1: the first sample after ``t_0``), the state and the cause its filter found (empty
+where the filter gives none, or no run broke)."""
 
 def judge(exp: Experiment, data: dict, est, model) -> dict:
     """One estimator's health on one batch (:mod:`estim.experiments.shared.health`): per run
@@ -58,6 +63,14 @@ def judge(exp: Experiment, data: dict, est, model) -> dict:
         values = np.asarray(est.diagnostics.get(key, []), float)
         finite = values[np.isfinite(values)]
         out[key] = float(np.median(finite)) if finite.size else nan
+    steps = est.diagnostics.get("broken_step")
+    if steps is None:                   # a filter that does not say why: the step alone
+        steps = breaks.break_steps(est.x_hat if est.x_hat is not None else est.y_hat,
+                                   est.broken)
+    names = tuple(model.state_names) if est.x_hat is not None else ()
+    out.update(zip(BREAK_VALUES, breaks.first_break(
+        steps, est.diagnostics.get("broken_state"), est.diagnostics.get("broken_cause"),
+        names), strict=True))
     return out
 
 
