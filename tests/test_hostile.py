@@ -1294,7 +1294,7 @@ def test_an_edited_table_is_refused_by_name_and_an_agreeing_manifest_reaches_the
                                           ("v(0,gnd)", "a node and itself")])
 def test_an_identically_zero_netlist_output_is_refused(tmp_path, output, said):
     """``model.output: v(o,o)`` was accepted: gain_db -inf, a distortion of 2.75 %."""
-    from estim.spice.netlist_model import model_class
+    from estim.spice.netlist_class import model_class
     from estim.spice.parser import NetlistError
 
     net = tmp_path / "rc.cir"

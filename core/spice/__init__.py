@@ -1,6 +1,7 @@
 """SPICE netlists as estim models: :mod:`estim.spice.parser` reads the netlist,
-:mod:`estim.spice.circuit` lays out the nodal analysis, :mod:`estim.spice.netlist_model` builds the
-model, :mod:`estim.spice.ngspice` runs the same circuit in ngspice to compare. A config names a
+:mod:`estim.spice.circuit` lays out the nodal analysis, :mod:`estim.spice.netlist_model` is
+its model and :mod:`estim.spice.netlist_class` makes the model's class,
+:mod:`estim.spice.ngspice` runs the same circuit in ngspice to compare. A config names a
 netlist in its model block,
 
     model: {netlist: circuits/diffamp_em.cir, input: [VB1, VB2], output: "v(c1,c2)"}
@@ -16,7 +17,7 @@ from pathlib import Path
 
 from estim.config.settings import shown
 from estim.errors import ConfigError, Notice
-from estim.spice.netlist_model import model_class, rebuild
+from estim.spice.netlist_class import model_class, rebuild
 from estim.spice.parser import NetlistError
 from estim.spice.sources import input_from_netlist
 from estim.util.shipped import shipped_folder

@@ -1,68 +1,37 @@
-"""The model class of a netlist (:class:`NetlistModel`, an :class:`estim.models.base.Model`):
-the drift and its Jacobian by the nodal analysis of :class:`estim.spice.circuit.Circuit`,
-the output, the operating point, and the compiled kernel; :func:`model_class` builds and
-registers it. One algorithm, the nodal-analysis model, over 500 lines: its parts share
-the circuit's index arrays and are not used apart."""
+"""The model of a netlist (:class:`NetlistModel`, an :class:`estim.models.base.Model`): the
+drift and its Jacobian by the nodal analysis of :class:`estim.spice.circuit.Circuit`, the
+output, the operating point, and the compiled kernel. :mod:`estim.spice.netlist_class`
+makes and registers a class of it for each netlist."""
 
 from __future__ import annotations
 
-import copyreg
 import dataclasses
-import re
 from pathlib import Path
 
 import numpy as np
 
-from estim.config import registry
-from estim.config.settings import setting
 from estim.models.base import Model
 from estim.models.devices import ebers_moll
 from estim.spice.circuit import Circuit
 from estim.spice.devices import DEFAULTS, DIODE_VT, diode, diode_slope, nmos
-from estim.spice.parser import NetlistError, read
+from estim.spice.parser import NetlistError
 from estim.util import lazy
 
 special = lazy.load("scipy.special")
 kernels = lazy.load("estim.numerics.kernels")
 
 
-def build_model_class(circuit: Circuit, name: str) -> type:
-    """A :class:`Model` subclass for ``circuit``: its ``Params`` are the netlist's ``.param``
-    values (overridable in a config's ``model.params``), re-evaluated into element values
-    when they change."""
-    net = circuit.netlist
-    fields = [(k, float, setting(float(v), unit="-", doc="netlist .param"))
-              for k, v in net.params.items()]
-    Params = dataclasses.make_dataclass(f"{name}_params", fields, frozen=True)
-    inputs = tuple(f"d({i})/dt" for i in circuit.inputs) if circuit.slope \
-        else tuple(circuit.inputs)
-    attrs = {"state_names": circuit.state_names, "input_names": inputs,
-             "input_is_source_slope": circuit.slope, "input_affine": circuit.slope,
-             "output_names": (circuit.output,), "Params": Params, "variants": {},
-             "circuit": circuit, "__doc__": f"Netlist model of {net.source} ({net.title})."}
-    clean = re.sub(r"\W", "_", name)
-    return type(f"Netlist_{clean}", (NetlistModel,), attrs)
-
-
-class _NetlistClass(type):
+class NetlistClass(type):
     """The type of the netlist model classes: they are made at run time, so a worker
     process cannot import them by name; pickled, a class is the arguments that build it
-    again (:func:`rebuild`)."""
+    again (:func:`estim.spice.netlist_class.rebuild`, which registers that pickling)."""
 
 
 def _rebuild_instance(cls: type, variant, overrides: dict):
     return cls(variant, **overrides)
 
 
-def _reduce_class(cls: type):
-    origin = getattr(cls, "origin", None)
-    return (rebuild, (origin,)) if origin is not None else cls.__qualname__
-
-
-copyreg.pickle(_NetlistClass, _reduce_class)
-
-
-class NetlistModel(Model, metaclass=_NetlistClass):
+class NetlistModel(Model, metaclass=NetlistClass):
     """Base of the netlist model classes :func:`build_model_class` makes."""
 
     circuit: Circuit
@@ -75,11 +44,11 @@ class NetlistModel(Model, metaclass=_NetlistClass):
         self._made_with = (variant, overrides)
         net = self.circuit.netlist
         if any(getattr(self.params, k) != v for k, v in net.params.items()):
-            from estim.spice.parser import parse
+            from estim.spice.parser import parse, with_params
             text = self._source_text()
             values = dataclasses.asdict(self.params)
             lines = [f".param {k}={v!r}" for k, v in values.items()]
-            net = parse(_with_params(text, lines), net.source)
+            net = parse(with_params(text, lines), net.source)
             self.circuit = Circuit(net, self.circuit.inputs, self.circuit.output)
         self._prepare()
 
@@ -90,7 +59,6 @@ class NetlistModel(Model, metaclass=_NetlistClass):
         return (_rebuild_instance, (type(self), variant, overrides))
 
     def _source_text(self) -> str:
-        from pathlib import Path
         return Path(self.circuit.netlist.source).read_text()
 
     def _prepare(self) -> None:
@@ -502,58 +470,8 @@ class NetlistModel(Model, metaclass=_NetlistClass):
         return np.broadcast_to(H, np.shape(x)[:-1] + H.shape).copy()
 
 
-def _with_params(text: str, lines: list[str]) -> str:
-    """The netlist ``text`` with its ``.param`` values replaced by those of ``lines``: all of
-    them on one line where the first ``.param`` was (after the title if there was none), the
-    other ``.param`` lines and their continuations blanked, so that every element keeps its
-    line number for the messages."""
-    rows = text.splitlines()
-    merged = ".param " + " ".join(line.split(None, 1)[1] for line in lines)
-    out, in_param, placed = [rows[0]], False, False
-    for r in rows[1:]:
-        s = r.strip().lower()
-        if s.startswith(".param") or (in_param and s.startswith("+")):
-            in_param = True
-            out.append("*" if placed else merged)
-            placed = True
-            continue
-        in_param = False
-        out.append(r)
-    if not placed:
-        out.insert(1, merged)
-    return "\n".join(out)
-
-
 def _ics(p: dict) -> float:
     """The collector junction's saturation current: the ``.model``'s ``ics`` where given
     (``ics=0``: no collector junction, the base-emitter-diode law of eqs 2.48-2.51), else by
     reciprocity ``alpha_f ies / alpha_r`` (the thesis gives neither; docs/deviations.md D23)."""
     return p["alpha_f"] * p["ies"] / p["alpha_r"] if p.get("ics") is None else p["ics"]
-
-
-def model_class(path: Path, inputs, output: str, name: str | None = None,
-                hold: str | None = None, thesis_states=None) -> type:
-    """The model class of the netlist at ``path`` (registered under ``name``, default
-    ``netlist:<stem>``); ``hold`` is how its value inputs hold a sample (``"mean"``, the
-    default, ``"start"`` or ``"end"``: :meth:`NetlistModel.source_to_input`);
-    ``thesis_states`` the quantities a filter's Q and P0 are written in
-    (:attr:`NetlistModel.thesis_map`)."""
-    inputs = (inputs,) if isinstance(inputs, str) else tuple(inputs)
-    circuit = Circuit(read(path), tuple(i.lower() for i in inputs), output)
-    name = name or f"netlist:{path.stem}"
-    cls = build_model_class(circuit, name)
-    cls.name = name
-    cls.hold = hold or "mean"
-    cls.thesis_states = tuple(thesis_states) if thesis_states else None
-    cls.origin = (str(path), inputs, output, name, hold, cls.thesis_states)
-    registry.MODELS.register(name, cls)
-    return cls
-
-
-def rebuild(origin: tuple) -> type:
-    """The model class of ``origin`` (:attr:`NetlistModel.origin`): how a netlist model class
-    crosses to a worker process (pickled as the arguments of :func:`model_class`)."""
-    known = registry.MODELS.get(origin[3])
-    if known is not None and getattr(known, "origin", None) == origin:
-        return known
-    return model_class(Path(origin[0]), *origin[1:])

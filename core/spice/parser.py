@@ -428,3 +428,25 @@ def read(path: str | Path) -> Netlist:
     except (OSError, UnicodeDecodeError) as exc:
         raise NetlistError(str(p), 0, f"cannot read it ({exc.__class__.__name__})") from None
     return parse(text, str(p))
+
+
+def with_params(text: str, lines: list[str]) -> str:
+    """The netlist ``text`` with its ``.param`` values replaced by those of ``lines``: all of
+    them on one line where the first ``.param`` was (after the title if there was none), the
+    other ``.param`` lines and their continuations blanked, so that every element keeps its
+    line number for the messages."""
+    rows = text.splitlines()
+    merged = ".param " + " ".join(line.split(None, 1)[1] for line in lines)
+    out, in_param, placed = [rows[0]], False, False
+    for r in rows[1:]:
+        s = r.strip().lower()
+        if s.startswith(".param") or (in_param and s.startswith("+")):
+            in_param = True
+            out.append("*" if placed else merged)
+            placed = True
+            continue
+        in_param = False
+        out.append(r)
+    if not placed:
+        out.insert(1, merged)
+    return "\n".join(out)
