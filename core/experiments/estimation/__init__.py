@@ -80,6 +80,8 @@ TABLES = {
                           title="residual (innovation) mean and variance, runs that did not "
                                 "diverge",
                           reference_ids=("3.3", "3.4")),
+    "states": TableSpec("states.csv", (*_ROW_KEYS, "state"), pipeline.STATE_VALUES,
+                        title="RMSE of every state against the actual circuit's"),
     "claims": claims.TABLE,
 }
 
@@ -345,10 +347,10 @@ def estimate_point(exp: Experiment, data: dict, key: tuple) -> list:
 
 
 def run_point(exp: Experiment, point: SweepPoint, traces: bool = False) -> tuple[list, dict,
-                                                                                  dict]:
+                                                                                  dict, list]:
     """Table rows (the measurement baseline, then one per estimator) for one sweep point,
-    the per-run losses for the claims, and with ``traces`` the figure traces of its first
-    run (the figures show the runs the table averages)."""
+    the per-run losses for the claims, with ``traces`` the figure traces of its first run
+    (the figures show the runs the table averages), and the per-state rows."""
     mc = exp.config.monte_carlo
     rng = exp.config.monte_carlo.rng(point.index)
     data = simulate_point(exp, point.frequency_hz, point.sigma, mc.runs, rng,
@@ -364,7 +366,8 @@ def run_point(exp: Experiment, point: SweepPoint, traces: bool = False) -> tuple
               "regime": regime or "", "regime_fraction": fraction}
     rows, losses, verdicts = pipeline.score(exp, data, exp.plan.filters, estimates, common)
     drawn = estimation_figures.traces(exp, data, estimates, verdicts) if traces else {}
-    return rows, losses, drawn
+    states = pipeline.state_rows(data, exp.plan.filters, estimates, verdicts, common)
+    return rows, losses, drawn, states
 
 
 def _run_point_args(args):
@@ -413,7 +416,8 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
             wanted.setdefault(match.index, []).append(key)
     tasks = [(exp, p, p.index in wanted) for p in points]
     done = map_tasks(_run_point_args, tasks, jobs, on_done)
-    rows = [row for part, _, _ in done for row in part]
+    rows = [row for part, *_ in done for row in part]
+    states = [row for *_, part in done for row in part]
     known = {key: done[index][2] for index, keys in wanted.items() for key in keys}
     out = Result(tables={})
     filters_only = [row for row in rows if row["estimator"] != pipeline.MEASUREMENT]
@@ -424,8 +428,10 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
             out.tables[metric] = (result_table(rows, metric, table_id_) if metric == "rmse"
                                   else result_table(filters_only, metric, table_id_))
     out.tables["health"] = result_table(filters_only, "health", table_id)
+    if states:
+        out.tables["states"] = result_table(states, "states", table_id)
     out.tables["claims"] = pipeline.claims_table(exp.config, rmse,
-                                                 [losses for _, losses, _ in done],
+                                                 [losses for _, losses, *_ in done],
                                         ("s_no", "measurement", "noise_reading", "noise_param",
                                          "frequency_hz"))
     out.figures = figures(exp, known)

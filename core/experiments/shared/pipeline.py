@@ -92,6 +92,29 @@ def rmse_columns(actual: np.ndarray, y_hat: np.ndarray, diverged: np.ndarray) ->
             "rmse_kept_se": kept_se}, per_run
 
 
+STATE_VALUES = ("rmse", "rmse_se", "rmse_kept", "rmse_kept_se", "runs", "diverged")
+"""The per-state table's columns: :data:`RMSE_VALUES` of one state's estimate."""
+
+
+def state_rows(data: dict, filters: tuple, estimates: list, verdicts: list,
+               common: dict) -> list[dict]:
+    """One row per filter and state: the RMSE (eq 3.42, of each state instead of the output)
+    of the filter's estimate against the actual state, over every run (a broken run's error
+    is infinite) and over the runs that did not diverge (``verdicts``). A filter with no
+    estimate in the actual circuit's states (the RLS) has none."""
+    rows = []
+    truth = data["states"]
+    for (label, _, model, *_), est, diverged in zip(filters, estimates, verdicts,
+                                                      strict=True):
+        if est.x_hat is None or est.x_hat.shape != truth.shape:
+            continue
+        for j, name in enumerate(model.state_names):
+            columns, _ = rmse_columns(truth[..., j:j + 1], est.x_hat[..., j:j + 1], diverged)
+            rows.append({**common, "estimator": label, "state": name,
+                         **{key: columns[key] for key in STATE_VALUES}})
+    return rows
+
+
 def score(exp: Experiment, data: dict, filters: tuple, estimates: list, common: dict,
           measured: str = "") -> tuple[list[dict], dict, list]:
     """Rows of every table for one batch: the raw measurement's row, then one per filter
