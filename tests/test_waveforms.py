@@ -141,3 +141,4 @@ def test_results_stored_before_a_setting_existed_are_of_the_config_that_has_its_
     other["input"]["periods"] = 3
     assert not same_settings({"config": other, "config_sha256": "0" * 64}, exp)
     assert not same_settings({"config": None, "config_sha256": "0" * 64}, exp)
+
