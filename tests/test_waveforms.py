@@ -4,7 +4,7 @@ source or a CSV file, beside the thesis' sine (estim.experiments.estimation.sour
 import numpy as np
 import pytest
 import yaml
-from test_cli import DELETE, tiny_config
+from test_cli import DELETE, apply_changes, tiny_config
 
 import estim
 from estim.errors import ConfigError
@@ -93,16 +93,7 @@ def test_the_circuit_starts_at_its_dc_point_with_the_source_where_the_waveform_s
      "needs a sine input"),
 ])
 def test_a_waveform_setting_that_does_not_fit_is_one_error_at_its_key(changes, key, expected):
-    spec = aperiodic("pwl", points=[[0.0, 0.0], [1e-4, 0.01]])
-    for path, value in changes.items():
-        *parents, last = path.split(".")
-        node = spec
-        for part in parents:
-            node = node[int(part)] if isinstance(node, list) else node[part]
-        if value is DELETE:
-            del node[last]
-        else:
-            node[last] = value
+    spec = apply_changes(aperiodic("pwl", points=[[0.0, 0.0], [1e-4, 0.01]]), changes)
     with pytest.raises(ConfigError) as error:
         estim.experiment(spec)
     assert key in str(error.value) and expected in str(error.value), str(error.value)

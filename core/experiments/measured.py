@@ -33,8 +33,6 @@ from estim.config.settings import (
     blocks,
     file_name,
     integer,
-    list_of,
-    number,
     setting,
     settings_class,
     text,
@@ -43,7 +41,7 @@ from estim.errors import ConfigError
 from estim.estimators.base import takes_generator
 from estim.experiments.base import Quote, Result
 from estim.experiments.shared import claims, health, pipeline, plots
-from estim.experiments.shared.blocks import VOLTS, Claim, EstimatorEntry, Health, Model
+from estim.experiments.shared.blocks import Claim, EstimatorEntry, Health, Model, SourceLevels
 from estim.reference.tablespec import TableSpec
 from estim.util import lazy
 from estim.util.shipped import find_beside
@@ -55,8 +53,9 @@ PERSISTENCE = "last measurement"
 
 
 @settings_class
-class Data(Settings):
-    """The measurements: a CSV file with a header line, evenly sampled."""
+class Data(SourceLevels):
+    """The measurements: a CSV file with a header line, evenly sampled; the source is
+    ``bias_v + input * mix`` (the input column, else 0)."""
 
     file: str = setting(REQUIRED, text(max_length=1000),
                         doc="the CSV, relative to the config's folder (or a folder above it)")
@@ -66,10 +65,6 @@ class Data(Settings):
     input: str | None = setting(None, text(max_length=100),
                                 doc="the column of the input source; none: the source is "
                                     "held at bias_v")
-    bias_v: list = setting([0.0], list_of(VOLTS), unit="V",
-                           doc="DC level of each model input, added to the input column")
-    mix: list = setting([1.0], list_of(number(minimum=-1e3, maximum=1e3)),
-                        doc="the input column's weight in each model input")
 
 
 @settings_class

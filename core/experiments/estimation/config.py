@@ -24,12 +24,12 @@ from estim.config.settings import (
 )
 from estim.experiments.shared.blocks import (
     READING,
-    VOLTS,
     EstimatorEntry,
     FigurePoint,
     FilterTable,
     InputNoise,
     Sine,
+    SourceLevels,
     simulation,
 )
 
@@ -45,7 +45,7 @@ derivative at the interval's midpoint, or the Kalman differentiator of the sampl
 
 
 @settings_class
-class Input(Sine):
+class Input(SourceLevels, Sine):
     """The source: a waveform (a sine by default), sampled, with a DC level per model input
     (:mod:`estim.experiments.estimation.source`)."""
 
@@ -80,10 +80,6 @@ class Input(Sine):
                                   doc="record length in periods (give this or duration_s)")
     duration_s: float | None = setting(None, number(minimum=1e-9, maximum=1e4), unit="s",
                                        doc="record length (give this or periods)")
-    bias_v: list = setting([0.0], list_of(VOLTS), unit="V",
-                           doc="DC level of each model input")
-    mix: list = setting([1.0], list_of(number(minimum=-1e3, maximum=1e3)),
-                        doc="the sine's weight in each model input (0.5, -0.5: differential)")
 
 
 @settings_class

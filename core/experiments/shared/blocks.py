@@ -204,6 +204,17 @@ class InputNoise(Readings):
 
 
 @settings_class
+class SourceLevels(Settings):
+    """Where a source enters the model: its DC level and its weight in each model input."""
+
+    bias_v: list = setting([0.0], list_of(VOLTS), unit="V",
+                           doc="DC level of each model input")
+    mix: list = setting([1.0], list_of(number(minimum=-1e3, maximum=1e3)),
+                        doc="the source's weight in each model input (0.5, -0.5: "
+                            "differential)")
+
+
+@settings_class
 class FigurePoint(Settings):
     """The sweep point the figures show."""
 
