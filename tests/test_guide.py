@@ -78,6 +78,7 @@ def test_the_guide_runs_as_written(tmp_path, monkeypatch):
     assert np.isfinite(rmse["rmse"]).all()
     claims = pd.read_csv(folder / "claims.csv")
     assert "IEKF RMSE < EKF RMSE" in set(claims["claim"])
+    assert {"EKF", "IEKF"} <= set(pd.read_csv(folder / "states.csv")["estimator"])
     manifest = json.loads((folder / "manifest.json").read_text())
     assert manifest["models"]["model.params"]["name"] == "diode_rc"
     iekf = next(e for e in manifest["config"]["estimators"] if e["type"] == "iekf")
