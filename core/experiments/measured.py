@@ -215,6 +215,9 @@ def work_units(exp: Experiment) -> int:
 
 
 def work_size(config: Config) -> int:
+    """A nominal size: the record is read by :func:`prepare`, after the work bound is
+    checked, so ``--max-work`` does not bound a measured run (its cost is one pass of each
+    filter over the record)."""
     return 1000 * max(1, len(config.estimators))
 
 
