@@ -16,7 +16,6 @@ the model's DC point with the source at its first sample.
 
 from __future__ import annotations
 
-import csv
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,11 +39,10 @@ from estim.config.settings import (
 from estim.errors import ConfigError
 from estim.estimators.base import takes_generator
 from estim.experiments.base import Quote, Result
-from estim.experiments.shared import claims, health, pipeline, plots
+from estim.experiments.shared import claims, health, pipeline, plots, records
 from estim.experiments.shared.blocks import Claim, EstimatorEntry, Health, Model, SourceLevels
 from estim.reference.tablespec import TableSpec
 from estim.util import lazy
-from estim.util.shipped import find_beside
 
 pd = lazy.load("pandas")
 
@@ -118,21 +116,10 @@ class Plan:
 
 
 def read_columns(name: str, source: str, wanted: dict[str, str]) -> dict[str, np.ndarray]:
-    """The columns ``wanted`` (key path -> column name) of the CSV ``name`` (found as
-    :func:`estim.util.shipped.find_beside` finds it) as numbers; one ``ConfigError`` at the
-    first problem."""
-    path = find_beside(name, source)
-    if path is None:
-        raise ConfigError(source, "data.file", f"no file {name!r} beside the config, in a "
-                          "folder above it, in the working folder or among the data shipped "
-                          "with estim's configs")
-    try:
-        with open(path, newline="", encoding="utf-8") as handle:
-            rows = [row for row in csv.reader(handle) if row]
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(source, "data.file", f"cannot read {path}: "
-                          f"{getattr(exc, 'strerror', None) or exc}") from None
-    header = [h.strip() for h in rows[0]] if rows else []
+    """The columns ``wanted`` (key path -> column name) of the CSV ``name``
+    (:func:`estim.experiments.shared.records.read_rows`) as numbers; one ``ConfigError`` at
+    the first problem."""
+    path, header, body = records.read_rows(name, source, "data.file")
     out = {}
     for key, column in wanted.items():
         if column not in header:
@@ -140,9 +127,9 @@ def read_columns(name: str, source: str, wanted: dict[str, str]) -> dict[str, np
                               f"{', '.join(header) or 'no header'})")
         j = header.index(column)
         try:
-            out[key] = np.array([float(row[j]) for row in rows[1:]])
+            out[key] = np.array([float(row[j]) for row in body])
         except (ValueError, IndexError):
-            bad = next(i for i, row in enumerate(rows[1:], 2)
+            bad = next(i for i, row in enumerate(body, 2)
                        if len(row) <= j or not _number(row[j]))
             raise ConfigError(source, key, f"{path} line {bad}: column {column!r} is not a "
                               "number") from None

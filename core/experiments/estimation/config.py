@@ -70,7 +70,8 @@ class Input(SourceLevels, Sine):
                                                    "held after the last")
     file: str | None = setting(None, text(max_length=1000),
                                doc="file: a CSV (header, then time in s and volts), relative "
-                                   "to the config's folder; linear between its rows")
+                                   "to the config's folder (or a folder above it); linear "
+                                   "between its rows")
     samples_per_period: int = setting(10, integer(2, 10_000),
                                       doc="samples per period of each frequency")
     sample_time_s: float | None = setting(None, number(minimum=1e-12, maximum=1e3), unit="s",

@@ -11,12 +11,12 @@ sample time is ``sample_time_s``. The circuit starts at its DC point with the so
 
 from __future__ import annotations
 
-import csv
 from pathlib import Path
 
 import numpy as np
 
 from estim.errors import ConfigError
+from estim.experiments.shared import records
 from estim.numerics import signals
 
 PERIODIC = ("sine", "pulse")
@@ -98,17 +98,9 @@ def _knots(knots: np.ndarray, where: str, source: str) -> np.ndarray:
 
 def read_file(name: str, source: str) -> np.ndarray:
     """The ``(t, w)`` rows of a CSV file with a header and two columns (time in s, the
-    source's deviation from its DC level in V), relative to the config's folder."""
-    path = Path(name)
-    if not path.is_absolute():
-        path = Path(source).resolve().parent / path
-    try:
-        with open(path, newline="", encoding="utf-8") as handle:
-            rows = list(csv.reader(handle))
-    except OSError as exc:
-        raise ConfigError(source, "input.file", f"cannot read {path}: "
-                          f"{exc.strerror or exc}") from None
-    body = [row for row in rows[1:] if row]
+    source's deviation from its DC level in V), found beside the config
+    (:func:`estim.experiments.shared.records.read_rows`)."""
+    path, _, body = records.read_rows(name, source, "input.file")
     try:
         knots = np.array([[float(row[0]), float(row[1])] for row in body])
     except (ValueError, IndexError):
