@@ -110,3 +110,31 @@ def test_the_shipped_record_is_what_its_script_makes(tmp_path):
     again = pd.read_csv(made)
     assert list(again.columns) == list(shipped.columns)
     assert np.allclose(again.to_numpy(), shipped.to_numpy(), rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("key, value, expected", [
+    ("data.time", 3, "non-empty string"),
+    ("data.bias_v", "0.5", "list"),
+    ("blocks", 2, "integer"),
+    ("seed", -1, "integer"),
+    ("figure", "a/b", "it names a file"),
+])
+def test_a_wrong_measured_key_is_one_line_naming_the_file_and_the_key(tmp_path, key, value,
+                                                                      expected):
+    """The measured analysis' keys through the command line: one error line naming the
+    config file, the key path and what was expected, exit 2."""
+    from click.testing import CliRunner
+
+    from estim.cli.main import main
+
+    spec = yaml.safe_load(config_with(tmp_path).read_text())
+    *parents, last = key.split(".")
+    node = spec
+    for part in parents:
+        node = node[part]
+    node[last] = value
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(spec))
+    result = CliRunner().invoke(main, ["validate", str(path)])
+    assert result.exit_code == 2, result.output
+    assert f"{path}: {key}: " in result.output and expected in result.output, result.output

@@ -133,3 +133,26 @@ def test_results_stored_before_a_setting_existed_are_of_the_config_that_has_its_
     assert not same_settings({"config": other, "config_sha256": "0" * 64}, exp)
     assert not same_settings({"config": None, "config_sha256": "0" * 64}, exp)
 
+
+
+@pytest.mark.parametrize("key, value, expected", [
+    ("input.waveform", "square", "expected one of"),
+    ("input.duty", "half", "number"),
+    ("input.duty", 1.5, "number < 1"),
+    ("input.delay_s", -1.0, "number >= 0"),
+    ("input.points", "0 0 1 1", "list"),
+    ("input.file", 7, "non-empty string"),
+])
+def test_a_wrong_waveform_key_is_one_line_naming_the_file_and_the_key(tmp_path, key, value,
+                                                                      expected):
+    """The new input keys (issue 47, item 8) through the command line, as a user meets them:
+    one error line naming the config file, the key path and what was expected, exit 2."""
+    from click.testing import CliRunner
+
+    from estim.cli.main import main
+
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(apply_changes(tiny_config(), {key: value})))
+    result = CliRunner().invoke(main, ["validate", str(path)])
+    assert result.exit_code == 2, result.output
+    assert f"{path}: {key}: " in result.output and expected in result.output, result.output
