@@ -10,6 +10,7 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
+from test_cli import apply_changes
 
 import estim
 from estim.errors import ConfigError
@@ -127,12 +128,7 @@ def test_a_wrong_measured_key_is_one_line_naming_the_file_and_the_key(tmp_path, 
 
     from estim.cli.main import main
 
-    spec = yaml.safe_load(config_with(tmp_path).read_text())
-    *parents, last = key.split(".")
-    node = spec
-    for part in parents:
-        node = node[part]
-    node[last] = value
+    spec = apply_changes(yaml.safe_load(config_with(tmp_path).read_text()), {key: value})
     path = tmp_path / "bad.yaml"
     path.write_text(yaml.safe_dump(spec))
     result = CliRunner().invoke(main, ["validate", str(path)])
