@@ -16,7 +16,9 @@ import numpy as np
 CAUSES = ("", "prediction not finite", "prediction beyond the bound", "update failed",
           "estimate not finite", "estimate beyond the bound", "covariance not finite")
 """A break's cause by its number (0: not broken); the compiled loops record the number.
-"update failed": the innovation covariance was not positive definite."""
+"update failed": the innovation covariance was not positive definite, which only the compiled
+loops' update reports (the numpy loop's update then gives a non-finite estimate, and says
+that)."""
 
 
 def reasons(cause: np.ndarray, state: np.ndarray, step: np.ndarray) -> dict[str, np.ndarray]:
