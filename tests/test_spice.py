@@ -466,7 +466,7 @@ def test_an_output_may_follow_a_state_through_a_floating_source():
 
 
 def test_a_wrong_input_or_output_is_named():
-    with pytest.raises(NetlistError, match="input 'vx' is not a voltage source"):
+    with pytest.raises(NetlistError, match="input 'vx' is not a voltage or current source"):
         Circuit(parse(RC, "t.cir"), ("vx",), "v(a)")
     with pytest.raises(NetlistError, match=r"output 'v\(zz\)': node zz is not a state node"):
         Circuit(parse(RC, "t.cir"), ("v1",), "v(zz)")

@@ -2,8 +2,8 @@
 
 States: the voltage of every node that no voltage source fixes, and the current of every
 inductor. Nodes fixed by a voltage source (from ground or from another fixed node) carry the
-source's value: the model's inputs (the sources named in ``inputs``) or the source's DC
-value; an ``E`` (or ``H``) source fixes its node to a function of the others. A source
+source's value: the model's voltage inputs (the sources named in ``inputs``) or the
+source's DC value; an ``E`` (or ``H``) source fixes its node to a function of the others. A source
 between two nodes no source ties to ground makes a supernode: its minus node is the state,
 its plus node follows it, and they share one KCL row (D76). Every node voltage is then
 affine in the states and inputs, ``V = P x + Q u + r``. KCL at the state nodes (supernodes),
@@ -16,7 +16,9 @@ gives ``f``; inductors add ``L i' = v(n1) - v(n2)``. ``C`` must be invertible: e
 node needs a capacitive path, and one without is refused by name (deviations D71: a shunt
 capacitor, as the hand-written models carry ``C_par``, keeps ``f`` explicit and its
 Jacobian exact, where a Newton solve of such nodes inside ``f`` would not). A node with no
-DC path (only capacitors and current sources reach it) is refused too. An input whose node
+DC path (only capacitors and current sources reach it) is refused too. A current source
+named as an input adds its value to the KCL rows of its two nodes (leaving the ``+`` node,
+as SPICE's current flows from ``+`` through the source to ``-``). An input whose node
 reaches the circuit only through capacitors drives it by its slope (D72).
 
 Device laws and their ``.model`` parameters: Shockley diodes with series resistance
@@ -77,9 +79,9 @@ class Circuit:
             raise NetlistError(src, 0, f"input {twice[0]!r} named more than once")
         for name in self.inputs:
             e = net.element(name)
-            if e is None or e.kind != "v":
-                raise NetlistError(src, 0, f"input {name!r} is not a voltage source of the "
-                                   "netlist")
+            if e is None or e.kind not in "vi":
+                raise NetlistError(src, 0, f"input {name!r} is not a voltage or current "
+                                   "source of the netlist")
         nodes = sorted({n for e in net.elements for n in e.nodes} - set(GROUND))
         if not nodes:
             raise NetlistError(src, 0, "no node but ground")
@@ -233,6 +235,8 @@ class Circuit:
                     why = "another source"
                 elif e.kind == "h" and x.kind in "dqm":
                     why = "a device (an H source needs a linear controlling current)"
+                elif e.kind == "h" and x.name in self.inputs:
+                    why = "a model input (an H source's voltage would follow it)"
                 if why:
                     raise NetlistError(src, e.line, f"{e.name}: the current of {vx.name} is "
                                        f"summed at node {node}, which {x.name} meets: {why}; "
@@ -289,6 +293,10 @@ class Circuit:
         kinds = set()
         for name in self.inputs:
             e = net.element(name)
+            if e.kind == "i":                   # a current into KCL rows: by its value
+                self.input_nodes.append(None)
+                kinds.add(False)
+                continue
             node = self.fixed_by(e)
             if root[node] not in GROUND:
                 raise NetlistError(src, e.line, f"{e.name}: a model input must be tied to "
@@ -307,8 +315,8 @@ class Circuit:
             kinds.add(bool(caps))
         if len(kinds) > 1:
             raise NetlistError(src, 0, "inputs driving through capacitors (by their slope) "
-                               "and inputs driving by their value in one netlist: not "
-                               "supported")
+                               "and inputs driving by their value (current sources among "
+                               "them) in one netlist: not supported")
         return kinds == {True}
 
     def _output(self, text: str) -> tuple:

@@ -89,6 +89,8 @@ class NetlistModel(Model, metaclass=NetlistClass):
         i0 = np.zeros(kc)
         L = np.zeros((n, len(nodes)))                # inductor rows of dx/dt
         A = np.zeros((k, len(c.controls)))
+        U = np.zeros((kc, p))                         # the inputs' currents, by row
+        U[:k] = -c.B                                   # a slope input's capacitor current
         self._devices = []
 
         def leave(node, col, value, where):
@@ -105,10 +107,13 @@ class NetlistModel(Model, metaclass=NetlistClass):
                     leave(node, self._node[cp], sign * g, G)
                     leave(node, self._node[cm], -sign * g, G)
             elif e.kind == "i":
+                j = c.inputs.index(e.name) if e.name in c.inputs else None
                 for node, sign in ((e.nodes[0], 1.0), (e.nodes[1], -1.0)):
                     for i in (self._rowmap[self._node[node]], self._crowmap[self._node[node]]):
-                        if i >= 0:
+                        if i >= 0 and j is None:
                             i0[i] += sign * e.waveform[1]
+                        elif i >= 0:
+                            U[i, j] += sign
             elif e.kind == "l":
                 j = k + [x.name for x in c.inductors].index(e.name)
                 a, b = e.nodes
@@ -128,8 +133,6 @@ class NetlistModel(Model, metaclass=NetlistClass):
                                       [self._node[x] for x in e.nodes]))
         self._G, self._K, self._i0, self._L = G, K, i0, L
         self._A = A if c.controls else None
-        U = np.zeros((kc, p))
-        U[:k] = -c.B                                   # a slope input's capacitor current
         self._U = U
         self._linear = G @ self._P + K                # d(linear currents)/dx
         term = c.output_terms
