@@ -207,7 +207,8 @@ def _netlist(x, u, P, f, J):
     four node indices (-1: none), five parameters]``: type 0 a diode (``a, b``; ``I_s, n
     V_T, r_s``), 1/2 an NPN/PNP (``c, b, e``; ``I_ES, I_CS, alpha_F, alpha_R, V_T``), 3 an
     NMOS (``d, g, s, b``; ``U_T, V_T0, eta, I_s``, law: 0 EKV, 1 weak inversion, 2 weak
-    saturation, 3 and 4 the Taylor polynomials, ``estim.spice.devices.NMOS_LAWS``)."""
+    saturation, 3 and 4 the Taylor polynomials, ``estim.spice.devices.NMOS_LAWS``), 4 a PMOS
+    (the same, of the negated voltages, its current negated)."""
     n, k, p, N, nd, nc = int(P[0]), int(P[1]), int(P[2]), int(P[3]), int(P[4]), int(P[5])
     kc = k + nc
     R = kc + n - k
@@ -293,6 +294,9 @@ def _netlist(x, u, P, f, J):
             t0, t1, t2 = 0, 1, 2
         else:
             UT, VT0, eta, Is, law = P[row + 5], P[row + 6], P[row + 7], P[row + 8], P[row + 9]
+            pm = 1.0 if kind == 3.0 else -1.0              # a PMOS: -I_n(-v), same gradient
+            for c in range(4):
+                v[c] = pm * v[c]
             if law == 3.0:                                 # taylor_conduction (eq 3.7)
                 xr = VT0 / (eta * UT)
                 c0 = 1 - xr + xr**2 / 2 - xr**3 / 6
@@ -328,7 +332,7 @@ def _netlist(x, u, P, f, J):
                     i_ds = Is * (e_s - e_d)
                 dterm[0, 0], dterm[0, 1] = Is * dFd, Is * (dFs - dFd) / eta
                 dterm[0, 2], dterm[0, 3] = -Is * dFs, Is * (dFs - dFd) * (1 - 1 / eta)
-            term[0], term[1] = i_ds, -i_ds
+            term[0], term[1] = pm * i_ds, -pm * i_ds
             for c in range(4):
                 dterm[1, c] = -dterm[0, c]
             t0, t1, t2 = 0, 2, -1

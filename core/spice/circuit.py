@@ -27,9 +27,10 @@ Device laws and their ``.model`` parameters: Shockley diodes with series resista
 ``pnp``: ``ies alpha_f alpha_r vt``, ``I_CS`` by reciprocity unless ``ics`` is given;
 :mod:`estim.models.devices.ebers_moll`, the thesis' law), EKV NMOS (``nmos``: ``u_t v_t0 eta i_0
 w_l law``; the laws of :mod:`estim.models.mosfet_ekv`, ``law`` the index in
-:data:`NMOS_LAWS`, 0 EKV). Jacobian, input Jacobian and Hessian are
-analytic. ``F`` and ``H`` sources take the current of a voltage source as KCL at the node
-it fixes (no capacitor there; for ``H`` only linear branches: D76).
+:data:`NMOS_LAWS`, 0 EKV) and PMOS (``pmos``: the same parameters, the NMOS law of the
+negated voltages, negated: :func:`estim.spice.devices.mosfet`). Jacobian, input Jacobian
+and Hessian are analytic. ``F`` and ``H`` sources take the current of a voltage source as
+KCL at the node it fixes (no capacitor there; for ``H`` only linear branches: D76).
 """
 
 
@@ -140,7 +141,7 @@ class Circuit:
                 model = net.models.get(e.ref)
                 if model is None:
                     raise NetlistError(src, e.line, f"{e.name}: no .model {e.ref}")
-                want = {"d": ("d",), "q": ("npn", "pnp"), "m": ("nmos",)}[e.kind]
+                want = {"d": ("d",), "q": ("npn", "pnp"), "m": ("nmos", "pmos")}[e.kind]
                 if model.type not in want:
                     raise NetlistError(src, model.line, f".model {model.name}: type "
                                        f"{model.type!r} for {e.name}; expected "
@@ -150,7 +151,7 @@ class Circuit:
                     raise NetlistError(src, model.line, f".model {model.name}: unknown "
                                        f"parameter(s) {sorted(unknown)}; expected "
                                        f"{sorted(DEFAULTS[model.type])}")
-                if model.type == "nmos" and model.params.get("law", 0) not in range(5):
+                if model.type in ("nmos", "pmos") and model.params.get("law", 0) not in range(5):
                     raise NetlistError(src, model.line, f".model {model.name}: law "
                                        f"{model.params['law']!r}; expected 0-4 ("
                                        f"{', '.join(f'{i} {n}' for i, n in enumerate(NMOS_LAWS))})")

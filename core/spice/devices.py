@@ -2,7 +2,7 @@
 diodes with series resistance (``d``: ``is n rs``; closed form by the Lambert W function),
 Ebers-Moll NPN/PNP (``npn``, ``pnp``; :mod:`estim.models.devices.ebers_moll`), EKV NMOS
 (``nmos``; the laws of :mod:`estim.models.mosfet_ekv`, ``law`` the index in
-:data:`NMOS_LAWS`)."""
+:data:`NMOS_LAWS`) and its mirror, the PMOS (``pmos``, :func:`mosfet`)."""
 
 from __future__ import annotations
 
@@ -34,7 +34,7 @@ NMOS_LAWS = ("ekv", "weak_inversion", "weak_saturation", "taylor_conduction",
 transistor with the thesis' approximations as the hand-written model's filters do (D77)."""
 
 
-DEFAULTS = {"d": DIODE, "npn": BJT, "pnp": BJT, "nmos": EKV}
+DEFAULTS = {"d": DIODE, "npn": BJT, "pnp": BJT, "nmos": EKV, "pmos": EKV}
 
 
 REVERSE_KNEE = 3.0
@@ -92,6 +92,18 @@ def diode_slope(vd, cur, g, p):
         return float(diode_reverse(vd, p["is"], aa, p["rs"])[2])
     y = cur + p["is"]
     return aa * g / (aa + p["rs"] * y) ** 2 if p["rs"] > 0 else g / aa
+
+
+def mosfet(kind: str, vd, vg, vs, vb, p, second: bool = False):
+    """:func:`nmos` for an ``nmos`` device; a ``pmos`` is its mirror, the same law of the
+    negated terminal voltages with the current negated, ``I_p(v) = -I_n(-v)`` (so its
+    ``v_t0`` is the magnitude of the threshold, as the NMOS's is; the gradient is the NMOS's
+    at ``-v``, the Hessian its negative)."""
+    if kind == "nmos":
+        return nmos(vd, vg, vs, vb, p, second)
+    cur, grad, hess = nmos(-np.asarray(vd, float), -np.asarray(vg, float),
+                           -np.asarray(vs, float), -np.asarray(vb, float), p, second)
+    return -cur, grad, -hess
 
 
 def nmos(vd, vg, vs, vb, p, second: bool = False):

@@ -13,7 +13,7 @@ import numpy as np
 from estim.models.base import Model
 from estim.models.devices import ebers_moll
 from estim.spice.circuit import Circuit
-from estim.spice.devices import DEFAULTS, DIODE_VT, diode, diode_slope, nmos
+from estim.spice.devices import DEFAULTS, DIODE_VT, diode, diode_slope, mosfet
 from estim.spice.parser import NetlistError
 from estim.util import lazy
 
@@ -261,7 +261,8 @@ class NetlistModel(Model, metaclass=NetlistClass):
                                   (base, tc.I_B, tc.dIB_be, tc.dIB_bc)))
             else:
                 d_, g_, s_, b_ = idx
-                cur, grad, _ = nmos(V[..., d_], V[..., g_], V[..., s_], V[..., b_], p)
+                cur, grad, _ = mosfet(kind, V[..., d_], V[..., g_], V[..., s_], V[..., b_],
+                                      p)
                 dcur = (grad[..., 0, None] * self._P[d_] + grad[..., 1, None] * self._P[g_]
                         + grad[..., 2, None] * self._P[s_] + grad[..., 3, None] * self._P[b_])
                 terms = ((d_, cur, dcur), (s_, -cur, -dcur))
@@ -317,7 +318,7 @@ class NetlistModel(Model, metaclass=NetlistClass):
             else:
                 values = [prm["u_t"], prm["v_t0"], prm["eta"], prm["i_0"] * prm["w_l"],
                           float(prm.get("law", 0.0))]
-                code = 3.0
+                code = 3.0 if kind == "nmos" else 4.0
             rows.append([code, *nodes, *values])
         Y = np.vstack([self._linear, (self._L @ self._P)[k:]])
         W = np.vstack([self._G @ self._Q + self._U, (self._L @ self._Q)[k:]])
@@ -372,7 +373,7 @@ class NetlistModel(Model, metaclass=NetlistClass):
                 yield [c, b, e], terms
             else:
                 d_, g_, s_, b_ = idx
-                _, d1, d2 = nmos(V[d_], V[g_], V[s_], V[b_], p, second=True)
+                _, d1, d2 = mosfet(kind, V[d_], V[g_], V[s_], V[b_], p, second=True)
                 yield [d_, g_, s_, b_], [(d_, d1, d2), (s_, -d1, -d2)]
 
     def _node_voltages(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:

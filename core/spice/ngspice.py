@@ -54,7 +54,7 @@ def _models(net: Netlist) -> tuple[list[str], float | None]:
     lines, vt = [], None
     for m in net.models.values():
         p = m.params
-        if m.type == "nmos":
+        if m.type in ("nmos", "pmos"):
             continue                    # EKV devices become B sources (:func:`_ekv_source`)
         if m.type in ("npn", "pnp") and p.get("ics") is not None:
             continue                    # B sources (:func:`_em_sources`)
@@ -75,9 +75,11 @@ def _models(net: Netlist) -> tuple[list[str], float | None]:
 def _ekv_source(e, net: Netlist) -> str:
     """An NMOS as an ngspice B source from drain to source: the law of its ``.model``
     (:func:`estim.spice.devices.nmos`) written out; EKV's softplus as ``max(a, 0) +
-    ln(1 + exp(-abs(a)))`` (no overflow, no loss for negative ``a``)."""
+    ln(1 + exp(-abs(a)))`` (no overflow, no loss for negative ``a``). A PMOS: the same law
+    of the negated node voltages, its current negated (:func:`estim.spice.devices.mosfet`)."""
     p = {**EKV, **net.models[e.ref].params}
-    d, g, s, b = (f"v({flat(n)})" if n not in ("0", "gnd") else "0" for n in e.nodes)
+    pm = "-" if net.models[e.ref].type == "pmos" else ""
+    d, g, s, b = (f"({pm}v({flat(n)}))" if n not in ("0", "gnd") else "0" for n in e.nodes)
     ut, vt0, eta = p["u_t"], p["v_t0"], p["eta"]
     vp = f"(({g} - {b} - ({vt0!r})) / {eta!r})"
 
@@ -106,7 +108,8 @@ def _ekv_source(e, net: Netlist) -> str:
         a1 = 1 / ut - vt0 / ut**2
         current = (f"({1 - vt0 / ut + vt0**2 / ut**2!r} + ({g} - {s}) * {a1!r} + "
                    f"({g} - {s})^2 / {2 * ut**2!r})")
-    return f"B{flat(e.name)} {flat(e.nodes[0])} {flat(e.nodes[2])} I={Is!r} * {current}"
+    return (f"B{flat(e.name)} {flat(e.nodes[0])} {flat(e.nodes[2])} "
+            f"I={-Is if pm else Is!r} * {current}")
 
 
 def _em_sources(e, net: Netlist) -> list[str]:
