@@ -1,21 +1,24 @@
 """A parsed netlist as an estim model (:class:`estim.models.base.Model`) by nodal analysis.
 
-States: the voltage of every node that no voltage source fixes, and the current of every
-inductor. Nodes fixed by a voltage source (from ground or from another fixed node) carry the
-source's value: the model's voltage inputs (the sources named in ``inputs``) or the
-source's DC value; an ``E`` (or ``H``) source fixes its node to a function of the others. A source
-between two nodes no source ties to ground makes a supernode: its minus node is the state,
-its plus node follows it, and they share one KCL row (D76). Every node voltage is then
+States: the voltage of every node that no voltage source fixes and a capacitor meets, and
+the current of every inductor. Nodes fixed by a voltage source (from ground or from another
+fixed node) carry the source's value: the model's voltage inputs (the sources named in
+``inputs``) or the source's DC value; an ``E`` (or ``H``) source fixes its node to a
+function of the others. A source between two nodes no source ties to ground makes a
+supernode: its minus node is the state, its plus node follows it, and they share one KCL
+row (D76). Every node voltage is then
 affine in the states and inputs, ``V = P x + Q u + r``. KCL at the state nodes (supernodes),
 with the nodal capacitance matrix ``C``,
 
     C v' = - (the currents leaving each node through R, G, I, L, D, Q and M)
            + (a slope input's capacitor currents),
 
-gives ``f``; inductors add ``L i' = v(n1) - v(n2)``. ``C`` must be invertible: every state
-node needs a capacitive path, and one without is refused by name (deviations D71: a shunt
-capacitor, as the hand-written models carry ``C_par``, keeps ``f`` explicit and its
-Jacobian exact, where a Newton solve of such nodes inside ``f`` would not). A node with no
+gives ``f``; inductors add ``L i' = v(n1) - v(n2)``. ``C`` must be invertible. A node no
+capacitor meets is not a state: where only linear branches carry its current, its KCL gives
+its voltage as affine in the states and inputs, folded into ``V = P x + Q u + r``; where a
+device or an F source does, it is refused by name (deviations D71: a shunt capacitor, as the
+hand-written models carry ``C_par``, keeps ``f`` explicit and its Jacobian exact, where a
+Newton solve of such nodes inside ``f`` would not). A node with no
 DC path (only capacitors and current sources reach it) is refused too. A current source
 named as an input adds its value to the KCL rows of its two nodes (leaving the ``+`` node,
 as SPICE's current flows from ``+`` through the source to ``-``). An input whose node
@@ -87,15 +90,11 @@ class Circuit:
         if not nodes:
             raise NetlistError(src, 0, "no node but ground")
         self.fixed, root = self._fix_nodes()
+        self.root = root
+        # every node no source fixes, until those without a capacitor are set apart below
         self.state_nodes = [n for n in nodes if n not in self.fixed]
         self.inductors = [e for e in net.elements if e.kind == "l"]
-        names = [f"v({n})" for n in self.state_nodes] + [f"i({e.name})" for e in self.inductors]
-        self.state_names = tuple(names)
-        index = {n: i for i, n in enumerate(self.state_nodes)}
-        self.index = index
-        # each node's KCL row: its own state's, or that of the state node whose voltage it
-        # follows through voltage sources (a supernode); None for a node tied to ground
-        self.row = {n: index.get(root.get(n, n)) for n in nodes}
+        self.index = {n: i for i, n in enumerate(self.state_nodes)}
         # a floating node: connected to only one element terminal
         touches: dict[str, int] = {}
         for e in net.elements:
@@ -124,10 +123,9 @@ class Circuit:
                     C[this[1], other[1]] -= e.value
                 else:
                     B[this[1], other[1]] += e.value
-        missing = [self.state_nodes[i] for i in range(k) if C[i, i] == 0]
-        if missing:
-            raise NetlistError(src, 0, f"node(s) {', '.join(missing)} have no capacitive path: "
-                               "add a small shunt capacitor (e.g. 1p to ground) to each")
+        self._check_dc_paths()
+        C, B = self._set_apart_algebraic(C, B, root)
+        k = len(self.state_nodes)
         if k and np.linalg.matrix_rank(C) < k:
             raise NetlistError(src, 0, "the nodal capacitance matrix is singular: node(s) "
                                f"{', '.join(self._floating_group(C))} are joined only by "
@@ -135,7 +133,6 @@ class Circuit:
                                "capacitor to one of them")
         self.C_inv = np.linalg.inv(C) if k else np.zeros((0, 0))
         self.B = B
-        self._check_dc_paths()
         for e in net.elements:
             if e.kind in "dqm":
                 model = net.models.get(e.ref)
@@ -156,6 +153,49 @@ class Circuit:
                                        f"{model.params['law']!r}; expected 0-4 ("
                                        f"{', '.join(f'{i} {n}' for i, n in enumerate(NMOS_LAWS))})")
         self.output_terms = self._output(self.output)
+
+    def _set_apart_algebraic(self, C: np.ndarray, B: np.ndarray,
+                             root: dict) -> tuple[np.ndarray, np.ndarray]:
+        """The nodes (supernodes) no capacitor meets are not states: their KCL holds at every
+        instant, and where only linear branches (R, G, I, L, and sources that fix their
+        followers) carry their currents it gives their voltages as affine in the states and
+        inputs (D71; :meth:`estim.spice.netlist_model.NetlistModel._prepare` solves it). A
+        device or an F source carrying current into such a node would make that solve
+        nonlinear: refused by name. Sets the states, their names, index and KCL rows, and
+        ``algebraic`` (those nodes) with ``algebraic_row`` (each node's among them, for the
+        nodes that follow one); returns ``C`` and ``B`` on the states."""
+        k = len(self.state_nodes)
+        cut = [i for i in range(k) if C[i, i] == 0]
+        names = {self.state_nodes[i] for i in cut}
+        group = {n: root.get(n, n) for n in root if root.get(n, n) in names} | {n: n for n in names}
+        carried = []
+        for e in self.netlist.elements:
+            ends = {"d": e.nodes[:2], "q": e.nodes[:3], "m": e.nodes[0:3:2],
+                    "f": e.nodes[:2]}.get(e.kind, ())
+            hit = sorted({group[n] for n in ends if n in group})
+            if hit:
+                carried.append((hit, e.name))
+        if carried:
+            nodes = sorted({n for hit, _ in carried for n in hit})
+            who = ", ".join(sorted({name for _, name in carried}))
+            raise NetlistError(self.netlist.source, 0, f"node(s) {', '.join(nodes)} have no "
+                               f"capacitive path and carry the current of {who}: estim solves a "
+                               "node without a capacitor from its KCL for linear branches only; "
+                               "add a small shunt capacitor (e.g. 1p to ground) to each")
+        keep = [i for i in range(k) if i not in cut]
+        self.algebraic = [self.state_nodes[i] for i in cut]
+        self.state_nodes = [self.state_nodes[i] for i in keep]
+        self.index = {n: i for i, n in enumerate(self.state_nodes)}
+        names_ = [f"v({n})" for n in self.state_nodes] + [f"i({e.name})" for e in self.inductors]
+        self.state_names = tuple(names_)
+        # each node's KCL row: its own state's, or that of the state node whose voltage it
+        # follows through voltage sources (a supernode); None for a node tied to ground or
+        # one without a capacitor (``algebraic_row`` numbers those)
+        every = set(root) | set(self.index) | names
+        self.row = {n: self.index.get(root.get(n, n)) for n in every if n not in GROUND}
+        where = {n: j for j, n in enumerate(self.algebraic)}
+        self.algebraic_row = {n: where[g] for n, g in group.items()}
+        return C[np.ix_(keep, keep)], B[keep]
 
     def _fix_nodes(self) -> tuple[dict, dict]:
         """Which node each voltage source (V, E, H) fixes: ``{node: (source, other end,
@@ -341,7 +381,7 @@ class Circuit:
             raise NetlistError(self.netlist.source, 0, f"output {text!r}: ground's voltage is "
                                "zero whatever the circuit does; name a node of the circuit")
         for n in (m.group(2), m.group(3)):
-            if n and self.row.get(n) is None:
+            if n and self.row.get(n) is None and n not in self.algebraic_row:
                 raise NetlistError(self.netlist.source, 0, f"output {text!r}: node {n} is "
                                    f"not a state node ({', '.join(self.state_nodes)}) nor "
                                    "follows one through voltage sources")

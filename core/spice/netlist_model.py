@@ -15,6 +15,7 @@ from estim.models.devices import ebers_moll
 from estim.spice.circuit import Circuit
 from estim.spice.devices import DEFAULTS, DIODE_VT, diode, diode_slope, mosfet
 from estim.spice.parser import NetlistError
+from estim.spice.solved_nodes import solve_algebraic
 from estim.util import lazy
 
 special = lazy.load("scipy.special")
@@ -69,27 +70,28 @@ class NetlistModel(Model, metaclass=NetlistClass):
         source of an F or H (the currents leaving the node it fixes); ``A`` adds each F's
         current, gain times its control row, to the rows of its two nodes."""
         c = self.circuit
-        nodes = ["0", *c.state_nodes, *c.fixed]
+        nodes = ["0", *c.state_nodes, *c.algebraic, *c.fixed]
         self._node = {n: i for i, n in enumerate(nodes)}
         self._node["gnd"] = 0
         n, p, k = self.n_states, self.n_inputs, len(c.state_nodes)
-        kc = k + len(c.controls)
-        self._rowmap = np.array([-1] + [c.row[x] if c.row[x] is not None else -1
-                                        for x in nodes[1:]], dtype=np.int64)
+        kc, a = k + len(c.controls), len(c.algebraic)
+        self._rowmap = np.array([-1] + [
+            c.row[x] if c.row.get(x) is not None else kc + c.algebraic_row.get(x, -1 - kc)
+            for x in nodes[1:]], dtype=np.int64)
         control = {node: k + j for j, (_, node, _) in enumerate(c.controls)}
         self._crowmap = np.array([control.get(x, -1) for x in nodes], dtype=np.int64)
         self._control_sign = np.array([sign for _, _, sign in c.controls])
-        r = self._affine(np.zeros(n), np.zeros(p))
-        self._r = r
-        self._P = np.stack([self._affine(e, np.zeros(p)) - r for e in np.eye(n)], axis=-1)
-        self._Q = np.stack([self._affine(np.zeros(n), e) - r for e in np.eye(p)], axis=-1) \
+        zero = np.zeros(n + a)
+        r = self._affine(zero, np.zeros(p))
+        P = np.stack([self._affine(e, np.zeros(p)) - r for e in np.eye(n + a)], axis=-1)
+        Q = np.stack([self._affine(zero, e) - r for e in np.eye(p)], axis=-1) \
             if p else np.zeros((len(nodes), 0))
-        G = np.zeros((kc, len(nodes)))              # current leaving each row's node(s)
-        K = np.zeros((kc, n))
-        i0 = np.zeros(kc)
+        G = np.zeros((kc + a, len(nodes)))          # current leaving each row's node(s)
+        K = np.zeros((kc + a, n))
+        i0 = np.zeros(kc + a)
         L = np.zeros((n, len(nodes)))                # inductor rows of dx/dt
         A = np.zeros((k, len(c.controls)))
-        U = np.zeros((kc, p))                         # the inputs' currents, by row
+        U = np.zeros((kc + a, p))                     # the inputs' currents, by row
         U[:k] = -c.B                                   # a slope input's capacitor current
         self._devices = []
 
@@ -131,6 +133,11 @@ class NetlistModel(Model, metaclass=NetlistClass):
                 model = c.netlist.models[e.ref]
                 self._devices.append((model.type, {**DEFAULTS[model.type], **model.params},
                                       [self._node[x] for x in e.nodes]))
+        if a:
+            P, Q, r = solve_algebraic(c, n, P, Q, r, G, K, i0, U, kc)
+            G, K, i0, U = G[:kc], K[:kc], i0[:kc], U[:kc]
+            self._rowmap[self._rowmap >= kc] = -1
+        self._P, self._Q, self._r = P, Q, r
         self._G, self._K, self._i0, self._L = G, K, i0, L
         self._A = A if c.controls else None
         self._U = U
@@ -154,10 +161,13 @@ class NetlistModel(Model, metaclass=NetlistClass):
                 d_out[..., :k, :] + np.einsum("ij,...jn->...in", self._A, d_out[..., k:, :]))
 
     def _affine(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Every node's voltage (in ``self._node`` order) at states ``x``, inputs ``u``."""
+        """Every node's voltage (in ``self._node`` order) at states ``x`` followed by the
+        voltages of the nodes no capacitor meets, inputs ``u``."""
         c = self.circuit
         v = {"0": 0.0, "gnd": 0.0}
-        v.update(zip(c.state_nodes, x[:len(c.state_nodes)], strict=True))
+        k, n = len(c.state_nodes), self.n_states
+        v.update(zip(c.state_nodes, x[:k], strict=True))
+        v.update(zip(c.algebraic, x[n:], strict=True))
         todo = list(c.fixed)
         guard = 0
         while todo:
