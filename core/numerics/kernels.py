@@ -208,7 +208,9 @@ def _netlist(x, u, P, f, J):
     V_T, r_s``), 1/2 an NPN/PNP (``c, b, e``; ``I_ES, I_CS, alpha_F, alpha_R, V_T``), 3 an
     NMOS (``d, g, s, b``; ``U_T, V_T0, eta, I_s``, law: 0 EKV, 1 weak inversion, 2 weak
     saturation, 3 and 4 the Taylor polynomials, ``estim.spice.devices.NMOS_LAWS``), 4 a PMOS
-    (the same, of the negated voltages, its current negated)."""
+    (the same, of the negated voltages, its current negated), 5/6 a level-1 NMOS/PMOS
+    (``d, g, s, b``; ``VTO`` (a PMOS's negated), ``KP W / L``, ``LAMBDA``, ``GAMMA``, ``PHI``:
+    :mod:`estim.spice.level1`)."""
     n, k, p, N, nd, nc = int(P[0]), int(P[1]), int(P[2]), int(P[3]), int(P[4]), int(P[5])
     kc = k + nc
     R = kc + n - k
@@ -292,6 +294,44 @@ def _netlist(x, u, P, f, J):
             dterm[1, 2] = -(1.0 - aF) * gF
             dterm[2, 0], dterm[2, 1], dterm[2, 2] = -aR * gR, -gF + aR * gR, gF
             t0, t1, t2 = 0, 1, 2
+        elif kind == 5.0 or kind == 6.0:                  # level 1 (estim.spice.level1)
+            pm = 1.0 if kind == 5.0 else -1.0
+            vto, beta, lam, gam, phi = (P[row + 5], P[row + 6], P[row + 7], P[row + 8],
+                                        P[row + 9])
+            vd, vg, vs, vb = pm * v[0], pm * v[1], pm * v[2], pm * v[3]
+            rev = vd < vs
+            if rev:
+                vd, vs = vs, vd
+            vgs, vds, vbs = vg - vs, vd - vs, vb - vs
+            root = np.sqrt(phi)
+            if vbs <= 0.0:
+                sarg = np.sqrt(max(phi - vbs, 0.0))
+                dsarg = -0.5 / sarg
+            else:
+                sarg = max(0.0, root - vbs / (2 * root))
+                dsarg = -0.5 / root if sarg > 0.0 else 0.0
+            vgst = vgs - vto - gam * (sarg - root)
+            grow = 1.0 + lam * vds
+            F, Fg, Fd = 0.0, 0.0, 0.0
+            if vgst > 0.0 and vds < vgst:
+                F = beta * vds * (vgst - vds / 2) * grow
+                Fg = beta * vds * grow
+                Fd = beta * (vgst - vds) * grow + beta * lam * vds * (vgst - vds / 2)
+            elif vgst > 0.0:
+                F = beta / 2 * vgst * vgst * grow
+                Fg = beta * vgst * grow
+                Fd = beta / 2 * lam * vgst * vgst
+            # d(current)/d(drain, gate, source, bulk) in the mode's own order
+            gd_, gg_, gs_, gb_ = Fd, Fg, -Fd + Fg * (-1.0 + gam * dsarg), -Fg * gam * dsarg
+            if rev:
+                term[0], term[1] = -pm * F, pm * F
+                dterm[0, 0], dterm[0, 1], dterm[0, 2], dterm[0, 3] = -gs_, -gg_, -gd_, -gb_
+            else:
+                term[0], term[1] = pm * F, -pm * F
+                dterm[0, 0], dterm[0, 1], dterm[0, 2], dterm[0, 3] = gd_, gg_, gs_, gb_
+            for c in range(4):
+                dterm[1, c] = -dterm[0, c]
+            t0, t1, t2 = 0, 2, -1
         else:
             UT, VT0, eta, Is, law = P[row + 5], P[row + 6], P[row + 7], P[row + 8], P[row + 9]
             pm = 1.0 if kind == 3.0 else -1.0              # a PMOS: -I_n(-v), same gradient

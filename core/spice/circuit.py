@@ -31,8 +31,10 @@ Device laws and their ``.model`` parameters: Shockley diodes with series resista
 :mod:`estim.models.devices.ebers_moll`, the thesis' law), EKV NMOS (``nmos``: ``u_t v_t0 eta i_0
 w_l law``; the laws of :mod:`estim.models.mosfet_ekv`, ``law`` the index in
 :data:`NMOS_LAWS`, 0 EKV) and PMOS (``pmos``: the same parameters, the NMOS law of the
-negated voltages, negated: :func:`estim.spice.devices.mosfet`). Jacobian, input Jacobian
-and Hessian are analytic. ``F`` and ``H`` sources take the current of a voltage source as
+negated voltages, negated: :func:`estim.spice.devices.mosfet`); with ``level=1`` in its
+``.model``, an NMOS or PMOS is SPICE's level-1 MOSFET (``vto kp lambda gamma phi``, ``w=``
+and ``l=`` on its line; :mod:`estim.spice.level1`). Jacobian, input Jacobian and Hessian are
+analytic. ``F`` and ``H`` sources take the current of a voltage source as
 KCL at the node it fixes (no capacitor there; for ``H`` only linear branches: D76).
 """
 
@@ -44,7 +46,7 @@ import re
 
 import numpy as np
 
-from estim.spice.devices import DEFAULTS, NMOS_LAWS
+from estim.spice.devices import NMOS_LAWS, model_defaults
 from estim.spice.parser import Netlist, NetlistError
 from estim.util import lazy
 
@@ -143,12 +145,21 @@ class Circuit:
                     raise NetlistError(src, model.line, f".model {model.name}: type "
                                        f"{model.type!r} for {e.name}; expected "
                                        f"{' or '.join(want)}")
-                unknown = set(model.params) - set(DEFAULTS[model.type])
+                known = model_defaults(model)
+                unknown = set(model.params) - set(known)
                 if unknown:
                     raise NetlistError(src, model.line, f".model {model.name}: unknown "
                                        f"parameter(s) {sorted(unknown)}; expected "
-                                       f"{sorted(DEFAULTS[model.type])}")
-                if model.type in ("nmos", "pmos") and model.params.get("law", 0) not in range(5):
+                                       f"{sorted(known)}")
+                if "level" in model.params and model.params["level"] != 1:
+                    raise NetlistError(src, model.line, f".model {model.name}: level "
+                                       f"{model.params['level']:g}; estim has level 1 (and "
+                                       "its EKV law without a level)")
+                if e.size and "level" not in model.params:
+                    raise NetlistError(src, e.line, f"{e.name}: w and l on an EKV device; "
+                                       f"give its w_l in .model {model.name}")
+                if (model.type in ("nmos", "pmos") and "level" not in model.params
+                        and model.params.get("law", 0) not in range(5)):
                     raise NetlistError(src, model.line, f".model {model.name}: law "
                                        f"{model.params['law']!r}; expected 0-4 ("
                                        f"{', '.join(f'{i} {n}' for i, n in enumerate(NMOS_LAWS))})")

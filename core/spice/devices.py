@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from estim.spice.level1 import LEVEL1, level1
 from estim.util import lazy
 
 special = lazy.load("scipy.special")
@@ -35,6 +36,15 @@ transistor with the thesis' approximations as the hand-written model's filters d
 
 
 DEFAULTS = {"d": DIODE, "npn": BJT, "pnp": BJT, "nmos": EKV, "pmos": EKV}
+
+
+def model_defaults(model) -> dict:
+    """The parameters a ``.model`` may give and their defaults: a MOSFET with ``level``
+    (1 only) takes SPICE's level-1 parameters (:mod:`estim.spice.level1`), else estim's EKV
+    ones."""
+    if model.type in ("nmos", "pmos") and "level" in model.params:
+        return LEVEL1
+    return DEFAULTS[model.type]
 
 
 REVERSE_KNEE = 3.0
@@ -95,14 +105,17 @@ def diode_slope(vd, cur, g, p):
 
 
 def mosfet(kind: str, vd, vg, vs, vb, p, second: bool = False):
-    """:func:`nmos` for an ``nmos`` device; a ``pmos`` is its mirror, the same law of the
-    negated terminal voltages with the current negated, ``I_p(v) = -I_n(-v)`` (so its
-    ``v_t0`` is the magnitude of the threshold, as the NMOS's is; the gradient is the NMOS's
-    at ``-v``, the Hessian its negative)."""
+    """:func:`nmos` (or, for a ``.model`` with ``level``, :func:`estim.spice.level1.level1`)
+    for an ``nmos`` device; a ``pmos`` is its mirror, the same law of the negated terminal
+    voltages with the current negated, ``I_p(v) = -I_n(-v)`` (so an EKV PMOS's ``v_t0`` is
+    the magnitude of the threshold, as the NMOS's is, and a level-1 PMOS's parameters come
+    mirrored, :func:`estim.spice.level1.mirrored`; the gradient is the NMOS's at ``-v``, the
+    Hessian its negative)."""
+    law = level1 if "level" in p else nmos
     if kind == "nmos":
-        return nmos(vd, vg, vs, vb, p, second)
-    cur, grad, hess = nmos(-np.asarray(vd, float), -np.asarray(vg, float),
-                           -np.asarray(vs, float), -np.asarray(vb, float), p, second)
+        return law(vd, vg, vs, vb, p, second)
+    cur, grad, hess = law(-np.asarray(vd, float), -np.asarray(vg, float),
+                          -np.asarray(vs, float), -np.asarray(vb, float), p, second)
     return -cur, grad, -hess
 
 

@@ -13,7 +13,8 @@ import numpy as np
 from estim.models.base import Model
 from estim.models.devices import ebers_moll
 from estim.spice.circuit import Circuit
-from estim.spice.devices import DEFAULTS, DIODE_VT, diode, diode_slope, mosfet
+from estim.spice.devices import DIODE_VT, diode, diode_slope, model_defaults, mosfet
+from estim.spice.level1 import mirrored
 from estim.spice.parser import NetlistError
 from estim.spice.solved_nodes import solve_algebraic
 from estim.util import lazy
@@ -131,8 +132,11 @@ class NetlistModel(Model, metaclass=NetlistClass):
                         A[i, j] += sign * e.value * self._control_sign[j]
             elif e.kind in "dqm":
                 model = c.netlist.models[e.ref]
-                self._devices.append((model.type, {**DEFAULTS[model.type], **model.params},
-                                      [self._node[x] for x in e.nodes]))
+                prm = {**model_defaults(model), **model.params}
+                if e.kind == "m" and "level" in prm:
+                    size = {"w": 1.0, "l": 1.0, **dict(e.size)}
+                    prm = {**mirrored(model.type, prm), "w_over_l": size["w"] / size["l"]}
+                self._devices.append((model.type, prm, [self._node[x] for x in e.nodes]))
         if a:
             P, Q, r = solve_algebraic(c, n, P, Q, r, G, K, i0, U, kc)
             G, K, i0, U = G[:kc], K[:kc], i0[:kc], U[:kc]
@@ -325,6 +329,10 @@ class NetlistModel(Model, metaclass=NetlistClass):
                 values = [prm["ies"], _ics(prm),
                           prm["alpha_f"], prm["alpha_r"], prm["vt"]]
                 code = 1.0 if kind == "npn" else 2.0
+            elif "level" in prm:                       # the NMOS's parameters (mirrored)
+                values = [prm["vto"], prm["kp"] * prm["w_over_l"], prm["lambda"],
+                          prm["gamma"], prm["phi"]]
+                code = 5.0 if kind == "nmos" else 6.0
             else:
                 values = [prm["u_t"], prm["v_t0"], prm["eta"], prm["i_0"] * prm["w_l"],
                           float(prm.get("law", 0.0))]

@@ -30,6 +30,7 @@ import numpy as np
 
 from estim.errors import EstimError
 from estim.spice.devices import BJT, DIODE_VT, EKV, NMOS_LAWS
+from estim.spice.level1 import LEVEL1
 from estim.spice.parser import Netlist
 
 K_OVER_Q = 1.38064852e-23 / 1.6021766208e-19
@@ -54,6 +55,11 @@ def _models(net: Netlist) -> tuple[list[str], float | None]:
     lines, vt = [], None
     for m in net.models.values():
         p = m.params
+        if m.type in ("nmos", "pmos") and "level" in p:
+            q = {**LEVEL1, **p}          # ngspice's own MOS1, its junction diodes off
+            lines.append(f".model {m.name} {m.type}(level=1 vto={q['vto']!r} kp={q['kp']!r} "
+                         f"lambda={q['lambda']!r} gamma={q['gamma']!r} phi={q['phi']!r} is=0)")
+            continue
         if m.type in ("nmos", "pmos"):
             continue                    # EKV devices become B sources (:func:`_ekv_source`)
         if m.type in ("npn", "pnp") and p.get("ics") is not None:
@@ -172,6 +178,9 @@ def netlist_text(net: Netlist, t: np.ndarray, inputs: dict[str, np.ndarray],
             else:
                 out.append(f"{name} {nodes} {kind.upper()}"
                            f"({' '.join(repr(float(a)) for a in args)})")
+        elif e.kind == "m" and "level" in net.models[e.ref].params:
+            size = "".join(f" {k}={v!r}" for k, v in e.size)
+            out.append(f"{name} {nodes} {e.ref}{size}")
         elif e.kind == "m":
             out.append(_ekv_source(e, net))
         elif e.kind == "q" and net.models[e.ref].params.get("ics") is not None:

@@ -69,6 +69,8 @@ class Element:
     waveform: tuple | None = None
     ref: str | None = None
     line: int = 0
+    size: tuple = ()
+    """An M line's ``W`` and ``L`` as ``(("w", value), ("l", value))``, those it gives."""
 
 
 @dataclass(frozen=True)
@@ -368,6 +370,18 @@ def _element(tokens: list[str], params: dict, where, prefix: str = "",
     nodes = tuple(rename(n) for n in tokens[1:1 + arity])
     rest = tokens[1 + arity:]
     full = prefix + name
+    if kind == "m" and len(rest) > 1:
+        size = []
+        for token in rest[1:]:
+            key, _, text = token.partition("=")
+            if key not in ("w", "l") or not text or key in dict(size):
+                raise NetlistError(*where, f"{name}: expected w=VALUE and l=VALUE after the "
+                                   f"model name, got {token!r}")
+            value = evaluate(text, params, where)
+            if not value > 0:
+                raise NetlistError(*where, f"{name}: {key} must be positive, got {value:g}")
+            size.append((key, value))
+        return Element(kind, full, nodes, ref=rest[0], line=where[1], size=tuple(size))
     if kind in "dqm":
         if len(rest) != 1:
             raise NetlistError(*where, f"{name}: expected one model name after the nodes")
