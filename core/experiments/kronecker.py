@@ -230,6 +230,9 @@ class Plan:
 
 def prepare(config: Config, source: str) -> Plan:
     """Builds the actual circuit and every estimator's model per W/L column."""
+    if config.simulation.solver == "ngspice":
+        raise ConfigError(source, "simulation.solver", "ngspice is the actual circuit of an "
+                          "estimation config only; here: batched_radau or scipy")
     model_cls = registry.MODELS[config.model.name]
     variant = config.model.variant
     columns = config.geometry.columns

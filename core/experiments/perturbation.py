@@ -153,6 +153,9 @@ class Plan:
 
 def prepare(config: Config, source: str) -> Plan:
     """Cross-checks beyond the schema; the model of every row, built once (by ``s_no``)."""
+    if config.simulation.solver == "ngspice":
+        raise ConfigError(source, "simulation.solver", "ngspice is the actual circuit of an "
+                          "estimation config only; here: batched_radau or scipy")
     model_cls = registry.MODELS[config.model.name]
     variant = config.model.variant
     build_model(model_cls, variant, config.model.params, source, "model.params")

@@ -329,3 +329,27 @@ quit 0
         _run(deck, Path(tmp), executable)
         rows = [_read(path)[0] for path in files]
     return np.array([r[1] + 1j * r[2] for r in rows])
+
+
+def actual(model, source: np.ndarray, dt: float, reltol: float = 1e-7,
+           executable: str | None = None) -> np.ndarray:
+    """The states ``(runs, steps, n)`` after ``t_0`` of the netlist model ``model`` driven by
+    ``source`` ``(runs, steps + 1, p)``, from ngspice's transient analysis (its own DC
+    point, ``reltol``, its largest step a quarter of ``dt``), one run at a time: each input
+    as what estim's model sees (the staircase of its held values, or for an input that
+    drives through a capacitor the piecewise-linear source itself), as ``estim spice``
+    drives it."""
+    circuit = model.circuit
+    steps = source.shape[1] - 1
+    t = np.arange(steps + 1) * dt
+    out = []
+    for run in np.asarray(source, float):
+        if circuit.slope:
+            drive = {name: (t, run[:, k]) for k, name in enumerate(circuit.inputs)}
+        else:
+            held = model.source_to_input(run[None], dt)[0]
+            drive = {name: staircase(t, held[:, k], run[0, k])
+                     for k, name in enumerate(circuit.inputs)}
+        out.append(transient(circuit.netlist, t, drive, list(model.state_names), executable,
+                             reltol=reltol, max_step=dt / 4)[1:])
+    return np.stack(out)

@@ -42,6 +42,7 @@ from estim.errors import ConfigError, UsageError
 from estim.estimators import kalman_differentiator
 from estim.estimators.base import GENERATOR_KEY, takes_generator
 from estim.experiments.base import Quote, Result
+from estim.experiments.estimation import actual as actual_circuit
 from estim.experiments.estimation import figures as estimation_figures
 from estim.experiments.estimation import source as waveforms
 from estim.experiments.estimation.config import Config
@@ -49,7 +50,6 @@ from estim.experiments.estimation.figures import FIGURE_KINDS
 from estim.experiments.estimation.printing import printout as printout  # the protocol's printout
 from estim.experiments.shared import claims, pipeline
 from estim.numerics import signals
-from estim.numerics.simulate import SOLVERS
 from estim.reference.tablespec import TableSpec
 from estim.util import lazy
 from estim.util.workunits import map_tasks
@@ -147,6 +147,7 @@ def prepare(config: Config, source: str) -> Plan:
     held = (np.asarray(inp.bias_v, float)
             + waveforms.start(inp, knots) * np.asarray(inp.mix, float))
     x0 = operating_point(truth, held, source, "model.params")
+    actual_circuit.check(config, truth, source)
     filters, labels = [], []
     for i, est in enumerate(config.estimators):
         path = f"estimators[{i}]"
@@ -302,9 +303,7 @@ def simulate_point(exp: Experiment, frequency_hz: float, sigma: float, runs: int
     input_noise[:, 0] = 0.0    # the circuit starts at its operating point with v_in(t_0) known
     source = clean[None] + input_noise
     x0 = exp.plan.x0           # the DC point with the source held at its value at t_0
-    sim = exp.config.simulation
-    states = SOLVERS[sim.solver](truth, x0, truth.source_to_input(source, dt), dt,
-                                    rtol=sim.rtol, atol=sim.atol)
+    states = actual_circuit.states(truth, x0, source, dt, exp.config.simulation)
     actual = truth.h(states)
     z = actual + noise.measurement_sigma * rng.standard_normal(actual.shape)
     if measurement == "noise_free":

@@ -66,8 +66,10 @@ def simulation(rtol: float, atol: float) -> type:
     class Simulation(Settings):
         """The stiff solver of the actual signal."""
 
-        solver: str = setting("batched_radau", text(SOLVERS),
-                              doc="batched_radau: estim's batched Radau IIA; scipy: solve_ivp")
+        solver: str = setting("batched_radau", text((*SOLVERS, "ngspice")),
+                              doc="batched_radau: estim's batched Radau IIA; scipy: solve_ivp; "
+                                  "ngspice: ngspice's transient analysis of the netlist (an "
+                                  "estimation config's actual circuit only, D78)")
         rtol: float = setting(default_rtol, number(minimum=1e-12, below=0.1),
                               doc="relative tolerance of the solver")
         atol: float = setting(default_atol, number(minimum=1e-15, maximum=1.0), unit="state",
