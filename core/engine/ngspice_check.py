@@ -17,13 +17,17 @@ piecewise-linear source itself). Reported per case:
   voltages its input drives);
 * ``transient``: each state and the output, the largest difference over the run divided by
   the largest node voltage of the circuit's states (the scale SPICE's own tolerances work
-  against; for an inductor current, its own largest magnitude). No scale is taken below
+  against; for an inductor current, its own largest magnitude; for a resistor's or a
+  device's current, the larger of its own largest magnitude and what the node scale makes of
+  it through the output's Jacobian, its largest row sum times the node scale). No scale is
+  taken below
   SPICE's default absolute tolerances (:data:`FLOORS`: 1 uV, 1 pA), so a quantity that stays
   at zero is compared absolutely, not as 0/0. ``own_scale`` divides by
   the quantity's own largest magnitude instead: for a node that hardly moves (the MOSFET's
   bulk swings microvolts) it shows ngspice's absolute tolerances, not a disagreement of the
   circuits (it shrinks as ngspice's ``reltol`` is tightened);
-* ``ac``: the small-signal gain from each input source to the output at the case's frequency,
+* ``ac``: the small-signal gain from each input source to the output at the case's frequency
+  (not for a device's current, which ngspice's AC analysis does not give),
   estim's ``C (j w - A)^-1 B`` (times ``j w`` for a slope input) against ngspice's AC
   analysis, the difference over the largest gain magnitude of the inputs.
 
@@ -124,14 +128,21 @@ def compare_case(label: str, model, source: np.ndarray, dt: float, frequency: fl
     output = model.output_names[0]
     series = [(name, ours[:, j], theirs[:, j]) for j, name in enumerate(model.state_names)]
     series.append((f"{output} (output)", y_ours, y_theirs))
+    # a current the node voltages set (a resistor's, a device's) moves by its conductances
+    # times a node's difference: the node scale carried through its Jacobian
+    carried = (np.abs(model.h_jacobian(theirs)).sum(axis=-1).max() * node_scale
+               if circuit.output_terms[0] in ("resistor", "device") else 0.0)
     for name, a, b in series:
         gap = np.abs(a - b).max()
         own = np.abs(b).max()
         scale = node_scale if name.startswith("v(") else max(own, FLOORS["i"])
+        if name.endswith("(output)") and carried:
+            scale = max(own, carried, FLOORS["i"])
         rows.append({"case": label, "check": "transient", "quantity": name,
                      "difference": gap / scale, "own_scale": gap / own if own else np.nan,
                      "_theirs": b, "_scale": scale})
-    if frequency is not None:
+    term = circuit.output_terms
+    if frequency is not None and term[0] != "device":    # a device's current: no AC vector
         A = model.jacobian(x0, u_op)
         B = model.input_jacobian(x0, u_op)
         C = model.h_jacobian(x0)
@@ -140,8 +151,15 @@ def compare_case(label: str, model, source: np.ndarray, dt: float, frequency: fl
         if circuit.slope:
             ours_ac = ours_ac * w
         bias = {name: float(source[0, k]) for k, name in enumerate(circuit.inputs)}
-        theirs_ac = np.array([ngspice.ac(net, bias, name, [frequency], output, executable)[0]
-                              for name in circuit.inputs])
+        probe, scale = output, 1.0
+        if term[0] == "resistor":                  # its current: the voltage across it / R
+            e = net.element(term[1])
+            a, b = (n for n in e.nodes[:2])
+            probe = f"v({b})" if a in ("0", "gnd") else (
+                f"v({a})" if b in ("0", "gnd") else f"v({a},{b})")
+            scale = (-1.0 if a in ("0", "gnd") else 1.0) / e.value
+        theirs_ac = scale * np.array([ngspice.ac(net, bias, name, [frequency], probe,
+                                                 executable)[0] for name in circuit.inputs])
         top = max(np.abs(theirs_ac).max(), 1e-12)      # a gain of zero: compared absolutely
         for k, name in enumerate(circuit.inputs):
             rows.append({"case": label, "check": "ac",

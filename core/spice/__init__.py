@@ -83,8 +83,8 @@ def resolve_model_block(data: dict, source: str) -> None:
                           "model input drives, or a list of them")
     output = block.get("output")
     if not isinstance(output, str):
-        raise ConfigError(source, "model.output", "expected v(node), v(node,node) or "
-                          "i(inductor)")
+        raise ConfigError(source, "model.output", "expected v(node), v(node,node), "
+                          "i(inductor, resistor or diode), ic/ib/ie(bjt) or id(mosfet)")
     states = block.get("thesis_states")
     if states is not None and (not isinstance(states, list)
                                or not all(isinstance(s, str) for s in states)):

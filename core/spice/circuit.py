@@ -56,6 +56,9 @@ kernels = lazy.load("estim.numerics.kernels")
 
 GROUND = ("0", "gnd")
 
+OUTPUTS = "v(node), v(node,node), i(inductor, resistor or diode), ic/ib/ie(bjt) or id(mosfet)"
+"""What a netlist model's output may be (:meth:`Circuit._output`)."""
+
 
 @dataclasses.dataclass
 class Circuit:
@@ -372,17 +375,35 @@ class Circuit:
         return kinds == {True}
 
     def _output(self, text: str) -> tuple:
+        """What ``text`` measures: ``("v", i, j)`` states (``j`` None or a second state),
+        ``("node", a, b)`` node voltages, ``("i", i)`` an inductor's current (a state),
+        ``("resistor", name)`` or ``("device", name, terminal)``: a resistor's current from
+        its first node to its second, a diode's from anode to cathode, the current into a
+        BJT's collector, base or emitter (``ic``, ``ib``, ``ie``) or a MOSFET's drain
+        (``id``), as SPICE names them."""
+        src = self.netlist.source
+        m = re.fullmatch(r"\s*(ic|ib|ie|id)\(\s*([^,()\s]+)\s*\)\s*", text.lower())
+        if m:
+            e = self.netlist.element(m.group(2))
+            want = "m" if m.group(1) == "id" else "q"
+            if e is None or e.kind != want:
+                raise NetlistError(src, 0, f"output {text!r}: {m.group(1)}() of a "
+                                   f"{'MOSFET' if want == 'm' else 'BJT'} of the netlist")
+            return ("device", e.name, "cbe".index(m.group(1)[1]) if want == "q" else 0)
         m = re.fullmatch(r"\s*([vi])\(\s*([^,()\s]+)\s*(?:,\s*([^,()\s]+)\s*)?\)\s*",
                          text.lower())
         if not m:
-            raise NetlistError(self.netlist.source, 0, f"output {text!r}: expected v(node), "
-                               "v(node,node) or i(inductor)")
+            raise NetlistError(src, 0, f"output {text!r}: expected {OUTPUTS}")
         if m.group(1) == "i":
             names = [e.name for e in self.inductors]
-            if m.group(2) not in names or m.group(3):
-                raise NetlistError(self.netlist.source, 0, f"output {text!r}: i() of an "
-                                   f"inductor, one of {names}")
-            return ("i", len(self.state_nodes) + names.index(m.group(2)))
+            e = self.netlist.element(m.group(2))
+            if m.group(3) or e is None or e.kind not in "lrd":
+                raise NetlistError(src, 0, f"output {text!r}: i() of an inductor, resistor or "
+                                   "diode of the netlist (ic/ib/ie() of a BJT, id() of a "
+                                   "MOSFET)")
+            if e.kind == "l":
+                return ("i", len(self.state_nodes) + names.index(m.group(2)))
+            return ("resistor", e.name) if e.kind == "r" else ("device", e.name, 0)
         if m.group(3) is not None and (m.group(2) == m.group(3) or
                                        {m.group(2), m.group(3)} <= set(GROUND)):
             raise NetlistError(self.netlist.source, 0, f"output {text!r}: the voltage between "

@@ -15,6 +15,7 @@ from estim.models.devices import ebers_moll
 from estim.spice.circuit import Circuit
 from estim.spice.devices import DIODE_VT, diode, diode_slope, model_defaults, mosfet
 from estim.spice.level1 import mirrored
+from estim.spice.outputs import device_output, output_map, thesis_map
 from estim.spice.parser import NetlistError
 from estim.spice.solved_nodes import solve_algebraic
 from estim.util import lazy
@@ -95,6 +96,7 @@ class NetlistModel(Model, metaclass=NetlistClass):
         U = np.zeros((kc + a, p))                     # the inputs' currents, by row
         U[:k] = -c.B                                   # a slope input's capacitor current
         self._devices = []
+        self._device_of = {}
 
         def leave(node, col, value, where):
             for i in (self._rowmap[self._node[node]], self._crowmap[self._node[node]]):
@@ -137,6 +139,7 @@ class NetlistModel(Model, metaclass=NetlistClass):
                     size = {"w": 1.0, "l": 1.0, **dict(e.size)}
                     prm = {**mirrored(model.type, prm), "w_over_l": size["w"] / size["l"]}
                 self._devices.append((model.type, prm, [self._node[x] for x in e.nodes]))
+                self._device_of[e.name] = self._devices[-1]
         if a:
             P, Q, r = solve_algebraic(c, n, P, Q, r, G, K, i0, U, kc)
             G, K, i0, U = G[:kc], K[:kc], i0[:kc], U[:kc]
@@ -146,14 +149,7 @@ class NetlistModel(Model, metaclass=NetlistClass):
         self._A = A if c.controls else None
         self._U = U
         self._linear = G @ self._P + K                # d(linear currents)/dx
-        term = c.output_terms
-        if term[0] == "node":
-            a, b = (self._node[x] if x else None for x in term[1:])
-            pick = (lambda M: M[a] - M[b]) if b is not None else (lambda M: M[a])
-            if np.any(pick(self._Q) != 0):
-                raise NetlistError(c.netlist.source, 0, f"output {c.output!r} follows the "
-                                   "model input directly; take a node behind an element")
-            self._h = (pick(self._P), float(pick(self._r)))
+        self._h = output_map(self, c.output_terms)
 
     def _sum_rows(self, out, d_out):
         """The state rows' currents with each F source's current added (``A``): the rows
@@ -440,37 +436,14 @@ class NetlistModel(Model, metaclass=NetlistClass):
         """``M`` with ``x = M z + const`` from the quantities ``z`` of ``thesis_states`` (the
         coordinates a filter's Q and P0 are written in, D77) to this model's states, or
         None where the config names none (the netlist's own states, :attr:`state_scales`)."""
-        if not self.thesis_states:
-            return None
-        src, n = self.circuit.netlist.source, self.n_states
-        if len(self.thesis_states) != n:
-            raise NetlistError(src, 0, f"thesis_states: {len(self.thesis_states)} given, the "
-                               f"netlist has {n} states ({', '.join(self.state_names)})")
-        rows = []
-        for text in self.thesis_states:
-            term = self.circuit._output(text)
-            if term[0] == "i":
-                rows.append(np.eye(n)[term[1]])
-                continue
-            names = (self.circuit.state_nodes[term[1]], None if term[2] is None else
-                     self.circuit.state_nodes[term[2]]) if term[0] == "v" else term[1:]
-            a, b = (self._node[x] if x else None for x in names)
-            row, qrow = self._P[a].copy(), self._Q[a].copy()
-            if b is not None:
-                row, qrow = row - self._P[b], qrow - self._Q[b]
-            if np.any(qrow != 0):
-                raise NetlistError(src, 0, f"thesis_states: {text!r} follows the model input")
-            rows.append(row)
-        T = np.array(rows)
-        if np.linalg.matrix_rank(T) < n:
-            raise NetlistError(src, 0, "thesis_states: the quantities do not determine the "
-                               "states (one is a combination of the others)")
-        return np.linalg.inv(T)
+        return thesis_map(self) if self.thesis_states else None
 
     def h(self, x):
         term = self.circuit.output_terms
         x = np.asarray(x, float)
-        if term[0] == "node":
+        if term[0] == "device":
+            return device_output(self, x)[0]
+        if term[0] in ("node", "resistor"):
             return (x @ self._h[0] + self._h[1])[..., None]
         if term[0] == "i" or term[2] is None:
             return x[..., term[1]:term[1] + 1]
@@ -478,8 +451,10 @@ class NetlistModel(Model, metaclass=NetlistClass):
 
     def affine_output(self):
         term = self.circuit.output_terms
+        if term[0] == "device":
+            return None
         H = np.zeros((1, self.n_states))
-        if term[0] == "node":
+        if term[0] in ("node", "resistor"):
             H[0] = self._h[0]
             return H, np.array([float(self._h[1])])
         H[0, term[1]] = 1.0
@@ -488,6 +463,8 @@ class NetlistModel(Model, metaclass=NetlistClass):
         return H, np.zeros(1)
 
     def h_jacobian(self, x):
+        if self.circuit.output_terms[0] == "device":
+            return device_output(self, np.asarray(x, float))[1]
         H = self.affine_output()[0]
         return np.broadcast_to(H, np.shape(x)[:-1] + H.shape).copy()
 

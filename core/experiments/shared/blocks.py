@@ -117,8 +117,9 @@ class Model(Settings):
     input: list | str | None = setting(None, _source_names, doc="with netlist: the voltage "
                                                                   "source(s) the model input "
                                                                   "drives")
-    output: str | None = setting(None, text(), doc="with netlist: v(node), v(node,node) or "
-                                                   "i(inductor)")
+    output: str | None = setting(None, text(), doc="with netlist: v(node), v(node,node), "
+                                                   "i(inductor, resistor or diode), "
+                                                   "ic/ib/ie(bjt) or id(mosfet)")
     hold: str | None = setting(None, text({"mean", "start", "end"}),
                                doc="with netlist: the source over an interval held at the "
                                    "mean of its two end samples (default, as the "

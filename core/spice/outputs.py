@@ -1,0 +1,103 @@
+"""A netlist model's measured output when it is not a state: an affine map of the node
+voltages (a node, a difference, a resistor's current) or a device's current, by the
+device's own law at the node voltages (:meth:`estim.spice.circuit.Circuit._output`)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from estim.models.devices import ebers_moll
+from estim.spice.devices import diode, mosfet
+from estim.spice.parser import NetlistError
+
+
+def output_map(model, term: tuple) -> tuple | None:
+    """``(row, constant)`` with ``y = row . x + constant`` for an output at nodes or through
+    a resistor, else None; an output that follows the model input directly (a node the
+    input drives through resistors only, or a device at one) is refused by name: the
+    model's output has no input term."""
+    c = model.circuit
+    if term[0] == "node":
+        a, b = (model._node[x] if x else None for x in term[1:])
+        rows, scale = ([a, b] if b is not None else [a]), 1.0
+    elif term[0] == "resistor":
+        e = c.netlist.element(term[1])
+        rows, scale = [model._node[x] for x in e.nodes[:2]], 1.0 / e.value
+    elif term[0] == "device":
+        rows, scale = model._device_of[term[1]][2], None
+    else:
+        return None
+    signs = np.array([1.0, -1.0][:len(rows)]) if scale is not None else None
+    through = model._Q[rows] if scale is None else signs @ model._Q[rows]
+    if np.any(through != 0):
+        raise NetlistError(c.netlist.source, 0, f"output {c.output!r} follows the model "
+                           "input directly; take a node (or element) behind an element")
+    if scale is None:
+        return None
+    return (scale * (signs @ model._P[rows]), float(scale * (signs @ model._r[rows])))
+
+
+def device_output(model, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The measured device current ``(..., 1)`` at states ``x`` and its Jacobian ``(..., 1,
+    n)``: a diode's from anode to cathode, a BJT's into the terminal the output names, a
+    MOSFET's into its drain (the laws the drift uses)."""
+    _, name, terminal = model.circuit.output_terms
+    kind, p, idx = model._device_of[name]
+    P = model._P
+    V = x @ P.T + model._r
+    if kind == "d":
+        a, b = idx
+        cur, g = diode(V[..., a] - V[..., b], p)
+        dcur = g[..., None] * (P[a] - P[b])
+    elif kind in ("npn", "pnp"):
+        col, base, emi = idx
+        s = -1.0 if kind == "pnp" else 1.0
+        ics = p["alpha_f"] * p["ies"] / p["alpha_r"] if p.get("ics") is None else p["ics"]
+        tc = ebers_moll.currents(s * (V[..., base] - V[..., emi]),
+                                 s * (V[..., base] - V[..., col]), p["ies"], ics,
+                                 p["alpha_f"], p["alpha_r"], p["vt"])
+        cur, d_be, d_bc = ((tc.I_C, tc.dIC_be, tc.dIC_bc), (tc.I_B, tc.dIB_be, tc.dIB_bc),
+                           (tc.I_E, tc.dIE_be, tc.dIE_bc))[terminal]
+        dcur = s * (d_be[..., None] * s * (P[base] - P[emi])
+                    + d_bc[..., None] * s * (P[base] - P[col]))
+        cur = s * cur
+    else:
+        d_, g_, s_, b_ = idx
+        cur, grad, _ = mosfet(kind, V[..., d_], V[..., g_], V[..., s_], V[..., b_], p)
+        dcur = (grad[..., 0, None] * P[d_] + grad[..., 1, None] * P[g_]
+                + grad[..., 2, None] * P[s_] + grad[..., 3, None] * P[b_])
+    return np.asarray(cur)[..., None], np.asarray(dcur)[..., None, :]
+
+
+def thesis_map(model) -> np.ndarray:
+    """``M`` with ``x = M z + const`` from the quantities ``z`` of ``model.thesis_states``
+    (node voltages, differences and inductor currents: the coordinates a filter's Q and P0
+    are written in, D77) to the model's states; each must be affine in the states alone and
+    together they must determine them."""
+    src, n = model.circuit.netlist.source, model.n_states
+    if len(model.thesis_states) != n:
+        raise NetlistError(src, 0, f"thesis_states: {len(model.thesis_states)} given, the "
+                           f"netlist has {n} states ({', '.join(model.state_names)})")
+    rows = []
+    for text in model.thesis_states:
+        term = model.circuit._output(text)
+        if term[0] in ("resistor", "device"):
+            raise NetlistError(src, 0, f"thesis_states: {text!r} is a branch current; "
+                               "expected v(node), v(node,node) or i(inductor)")
+        if term[0] == "i":
+            rows.append(np.eye(n)[term[1]])
+            continue
+        names = (model.circuit.state_nodes[term[1]], None if term[2] is None else
+                 model.circuit.state_nodes[term[2]]) if term[0] == "v" else term[1:]
+        a, b = (model._node[x] if x else None for x in names)
+        row, qrow = model._P[a].copy(), model._Q[a].copy()
+        if b is not None:
+            row, qrow = row - model._P[b], qrow - model._Q[b]
+        if np.any(qrow != 0):
+            raise NetlistError(src, 0, f"thesis_states: {text!r} follows the model input")
+        rows.append(row)
+    T = np.array(rows)
+    if np.linalg.matrix_rank(T) < n:
+        raise NetlistError(src, 0, "thesis_states: the quantities do not determine the "
+                           "states (one is a combination of the others)")
+    return np.linalg.inv(T)
