@@ -82,3 +82,33 @@ def test_parameters_carry_their_units():
     assert plots.with_unit("R_E", 80.0) == "R_E = 80 \u03a9"
     assert plots.with_unit("C_GX", 1e-12) == "C_GX = 1 pF"
     assert plots.with_unit("eta", 1.3) == "eta = 1.3"
+
+
+def test_figure_kinds_choose_what_an_estimation_run_draws(tmp_path):
+    """figures.kinds: [rmse] draws the running-RMSE figure alone under its file name, [] none
+    (and the tables are the same bytes either way: figures draw from their own batches); a
+    kind estim does not draw is one error naming the key."""
+    import yaml
+    from click.testing import CliRunner
+    from test_cli import tiny_config
+
+    from estim.cli.main import main
+
+    folders = {}
+    for label, kinds in (("one", ["rmse"]), ("none", [])):
+        spec = tiny_config(**{"figures.kinds": kinds})
+        path = tmp_path / f"{label}.yaml"
+        path.write_text(yaml.safe_dump(spec))
+        result = CliRunner().invoke(main, ["run", str(path), "--out", str(tmp_path / label),
+                                           "--quiet", "--jobs", "1"])
+        assert result.exit_code == 0, result.output
+        folders[label] = tmp_path / label / "tiny"
+    names = spec["figures"]["names"]
+    drawn = sorted(p.name for p in (folders["one"] / "figures").glob("*.png"))
+    assert drawn == [f"{names['rmse']}.png"]
+    assert not list(folders["none"].rglob("*.png"))
+    assert (folders["one"] / "rmse.csv").read_bytes() == (folders["none"] / "rmse.csv").read_bytes()
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(yaml.safe_dump(tiny_config(**{"figures.kinds": ["rmse", "bode"]})))
+    result = CliRunner().invoke(main, ["validate", str(bad)])
+    assert result.exit_code == 2 and "figures.kinds[1]" in result.output

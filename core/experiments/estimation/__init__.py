@@ -463,7 +463,10 @@ def figure_traces(exp: Experiment, known: dict) -> dict:
 
 def figures(exp: Experiment, known: dict) -> dict:
     """Every figure: the traces of :func:`figure_traces`, drawn by
-    :func:`estim.experiments.estimation.figures.figures`."""
+    :func:`estim.experiments.estimation.figures.figures`; none with ``figures.kinds: []``
+    and no extra figure (nothing simulated for them)."""
+    if not exp.config.figures.kinds and not exp.config.figures.extra_noisy:
+        return {}
     _, f, level, reading = figure_cases(exp)[0]
     return estimation_figures.figures(exp, figure_traces(exp, known), f, level, reading)
 

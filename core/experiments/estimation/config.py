@@ -130,10 +130,18 @@ class ExtraNoisy(Settings):
     name: str = setting(REQUIRED, file_name, doc="the figure's file name")
 
 
+FIGURE_KINDS = ("noiseless", "noisy", "rmse", "residual")
+"""The figures an estimation experiment draws (Figs 3.2-3.7, 3.9-3.11)."""
+
+
 @settings_class
 class Figures(FigurePoint):
-    """The figures' sweep point and file names."""
+    """The figures' sweep point, kinds and file names."""
 
+    kinds: list = setting(list(FIGURE_KINDS), list_of(text(FIGURE_KINDS), nonempty=False,
+                                                      unique=True),
+                          doc="the figure kinds drawn (noiseless, noisy, rmse, residual); "
+                              "[]: none, the tables alone")
     names: dict = setting({}, mapping, doc="file name of each figure kind (noiseless, noisy, "
                                            "rmse, residual)")
     extra_noisy: tuple = blocks(ExtraNoisy, default=(), nonempty=False, max_length=20,

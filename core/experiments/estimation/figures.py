@@ -5,10 +5,11 @@ from __future__ import annotations
 
 from estim.config.experiment import Experiment
 from estim.experiments.estimation import source as waveforms
+from estim.experiments.estimation.config import FIGURE_KINDS
 from estim.experiments.shared import plots
 from estim.numerics import metrics
 
-FIGURE_KINDS = ("noiseless", "noisy", "rmse", "residual")
+__all__ = ["FIGURE_KINDS", "figures", "traces"]
 
 
 def traces(exp: Experiment, data: dict, estimates: list, diverged: list) -> dict:
@@ -29,8 +30,9 @@ def traces(exp: Experiment, data: dict, estimates: list, diverged: list) -> dict
 
 def figures(exp: Experiment, data: dict, f: float, level: float, reading: str) -> dict:
     """Figs 3.2-3.7, 3.9-3.11 from the traces ``data`` (:func:`traces` of each figure batch,
-    by key): estimates without and with input noise, running RMSE and residuals, under the
-    names of ``figures.names``; ``f``, ``level`` and ``reading`` are the noisy batch's."""
+    by key): estimates without and with input noise, running RMSE and residuals (the kinds
+    of ``figures.kinds``), under the names of ``figures.names``; ``f``, ``level`` and
+    ``reading`` are the noisy batch's."""
     names = exp.config.figures.names
     what = exp.title
     period = 1.0 / f
@@ -48,7 +50,7 @@ def figures(exp: Experiment, data: dict, f: float, level: float, reading: str) -
         "rmse": lambda: plots.running_rmse(data["noisy"], f"RMSE over runs: {what}; {where}"),
         "residual": lambda: plots.residuals(data["noisy"], f"Residual (run 1): {what}; {where}"),
     }
-    out = {names.get(kind, kind): makers[kind]() for kind in FIGURE_KINDS}
+    out = {names.get(kind, kind): makers[kind]() for kind in exp.config.figures.kinds}
     for extra in exp.config.figures.extra_noisy:
         title = f"{what}; {source}, {noise(extra.noise_level, extra.reading)}"
         out[extra.name] = plots.estimates(data[extra.name], title, period)
