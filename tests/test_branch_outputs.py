@@ -141,3 +141,22 @@ def test_filters_run_on_a_collector_current(tmp_path):
     assert all(np.isfinite(float(r["rmse"])) and r["diverged"] == "0" for r in rows)
     states = list(csv.DictReader(open(tmp_path / "out" / "ce_ic" / "states.csv")))
     assert {r["state"] for r in states} == {"v(b)", "v(c)", "v(e)", "v(o)", "v(s)"}
+
+
+def test_the_new_circuits_do_what_their_comments_say():
+    """circuits/diode_limiter.cir: at the 2 V peaks of its config's sine the node stays within
+    a diode drop beyond the +-0.5 V references (clamped: unclamped it would follow RL / (R1 +
+    RL) of the source), while 0.3 V passes as the divider. circuits/diode_mirror.cir: at 0 V
+    the diode is off and RO carries nothing; at 2 V RO carries five times the diode's
+    current (KCL at a: what R1 brings minus what CA takes, nothing at the DC point)."""
+    limiter = _model("diode_limiter.cir", "i(rl)", "limiter")
+    for u, low, high in ((2.0, 0.5, 1.2), (-2.0, -1.2, -0.5)):
+        a = limiter.operating_point(u=[u])[limiter.state_names.index("v(a)")]
+        assert low < a < high and abs(a) < 2.0 * 10e3 / 11e3
+    v = limiter.operating_point(u=[0.3])[limiter.state_names.index("v(a)")]
+    assert v == pytest.approx(0.3 * 10e3 / 11e3, rel=1e-3)
+    mirror = _model("diode_mirror.cir", "i(ro)", "mirror")
+    assert abs(mirror.h(mirror.operating_point(u=[0.0]))[0]) < 1e-12
+    x = mirror.operating_point(u=[2.0])
+    diode_current = (2.0 - x[mirror.state_names.index("v(a)")]) / 2e3
+    assert mirror.h(x)[0] == pytest.approx(5 * diode_current, rel=1e-9)

@@ -138,6 +138,7 @@ def test_the_stage_agrees_with_ngspices_own_level_1(tmp_path):
                                                                   "['tox']"),
     (".model mn nmos(v_t0=0.5)", "M1 d g 0 0 mn w=2u l=1u", "w and l on an EKV device"),
     (".model mn nmos(level=1)", "M1 d g 0 0 mn w=2u q=1u", "expected w=VALUE and l=VALUE"),
+    (".model mn nmos(level=1)", "M1 d g 0 0 mn w=-2u l=1u", "w must be positive"),
 ])
 def test_a_level_1_device_estim_cannot_take_is_refused(tmp_path, model_line, element,
                                                        message):

@@ -112,3 +112,7 @@ def test_figure_kinds_choose_what_an_estimation_run_draws(tmp_path):
     bad.write_text(yaml.safe_dump(tiny_config(**{"figures.kinds": ["rmse", "bode"]})))
     result = CliRunner().invoke(main, ["validate", str(bad)])
     assert result.exit_code == 2 and "figures.kinds[1]" in result.output
+    assert str(bad) in result.output and "Traceback" not in result.output
+    bad.write_text(yaml.safe_dump(tiny_config(**{"figures.kinds": "rmse"})))
+    result = CliRunner().invoke(main, ["validate", str(bad)])
+    assert result.exit_code == 2 and "figures.kinds" in result.output and str(bad) in result.output

@@ -111,13 +111,9 @@ def compare_case(label: str, model, source: np.ndarray, dt: float, frequency: fl
     x0 = model.operating_point(u=u_op)
     ours = np.vstack([x0, simulate(model, x0, u_in[None], dt, rtol=rtol,
                                    atol=rtol * 1e-3)[0]])
-    if circuit.slope:
-        drive = {name: (t, source[:, k]) for k, name in enumerate(circuit.inputs)}
-    else:
-        drive = {name: ngspice.staircase(t, u_in[:, k], source[0, k])
-                 for k, name in enumerate(circuit.inputs)}
-    theirs = ngspice.transient(net, t, drive, list(model.state_names), executable,
-                               reltol=reltol, max_step=step * dt)
+    theirs = ngspice.transient(net, t, ngspice.drive(model, source, t),
+                               list(model.state_names), executable, reltol=reltol,
+                               max_step=step * dt)
     rows = []
     nodes = [i for i, s in enumerate(model.state_names) if s.startswith("v(")]
     node_scale = max(np.abs(theirs[:, nodes]).max() if nodes else 0.0, FLOORS["v"])

@@ -47,6 +47,13 @@ def model_defaults(model) -> dict:
     return DEFAULTS[model.type]
 
 
+def collector_saturation(p: dict) -> float:
+    """The collector junction's saturation current: the ``.model``'s ``ics`` where given
+    (``ics=0``: no collector junction, the base-emitter-diode law of eqs 2.48-2.51), else by
+    reciprocity ``alpha_f ies / alpha_r`` (the thesis gives neither; docs/deviations.md D23)."""
+    return p["alpha_f"] * p["ies"] / p["alpha_r"] if p.get("ics") is None else p["ics"]
+
+
 REVERSE_KNEE = 3.0
 """SPICE's diode law turns to its reverse form below ``-3 n V_T`` (ngspice's dioload.c):
 ``i = -Is (1 + (3 n V_T / (e v))^3)``, which meets Shockley's law there in value and slope."""

@@ -13,7 +13,14 @@ import numpy as np
 from estim.models.base import Model
 from estim.models.devices import ebers_moll
 from estim.spice.circuit import Circuit
-from estim.spice.devices import DIODE_VT, diode, diode_slope, model_defaults, mosfet
+from estim.spice.devices import (
+    DIODE_VT,
+    collector_saturation,
+    diode,
+    diode_slope,
+    model_defaults,
+    mosfet,
+)
 from estim.spice.level1 import mirrored
 from estim.spice.outputs import device_output, output_map, thesis_map
 from estim.spice.parser import NetlistError
@@ -259,7 +266,7 @@ class NetlistModel(Model, metaclass=NetlistClass):
                 aF, aR = p["alpha_f"], p["alpha_r"]
                 tc = ebers_moll.currents(sign * (V[..., base] - V[..., emi]),
                                          sign * (V[..., base] - V[..., col]), p["ies"],
-                                         _ics(p), aF, aR, p["vt"])
+                                         collector_saturation(p), aF, aR, p["vt"])
                 dbe = sign * (self._P[base] - self._P[emi])
                 dbc = sign * (self._P[base] - self._P[col])
                 # a terminal current flows into the device: it leaves the node
@@ -322,7 +329,7 @@ class NetlistModel(Model, metaclass=NetlistClass):
                 values = [prm["is"], prm["n"] * DIODE_VT, prm["rs"], 0.0, 0.0]
                 code = 0.0
             elif kind in ("npn", "pnp"):
-                values = [prm["ies"], _ics(prm),
+                values = [prm["ies"], collector_saturation(prm),
                           prm["alpha_f"], prm["alpha_r"], prm["vt"]]
                 code = 1.0 if kind == "npn" else 2.0
             elif "level" in prm:                       # the NMOS's parameters (mirrored)
@@ -375,7 +382,7 @@ class NetlistModel(Model, metaclass=NetlistClass):
                 s = -1.0 if kind == "pnp" else 1.0
                 VT = p["vt"]
                 tc = ebers_moll.currents(s * (V[b] - V[e]), s * (V[b] - V[c]), p["ies"],
-                                         _ics(p), p["alpha_f"], p["alpha_r"], VT)
+                                         collector_saturation(p), p["alpha_f"], p["alpha_r"], VT)
                 dbe, dbc = np.array([0.0, 1.0, -1.0]), np.array([-1.0, 1.0, 0.0])
                 be, bc = np.outer(dbe, dbe), np.outer(dbc, dbc)
                 # current into each terminal = s I(v_be, v_bc), v_.. = s (...); every term
@@ -468,9 +475,3 @@ class NetlistModel(Model, metaclass=NetlistClass):
         H = self.affine_output()[0]
         return np.broadcast_to(H, np.shape(x)[:-1] + H.shape).copy()
 
-
-def _ics(p: dict) -> float:
-    """The collector junction's saturation current: the ``.model``'s ``ics`` where given
-    (``ics=0``: no collector junction, the base-emitter-diode law of eqs 2.48-2.51), else by
-    reciprocity ``alpha_f ies / alpha_r`` (the thesis gives neither; docs/deviations.md D23)."""
-    return p["alpha_f"] * p["ies"] / p["alpha_r"] if p.get("ics") is None else p["ics"]

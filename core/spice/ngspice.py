@@ -339,17 +339,20 @@ def actual(model, source: np.ndarray, dt: float, reltol: float = 1e-7,
     as what estim's model sees (the staircase of its held values, or for an input that
     drives through a capacitor the piecewise-linear source itself), as ``estim spice``
     drives it."""
-    circuit = model.circuit
     steps = source.shape[1] - 1
     t = np.arange(steps + 1) * dt
-    out = []
-    for run in np.asarray(source, float):
-        if circuit.slope:
-            drive = {name: (t, run[:, k]) for k, name in enumerate(circuit.inputs)}
-        else:
-            held = model.source_to_input(run[None], dt)[0]
-            drive = {name: staircase(t, held[:, k], run[0, k])
-                     for k, name in enumerate(circuit.inputs)}
-        out.append(transient(circuit.netlist, t, drive, list(model.state_names), executable,
-                             reltol=reltol, max_step=dt / 4)[1:])
-    return np.stack(out)
+    return np.stack([transient(model.circuit.netlist, t, drive(model, run, t),
+                               list(model.state_names), executable, reltol=reltol,
+                               max_step=dt / 4)[1:] for run in np.asarray(source, float)])
+
+
+def drive(model, source: np.ndarray, t: np.ndarray) -> dict:
+    """What ngspice's PWL sources play for one run's ``source`` ``(steps + 1, p)`` at times
+    ``t``: the staircase of the values estim's model holds (:func:`staircase`), or for
+    inputs that drive through a capacitor the piecewise-linear source itself."""
+    circuit = model.circuit
+    if circuit.slope:
+        return {name: (t, source[:, k]) for k, name in enumerate(circuit.inputs)}
+    held = model.source_to_input(source[None], float(t[1] - t[0]))[0]
+    return {name: staircase(t, held[:, k], source[0, k])
+            for k, name in enumerate(circuit.inputs)}

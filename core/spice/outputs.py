@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from estim.models.devices import ebers_moll
-from estim.spice.devices import diode, mosfet
+from estim.spice.devices import collector_saturation, diode, mosfet
 from estim.spice.parser import NetlistError
 
 
@@ -52,9 +52,9 @@ def device_output(model, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     elif kind in ("npn", "pnp"):
         col, base, emi = idx
         s = -1.0 if kind == "pnp" else 1.0
-        ics = p["alpha_f"] * p["ies"] / p["alpha_r"] if p.get("ics") is None else p["ics"]
         tc = ebers_moll.currents(s * (V[..., base] - V[..., emi]),
-                                 s * (V[..., base] - V[..., col]), p["ies"], ics,
+                                 s * (V[..., base] - V[..., col]), p["ies"],
+                                 collector_saturation(p),
                                  p["alpha_f"], p["alpha_r"], p["vt"])
         cur, d_be, d_bc = ((tc.I_C, tc.dIC_be, tc.dIC_bc), (tc.I_B, tc.dIB_be, tc.dIB_bc),
                            (tc.I_E, tc.dIE_be, tc.dIE_bc))[terminal]
