@@ -118,23 +118,25 @@ def test_filter_inputs_the_difference_the_analytic_derivative_and_the_kalman_one
     noise. With sensor noise far above the source's own, the Kalman differentiator is
     nearer to the circuit's input than the difference is."""
     from estim.experiments import estimation
+    from estim.experiments.estimation.source import filter_input
 
     exp = _input_derivative_experiment(filters_see="nominal", input_sensor_sigma=0.0)
     data = estimation.simulate_point(exp, 1000.0, 0.001, 4, np.random.default_rng(1))
     x = 2 * np.pi * 1000.0 * data["dt"] / 2
-    analytic = estimation.filter_input(exp, data, "analytic", 0.0)
+    analytic = filter_input(exp.config.input, data, "analytic", 0.0)
     np.testing.assert_allclose(data["u"][0], analytic[0] * np.sin(x) / x, rtol=1e-9, atol=1e-9)
 
     exp = _input_derivative_experiment(input_sensor_sigma=0.0)
     data = estimation.simulate_point(exp, 1000.0, 0.001, 4, np.random.default_rng(1))
     circuit = exp.plan.truth.source_to_input(data["source"], data["dt"])
-    np.testing.assert_array_equal(estimation.filter_input(exp, data, "difference", 0.0), circuit)
+    np.testing.assert_array_equal(filter_input(exp.config.input, data, "difference", 0.0),
+                                  circuit)
 
     exp = _input_derivative_experiment(input_sensor_sigma=0.05)
     data = estimation.simulate_point(exp, 1000.0, 0.001, 4, np.random.default_rng(1))
     circuit = exp.plan.truth.source_to_input(data["source"], data["dt"])
-    errors = {how: np.sqrt(np.mean((estimation.filter_input(exp, data, how, 2.0) - circuit)
-                                   [:, 10:] ** 2)) for how in ("difference", "kalman")}
+    errors = {how: np.sqrt(np.mean((filter_input(exp.config.input, data, how, 2.0)
+                                    - circuit)[:, 10:] ** 2)) for how in ("difference", "kalman")}
     assert errors["kalman"] < 0.5 * errors["difference"], errors
 
 

@@ -12,6 +12,7 @@ import numpy as np
 
 from estim.models.base import Model
 from estim.models.devices import ebers_moll
+from estim.spice import terminals
 from estim.spice.circuit import Circuit
 from estim.spice.devices import (
     DIODE_VT,
@@ -235,7 +236,16 @@ class NetlistModel(Model, metaclass=NetlistClass):
     def f_and_jacobian(self, x, u, t: float = 0.0):
         """``f = -C^-1 (currents leaving the state nodes)`` on the node states and
         ``L^-1 (v(n1) - v(n2))`` on the inductor currents, and its Jacobian."""
-        out, d_out, V = self._currents(x, u)
+        return self.drift(x, u)
+
+    def drift(self, x, u, changes: tuple | None = None):
+        """:meth:`f_and_jacobian` with element values changed per point (``changes``, as
+        :meth:`_currents` takes them: :mod:`estim.spice.parameter_states`)."""
+        return self._drift_of(*self._currents(x, u, changes))
+
+    def _drift_of(self, out, d_out, V):
+        """The drift and its Jacobian from :meth:`_currents`' currents, their Jacobian and
+        the node voltages."""
         c = self.circuit
         k = len(c.state_nodes)
         lead = out.shape[:-1]
@@ -245,51 +255,39 @@ class NetlistModel(Model, metaclass=NetlistClass):
         J[..., :k, :] = -np.einsum("ij,...jn->...in", c.C_inv, d_out)
         return dxdt, J
 
-    def _currents(self, x, u):
+    def _currents(self, x, u, changes: tuple | None = None):
         """The currents leaving each state node (KCL), their Jacobian w.r.t. the states, and
-        every node's voltage."""
+        every node's voltage. ``changes``: ``(resistors, devices)``, the conductance each
+        listed resistor adds, ``[(node a, node b, conductance (...))]``, and the parameters
+        of listed devices, ``{device index: {name: values (...)}}``, each value an array over
+        the leading axes (a parameter as a state per run)."""
         x = np.asarray(x, float)
         u = np.asarray(u, float)
         lead = np.broadcast_shapes(x.shape[:-1], u.shape[:-1])
         V = x @ self._P.T + u @ self._Q.T + self._r          # every node's voltage
         out = V @ self._G.T + x @ self._K.T + self._i0 + u @ self._U.T   # leaving each row
         d_out = np.broadcast_to(self._linear, lead + self._linear.shape).copy()
-        for kind, p, idx in self._devices:
-            if kind == "d":
-                a, b = idx
-                cur, g = diode(V[..., a] - V[..., b], p)
-                terms = ((a, cur, g[..., None] * (self._P[a] - self._P[b])),)
-                terms += ((b, -cur, -terms[0][2]),)
-            elif kind in ("npn", "pnp"):
-                col, base, emi = idx
-                sign = -1.0 if kind == "pnp" else 1.0
-                aF, aR = p["alpha_f"], p["alpha_r"]
-                tc = ebers_moll.currents(sign * (V[..., base] - V[..., emi]),
-                                         sign * (V[..., base] - V[..., col]), p["ies"],
-                                         collector_saturation(p), aF, aR, p["vt"])
-                dbe = sign * (self._P[base] - self._P[emi])
-                dbc = sign * (self._P[base] - self._P[col])
-                # a terminal current flows into the device: it leaves the node
-                terms = tuple((node, sign * cur, sign * (d_be[..., None] * dbe
-                                                         + d_bc[..., None] * dbc))
-                              for node, cur, d_be, d_bc in (
-                                  (col, tc.I_C, tc.dIC_be, tc.dIC_bc),
-                                  (emi, tc.I_E, tc.dIE_be, tc.dIE_bc),
-                                  (base, tc.I_B, tc.dIB_be, tc.dIB_bc)))
-            else:
-                d_, g_, s_, b_ = idx
-                cur, grad, _ = mosfet(kind, V[..., d_], V[..., g_], V[..., s_], V[..., b_],
-                                      p)
-                dcur = (grad[..., 0, None] * self._P[d_] + grad[..., 1, None] * self._P[g_]
-                        + grad[..., 2, None] * self._P[s_] + grad[..., 3, None] * self._P[b_])
-                terms = ((d_, cur, dcur), (s_, -cur, -dcur))
-            for node, cur, dcur in terms:
-                for i in (self._rowmap[node], self._crowmap[node]):
-                    if i >= 0:
-                        out[..., i] += cur
-                        d_out[..., i, :] += dcur
+        resistors, changed = changes or ((), {})
+        for a, b, dg in resistors:
+            cur = dg * (V[..., a] - V[..., b])
+            dcur = dg[..., None] * (self._P[a] - self._P[b])
+            self._leave(out, d_out, ((a, cur, dcur), (b, -cur, -dcur)))
+        for d, (kind, p, idx) in enumerate(self._devices):
+            if d in changed:
+                p = {**p, **changed[d]}
+            self._leave(out, d_out, terminals.terms(self._P, kind, p, idx, V))
         out, d_out = self._sum_rows(out, d_out)
         return out, d_out, V
+
+    def _leave(self, out, d_out, terms) -> None:
+        """Add each ``(node, current leaving it, its gradient in x)`` of ``terms`` to the
+        rows of ``out`` and ``d_out`` (``d_out`` None: the currents alone)."""
+        for node, cur, dcur in terms:
+            for i in (self._rowmap[node], self._crowmap[node]):
+                if i >= 0:
+                    out[..., i] += cur
+                    if d_out is not None:
+                        d_out[..., i, :] += dcur
 
     def operating_point(self, x_guess: np.ndarray | None = None,
                         u: np.ndarray | None = None) -> np.ndarray:

@@ -6,8 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from estim.models.devices import ebers_moll
-from estim.spice.devices import collector_saturation, diode, mosfet
+from estim.spice import terminals
 from estim.spice.parser import NetlistError
 
 
@@ -43,29 +42,10 @@ def device_output(model, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     MOSFET's into its drain (the laws the drift uses)."""
     _, name, terminal = model.circuit.output_terms
     kind, p, idx = model._device_of[name]
-    P = model._P
-    V = x @ P.T + model._r
-    if kind == "d":
-        a, b = idx
-        cur, g = diode(V[..., a] - V[..., b], p)
-        dcur = g[..., None] * (P[a] - P[b])
-    elif kind in ("npn", "pnp"):
-        col, base, emi = idx
-        s = -1.0 if kind == "pnp" else 1.0
-        tc = ebers_moll.currents(s * (V[..., base] - V[..., emi]),
-                                 s * (V[..., base] - V[..., col]), p["ies"],
-                                 collector_saturation(p),
-                                 p["alpha_f"], p["alpha_r"], p["vt"])
-        cur, d_be, d_bc = ((tc.I_C, tc.dIC_be, tc.dIC_bc), (tc.I_B, tc.dIB_be, tc.dIB_bc),
-                           (tc.I_E, tc.dIE_be, tc.dIE_bc))[terminal]
-        dcur = s * (d_be[..., None] * s * (P[base] - P[emi])
-                    + d_bc[..., None] * s * (P[base] - P[col]))
-        cur = s * cur
-    else:
-        d_, g_, s_, b_ = idx
-        cur, grad, _ = mosfet(kind, V[..., d_], V[..., g_], V[..., s_], V[..., b_], p)
-        dcur = (grad[..., 0, None] * P[d_] + grad[..., 1, None] * P[g_]
-                + grad[..., 2, None] * P[s_] + grad[..., 3, None] * P[b_])
+    V = x @ model._P.T + model._r
+    at = terminals.terms(model._P, kind, p, idx, V)
+    # a BJT's terms are the collector's, the emitter's, the base's; the output names c, b, e
+    _, cur, dcur = at[(0, 2, 1)[terminal]] if kind in ("npn", "pnp") else at[0]
     return np.asarray(cur)[..., None], np.asarray(dcur)[..., None, :]
 
 

@@ -37,16 +37,14 @@ from estim import reference
 from estim.config import registry
 from estim.config.builders import build_estimator, build_model, check_input_vector, operating_point
 from estim.config.experiment import Experiment
-from estim.config.settings import file_name, validate
 from estim.errors import ConfigError, UsageError
-from estim.estimators import kalman_differentiator
 from estim.estimators.base import GENERATOR_KEY, takes_generator
 from estim.experiments.base import Quote, Result
 from estim.experiments.estimation import actual as actual_circuit
 from estim.experiments.estimation import figures as estimation_figures
+from estim.experiments.estimation import parameters as estimated
 from estim.experiments.estimation import source as waveforms
 from estim.experiments.estimation.config import Config
-from estim.experiments.estimation.figures import FIGURE_KINDS
 from estim.experiments.estimation.printing import printout as printout  # the protocol's printout
 from estim.experiments.shared import claims, pipeline
 from estim.numerics import signals
@@ -82,6 +80,9 @@ TABLES = {
                           reference_ids=("3.3", "3.4")),
     "states": TableSpec("states.csv", (*_ROW_KEYS, "state"), pipeline.STATE_VALUES,
                         title="RMSE of every state against the actual circuit's"),
+    "parameters": TableSpec("parameters.csv", (*_ROW_KEYS, "parameter"), estimated.VALUES,
+                            title="element values estimated as states: final estimates "
+                                  "against the actual circuit's"),
     "claims": claims.TABLE,
 }
 
@@ -95,6 +96,11 @@ QUOTES = (
     Quote("inconsistent runs (time-averaged NIS or NEES outside its 95 % band)", "health",
           "inconsistent", by="estimator", total="runs", where="inconsistent == inconsistent"),
     Quote("residual mean", "residual", "residual_mean", by="estimator"),
+    Quote("mean final estimate of an element value estimated as a state", "parameters",
+          "estimate", by="estimator"),
+    Quote("runs whose final estimate of an element value is within 3 of its own standard "
+          "deviations of the actual value", "parameters", "within_3_sigma", by="estimator",
+          total="runs"),
 )
 """What ``estim summary`` quotes of an estimation experiment (:mod:`estim.report.summary`)."""
 
@@ -111,6 +117,10 @@ class Plan:
     """Per estimator: its ``(input_derivative, derivative_bandwidth)``."""
     knots: object = None
     """The ``(t, w)`` knots of a ``pwl`` or ``file`` source (:mod:`.source`)."""
+    parameters: tuple = ()
+    """The values every filter estimates as states (:mod:`.parameters`)."""
+    theta: object = None
+    """Their actual values over the filters' first guesses."""
 
 
 def prepare(config: Config, source: str) -> Plan:
@@ -148,6 +158,7 @@ def prepare(config: Config, source: str) -> Plan:
             + waveforms.start(inp, knots) * np.asarray(inp.mix, float))
     x0 = operating_point(truth, held, source, "model.params")
     actual_circuit.check(config, truth, source)
+    values = estimated.check(config, truth, source)
     filters, labels = [], []
     for i, est in enumerate(config.estimators):
         path = f"estimators[{i}]"
@@ -163,6 +174,9 @@ def prepare(config: Config, source: str) -> Plan:
                                     source, f"{path}.settings")
         est.settings.clear()      # the manifest records every default
         est.settings.update(estimator.to_spec())
+        if values:
+            estimator, model = estimated.augment(estimator, model, values, config.estimate,
+                                                 source, path)
         filters.append((est.label, estimator, model))
         if est.input_derivative != "difference" and not model_cls.input_is_source_slope:
             raise ConfigError(source, f"{path}.input_derivative",
@@ -184,20 +198,7 @@ def prepare(config: Config, source: str) -> Plan:
     pipeline.check_claims(config.claims, labels, source)
     if config.claims and config.tables.rmse is None:
         raise ConfigError(source, "claims", "claims compare RMSEs: set tables.rmse")
-    names = config.figures.names
-    for kind, name in names.items():
-        if kind not in FIGURE_KINDS:
-            raise ConfigError(source, f"figures.names.{kind}",
-                              f"unknown figure kind; expected one of {list(FIGURE_KINDS)}")
-        validate(name, file_name, source, f"figures.names.{kind}")
-    used = {names.get(kind, kind): f"figures.names.{kind}" for kind in FIGURE_KINDS}
-    if len(used) < len(FIGURE_KINDS):
-        raise ConfigError(source, "figures.names", "two figure kinds share one file name")
-    for i, extra in enumerate(config.figures.extra_noisy):
-        if extra.name in used:
-            raise ConfigError(source, f"figures.extra_noisy[{i}].name",
-                              f"{extra.name!r} is already the file of {used[extra.name]}")
-        used[extra.name] = f"figures.extra_noisy[{i}].name"
+    estimation_figures.check(config, source)
     dt = inp.sample_time_s
     if dt is not None and inp.waveform in waveforms.PERIODIC and dt * max(freqs) > 10:
         raise ConfigError(source, "input.sample_time_s",
@@ -208,7 +209,9 @@ def prepare(config: Config, source: str) -> Plan:
                           f"{dt:g} s is longer than the record (input.duration_s)")
     inputs = tuple((e.input_derivative, e.derivative_bandwidth)
                    for e in config.estimators)
-    return Plan(truth=truth, filters=tuple(filters), x0=x0, inputs=inputs, knots=knots)
+    return Plan(truth=truth, filters=tuple(filters), x0=x0, inputs=inputs, knots=knots,
+                parameters=values,
+                theta=estimated.true_ratios(truth, values) if values else None)
 
 
 def work_size(config: Config) -> int:
@@ -309,26 +312,16 @@ def simulate_point(exp: Experiment, frequency_hz: float, sigma: float, runs: int
     if measurement == "noise_free":
         z = actual.copy()
     seen = clean[None] if noise.filters_see == "nominal" else source
+    if exp.plan.parameters:     # the filters' states: the circuit's, then the values
+        states = np.concatenate([states, np.broadcast_to(
+            exp.plan.theta, states.shape[:-1] + exp.plan.theta.shape)], axis=-1)
+        x0 = np.concatenate([x0, np.ones(len(exp.plan.parameters))])
     if noise.input_sensor_sigma > 0:        # the filters measure the source imperfectly
         seen = seen + noise.input_sensor_sigma * rng.standard_normal(source.shape) * mix
         seen[:, 0] = source[:, 0]               # v_in(t_0) is known, as for the circuit
     return {"t": t[1:], "dt": dt, "x0": x0, "source": source, "clean": clean, "seen": seen,
             "frequency_hz": frequency_hz, "states": states, "actual": actual, "z": z,
             "u": truth.source_to_input(seen, dt)}
-
-
-def filter_input(exp: Experiment, data: dict, method: str, bandwidth: float) -> np.ndarray:
-    """The input a filter is given on each sample interval (:data:`DERIVATIVE_METHODS`)."""
-    if method == "difference":
-        return data["u"]
-    inp, f, dt = exp.config.input, data["frequency_hz"], data["dt"]
-    mix = np.asarray(inp.mix, float)
-    if method == "analytic":
-        w = 2 * np.pi * f
-        middle = data["t"] - dt / 2
-        return (inp.amplitude_v * w * np.cos(w * middle))[None, :, None] * mix
-    slopes = kalman_differentiator.with_bandwidth(data["seen"], dt, bandwidth * f)
-    return 0.5 * (slopes[:, 1:] + slopes[:, :-1])
 
 
 def estimate_point(exp: Experiment, data: dict, key: tuple) -> list:
@@ -340,24 +333,27 @@ def estimate_point(exp: Experiment, data: dict, key: tuple) -> list:
                                                    strict=True)):
         extra = ({"rng": exp.config.monte_carlo.rng(*key, GENERATOR_KEY, i)}
                  if takes_generator(est) else {})
-        out.append(est.run(model, data["z"], filter_input(exp, data, *how), data["dt"],
-                           x0=data["x0"], **extra))
+        u = waveforms.filter_input(exp.config.input, data, *how)
+        out.append(est.run(model, data["z"], u, data["dt"], x0=data["x0"], **extra))
     return out
 
 
 def run_point(exp: Experiment, point: SweepPoint, traces: bool = False) -> tuple[list, dict,
-                                                                                  dict, list]:
+                                                                                  dict, list,
+                                                                                  list]:
     """Table rows (the measurement baseline, then one per estimator) for one sweep point,
     the per-run losses for the claims, with ``traces`` the figure traces of its first run
-    (the figures show the runs the table averages), and the per-state rows."""
+    (the figures show the runs the table averages), the per-state rows and the estimated
+    values' rows."""
     mc = exp.config.monte_carlo
     rng = exp.config.monte_carlo.rng(point.index)
     data = simulate_point(exp, point.frequency_hz, point.sigma, mc.runs, rng,
                           point.measurement)
     estimates = estimate_point(exp, data, (point.index,))
     regime = exp.config.regime
-    fraction = float("nan") if regime is None else float(np.mean(exp.plan.truth.in_regime(
-        regime, data["states"], data["source"][:, 1:])))
+    truth = exp.plan.truth
+    fraction = float("nan") if regime is None else float(np.mean(truth.in_regime(
+        regime, data["states"][..., :truth.n_states], data["source"][:, 1:])))
     common = {"measurement": point.measurement, "noise_reading": point.reading,
               "noise_param": point.level,
               "noise_sigma": point.sigma, "frequency_hz": point.frequency_hz,
@@ -366,7 +362,9 @@ def run_point(exp: Experiment, point: SweepPoint, traces: bool = False) -> tuple
     rows, losses, verdicts = pipeline.score(exp, data, exp.plan.filters, estimates, common)
     drawn = estimation_figures.traces(exp, data, estimates, verdicts) if traces else {}
     states = pipeline.state_rows(data, exp.plan.filters, estimates, verdicts, common)
-    return rows, losses, drawn, states
+    values = (estimated.rows(exp.plan.filters, estimates, verdicts, exp.plan.theta, common)
+              if exp.plan.parameters else [])
+    return rows, losses, drawn, states, values
 
 
 def _run_point_args(args):
@@ -416,7 +414,8 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     tasks = [(exp, p, p.index in wanted) for p in points]
     done = map_tasks(_run_point_args, tasks, jobs, on_done)
     rows = [row for part, *_ in done for row in part]
-    states = [row for *_, part in done for row in part]
+    states = [row for _, _, _, part, _ in done for row in part]
+    values = [row for *_, part in done for row in part]
     known = {key: done[index][2] for index, keys in wanted.items() for key in keys}
     out = Result(tables={})
     filters_only = [row for row in rows if row["estimator"] != pipeline.MEASUREMENT]
@@ -429,6 +428,8 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     out.tables["health"] = result_table(filters_only, "health", table_id)
     if states:
         out.tables["states"] = result_table(states, "states", table_id)
+    if values:
+        out.tables["parameters"] = result_table(values, "parameters", table_id)
     out.tables["claims"] = pipeline.claims_table(exp.config, rmse,
                                                  [losses for _, losses, *_ in done],
                                         ("s_no", "measurement", "noise_reading", "noise_param",

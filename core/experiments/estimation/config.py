@@ -130,8 +130,27 @@ class ExtraNoisy(Settings):
     name: str = setting(REQUIRED, file_name, doc="the figure's file name")
 
 
-FIGURE_KINDS = ("noiseless", "noisy", "rmse", "residual")
-"""The figures an estimation experiment draws (Figs 3.2-3.7, 3.9-3.11)."""
+FIGURE_KINDS = ("noiseless", "noisy", "rmse", "residual", "parameters")
+"""The figures an estimation experiment draws (Figs 3.2-3.7, 3.9-3.11; ``parameters``, each
+estimated value against the truth, where ``estimate`` names any)."""
+
+
+@settings_class
+class Estimated(Settings):
+    """An element value the filters estimate as a state, a random walk from their first
+    guess (:mod:`estim.spice.parameter_states`); the actual circuit keeps the netlist's
+    value."""
+
+    name: str = setting(REQUIRED, text(max_length=60),
+                        doc="R1 (a resistor's resistance) or D1.is (a diode's, BJT's or "
+                            "MOSFET's .model parameter)")
+    start: float = setting(REQUIRED, number(), unit="its unit",
+                           doc="the filters' first guess (not 0)")
+    sigma0: float = setting(REQUIRED, number(positive=True), unit="its unit",
+                            doc="standard deviation of the first guess (P0's entry)")
+    drift: float = setting(0.0, number(minimum=0.0), unit="its unit",
+                           doc="standard deviation of its random walk per sample interval "
+                               "(Q's entry); 0: a constant")
 
 
 @settings_class
@@ -140,8 +159,9 @@ class Figures(FigurePoint):
 
     kinds: list = setting(list(FIGURE_KINDS), list_of(text(FIGURE_KINDS), nonempty=False,
                                                       unique=True),
-                          doc="the figure kinds drawn (noiseless, noisy, rmse, residual); "
-                              "[]: none, the tables alone")
+                          doc="the figure kinds drawn (noiseless, noisy, rmse, residual, "
+                              "parameters: where estimate names any); []: none, the tables "
+                              "alone")
     names: dict = setting({}, mapping, doc="file name of each figure kind (noiseless, noisy, "
                                            "rmse, residual)")
     extra_noisy: tuple = blocks(ExtraNoisy, default=(), nonempty=False, max_length=20,
@@ -161,5 +181,8 @@ class Config(FilterTable):
                                  doc="the operating regime the table names (rmse.csv gives the "
                                      "fraction of samples in it)")
     figures: Figures = block(Figures, doc="the figures")
+    estimate: tuple = blocks(Estimated, default=(), nonempty=False, max_length=20,
+                             doc="element values estimated as states by every filter (a "
+                                 "netlist model's)")
 
 

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from estim.errors import ConfigError
+from estim.estimators import kalman_differentiator
 from estim.experiments.shared import records
 from estim.numerics import signals
 
@@ -133,3 +134,21 @@ def waveform(inp, knots: np.ndarray | None, frequency_hz: float, t: np.ndarray) 
 def start(inp, knots: np.ndarray | None) -> float:
     """``w(0)``: the source's deviation from ``bias_v`` where the circuit starts."""
     return float(waveform(inp, knots, frequencies(inp)[0], np.zeros(1))[0, 0])
+
+
+def filter_input(inp, data: dict, method: str, bandwidth: float) -> np.ndarray:
+    """The input a filter is given on each sample interval of a batch ``data`` (the config's
+    ``input`` block ``inp``; ``method`` one of
+    :data:`estim.experiments.estimation.config.DERIVATIVE_METHODS`): the model's own mapping
+    of the samples it sees, the nominal sine's slope at each interval's midpoint, or the
+    Kalman differentiator's (``bandwidth`` times the input frequency)."""
+    if method == "difference":
+        return data["u"]
+    f, dt = data["frequency_hz"], data["dt"]
+    mix = np.asarray(inp.mix, float)
+    if method == "analytic":
+        w = 2 * np.pi * f
+        middle = data["t"] - dt / 2
+        return (inp.amplitude_v * w * np.cos(w * middle))[None, :, None] * mix
+    slopes = kalman_differentiator.with_bandwidth(data["seen"], dt, bandwidth * f)
+    return 0.5 * (slopes[:, 1:] + slopes[:, :-1])

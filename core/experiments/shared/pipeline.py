@@ -101,15 +101,18 @@ def state_rows(data: dict, filters: tuple, estimates: list, verdicts: list,
     """One row per filter and state: the RMSE (eq 3.42, of each state instead of the output)
     of the filter's estimate against the actual state, over every run (a broken run's error
     is infinite) and over the runs that did not diverge (``verdicts``). A filter with no
-    estimate in the actual circuit's states (the RLS) has none."""
+    estimate in the actual circuit's states (the RLS) has none. A state the model reports
+    in other units (an estimated value, ``value_scales``) is in those."""
     rows = []
     truth = data["states"]
     for (label, _, model, *_), est, diverged in zip(filters, estimates, verdicts,
                                                       strict=True):
         if est.x_hat is None or est.x_hat.shape != truth.shape:
             continue
-        for j, name in enumerate(model.state_names):
-            columns, _ = rmse_columns(truth[..., j:j + 1], est.x_hat[..., j:j + 1], diverged)
+        scales = getattr(model, "value_scales", (1.0,) * len(model.state_names))
+        for j, (name, s) in enumerate(zip(model.state_names, scales, strict=True)):
+            columns, _ = rmse_columns(s * truth[..., j:j + 1], s * est.x_hat[..., j:j + 1],
+                                      diverged)
             rows.append({**common, "estimator": label, "state": name,
                          **{key: columns[key] for key in STATE_VALUES}})
     return rows

@@ -15,6 +15,7 @@ from estim.experiments.shared.plots.traces import (
                                                    estimates,
                                                    estimates_clipped,
                                                    output_limits,
+                                                   parameters,
                                                    perturbation,
                                                    predictions,
                                                    residuals,
@@ -24,5 +25,6 @@ from estim.experiments.shared.plots.traces import (
 
 __all__ = ["absolute_errors", "burden", "burden_timing", "differentiator_response",
            "ensemble_rank", "estimates", "estimates_clipped", "field_slices", "field_study",
-           "image_panels", "noisy_signal", "output_limits", "perturbation", "pixel_series",
-           "predictions", "relative_error_curves", "residuals", "running_rmse", "with_unit"]
+           "image_panels", "noisy_signal", "output_limits", "parameters", "perturbation",
+           "pixel_series", "predictions", "relative_error_curves", "residuals", "running_rmse",
+           "with_unit"]

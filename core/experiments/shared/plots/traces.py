@@ -221,6 +221,30 @@ def residuals(trace: dict, title: str) -> Figure:
     return _series(trace, "innovation", "residual [V]", title)
 
 
+@drawn
+def parameters(t: np.ndarray, values: dict, title: str) -> Figure:
+    """Element values estimated as states, one panel each: every filter's estimate of run 1
+    with its +-3 standard deviation band, and the actual circuit's value (``values``: name
+    -> ``{"true": value, "filters": {label: (estimate, sd)}}``)."""
+    fig, axes = subplots(len(values), 1, figsize=(10.0, 2.0 + 2.5 * len(values)), sharex=True,
+                         squeeze=False)
+    t_ms = np.asarray(t, float) * 1e3
+    for ax, (name, value) in zip(axes[:, 0], values.items(), strict=True):
+        for i, (label, (estimate, sd)) in enumerate(value["filters"].items()):
+            style = series_style(i)
+            ax.plot(t_ms, estimate, lw=1.0, **style, label=f"{label} (+-3 sd)")
+            ax.fill_between(t_ms, estimate - 3 * sd, estimate + 3 * sd, alpha=0.15,
+                            color=style.get("color"))
+        ax.axhline(value["true"], color="k", ls="--", lw=1.0, label="actual circuit")
+        ax.set_ylabel(name)
+        ax.grid(True)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    axes[0, 0].set_title(textwrap.fill(title, 70))
+    axes[-1, 0].set_xlabel("time [ms]")
+    tight_layout(fig)
+    return fig
+
+
 UNITS = {"R": "\u03a9", "C": "F", "L": "H", "V": "V", "U": "V", "I": "A"}
 """The unit of a circuit parameter by its first letter (R_E, C_GX, L_1, V_CC, U_T, I_0)."""
 

@@ -1,0 +1,39 @@
+"""The currents a netlist's device draws from its nodes: for each terminal the node, the
+current leaving the node into the device, and its gradient in the states, by the device's
+law (:mod:`estim.spice.devices`) at node voltages ``V = P x + Q u + r``."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from estim.models.devices import ebers_moll
+from estim.spice.devices import collector_saturation, diode, mosfet
+
+
+def terms(P: np.ndarray, kind: str, p: dict, idx: list, V: np.ndarray) -> tuple:
+    """``((node, current, d current / dx), ...)`` of one device of type ``kind`` with
+    ``.model`` parameters ``p`` at nodes ``idx``; ``P`` the node voltages' rows in the states,
+    ``V (..., nodes)`` the node voltages."""
+    if kind == "d":
+        a, b = idx
+        cur, g = diode(V[..., a] - V[..., b], p)
+        dcur = g[..., None] * (P[a] - P[b])
+        return (a, cur, dcur), (b, -cur, -dcur)
+    if kind in ("npn", "pnp"):
+        col, base, emi = idx
+        sign = -1.0 if kind == "pnp" else 1.0
+        tc = ebers_moll.currents(sign * (V[..., base] - V[..., emi]),
+                                 sign * (V[..., base] - V[..., col]), p["ies"],
+                                 collector_saturation(p), p["alpha_f"], p["alpha_r"], p["vt"])
+        dbe = sign * (P[base] - P[emi])
+        dbc = sign * (P[base] - P[col])
+        # a terminal current flows into the device: it leaves the node
+        return tuple((node, sign * cur, sign * (d_be[..., None] * dbe + d_bc[..., None] * dbc))
+                     for node, cur, d_be, d_bc in ((col, tc.I_C, tc.dIC_be, tc.dIC_bc),
+                                                   (emi, tc.I_E, tc.dIE_be, tc.dIE_bc),
+                                                   (base, tc.I_B, tc.dIB_be, tc.dIB_bc)))
+    d_, g_, s_, b_ = idx
+    cur, grad, _ = mosfet(kind, V[..., d_], V[..., g_], V[..., s_], V[..., b_], p)
+    dcur = (grad[..., 0, None] * P[d_] + grad[..., 1, None] * P[g_]
+            + grad[..., 2, None] * P[s_] + grad[..., 3, None] * P[b_])
+    return (d_, cur, dcur), (s_, -cur, -dcur)
