@@ -147,7 +147,7 @@ def test_a_resistors_estimate_converges_to_the_actual_value(tmp_path):
     ({"name": "VP.dc", "start": 1.0, "sigma0": 1.0}, "estimate[0].name", "only a diode's"),
     ({"name": "R1", "start": 0.0, "sigma0": 1.0}, "estimate[0].start", "other than 0"),
     ({"name": "R1", "start": 1.0, "sigma0": -1.0}, "estimate[0].sigma0", "positive"),
-    ({"name": "RL", "start": 1.0, "sigma0": 1.0}, "estimate", "the output is its current"),
+    ({"name": "RL", "start": 1.0, "sigma0": 1.0}, "estimate", "an output is its current"),
 ])
 def test_a_value_named_wrongly_is_one_line_at_its_key(tmp_path, entry, key, message):
     from estim.cli.main import main

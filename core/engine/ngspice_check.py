@@ -120,33 +120,49 @@ def compare_case(label: str, model, source: np.ndarray, dt: float, frequency: fl
     dc = np.abs(ours[0, nodes] - theirs[0, nodes]).max() / node_scale if nodes else 0.0
     rows.append({"case": label, "check": "dc", "quantity": "node voltages",
                  "difference": dc, "own_scale": dc})
-    y_ours, y_theirs = model.h(ours)[:, 0], model.h(theirs)[:, 0]
-    output = model.output_names[0]
-    series = [(name, ours[:, j], theirs[:, j]) for j, name in enumerate(model.state_names)]
-    series.append((f"{output} (output)", y_ours, y_theirs))
-    # a current the node voltages set (a resistor's, a device's) moves by its conductances
-    # times a node's difference: the node scale carried through its Jacobian
-    carried = (np.abs(model.h_jacobian(theirs)).sum(axis=-1).max() * node_scale
-               if circuit.output_terms[0] in ("resistor", "device") else 0.0)
-    for name, a, b in series:
+    y_ours, y_theirs = model.h(ours), model.h(theirs)
+    H = np.abs(model.h_jacobian(theirs))
+    series = [(name, ours[:, j], theirs[:, j], 0.0) for j, name in enumerate(model.state_names)]
+    for j, (output, term) in enumerate(zip(model.output_names, circuit.output_terms,
+                                           strict=True)):
+        # a current the node voltages set (a resistor's, a device's) moves by its
+        # conductances times a node's difference: the node scale carried through its Jacobian
+        carried = (H[:, j].sum(axis=-1).max() * node_scale
+                   if term[0] in ("resistor", "device") else 0.0)
+        series.append((f"{output} (output)", y_ours[:, j], y_theirs[:, j], carried))
+    for name, a, b, carried in series:
         gap = np.abs(a - b).max()
         own = np.abs(b).max()
         scale = node_scale if name.startswith("v(") else max(own, FLOORS["i"])
-        if name.endswith("(output)") and carried:
+        if carried:
             scale = max(own, carried, FLOORS["i"])
         rows.append({"case": label, "check": "transient", "quantity": name,
                      "difference": gap / scale, "own_scale": gap / own if own else np.nan,
                      "_theirs": b, "_scale": scale})
-    term = circuit.output_terms
-    if frequency is not None and term[0] != "device":    # a device's current: no AC vector
-        A = model.jacobian(x0, u_op)
-        B = model.input_jacobian(x0, u_op)
-        C = model.h_jacobian(x0)
-        w = 2j * np.pi * frequency
-        ours_ac = (C @ np.linalg.solve(w * np.eye(model.n_states) - A, B))[0]
-        if circuit.slope:
-            ours_ac = ours_ac * w
-        bias = {name: float(source[0, k]) for k, name in enumerate(circuit.inputs)}
+    if frequency is not None:
+        rows += _ac_rows(label, model, source, frequency, x0, u_op, executable)
+    return rows
+
+
+def _ac_rows(label: str, model, source: np.ndarray, frequency: float, x0: np.ndarray,
+             u_op: np.ndarray, executable: str | None) -> list[dict]:
+    """The AC gain from each input to each output at ``frequency`` against ngspice's AC
+    analysis about the DC point (none for a device's current, which ngspice's AC analysis
+    does not give)."""
+    circuit, net = model.circuit, model.circuit.netlist
+    A = model.jacobian(x0, u_op)
+    B = model.input_jacobian(x0, u_op)
+    C = model.h_jacobian(x0)
+    w = 2j * np.pi * frequency
+    ours_all = C @ np.linalg.solve(w * np.eye(model.n_states) - A, B)
+    if circuit.slope:
+        ours_all = ours_all * w
+    bias = {name: float(source[0, k]) for k, name in enumerate(circuit.inputs)}
+    rows = []
+    for j, (output, term) in enumerate(zip(model.output_names, circuit.output_terms,
+                                           strict=True)):
+        if term[0] == "device":
+            continue
         probe, scale = output, 1.0
         if term[0] == "resistor":                  # its current: the voltage across it / R
             e = net.element(term[1])
@@ -156,6 +172,7 @@ def compare_case(label: str, model, source: np.ndarray, dt: float, frequency: fl
             scale = (-1.0 if a in ("0", "gnd") else 1.0) / e.value
         theirs_ac = scale * np.array([ngspice.ac(net, bias, name, [frequency], probe,
                                                  executable)[0] for name in circuit.inputs])
+        ours_ac = ours_all[j]
         top = max(np.abs(theirs_ac).max(), 1e-12)      # a gain of zero: compared absolutely
         for k, name in enumerate(circuit.inputs):
             rows.append({"case": label, "check": "ac",

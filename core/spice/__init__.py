@@ -82,9 +82,11 @@ def resolve_model_block(data: dict, source: str) -> None:
         raise ConfigError(source, "model.input", "expected the name of the voltage source the "
                           "model input drives, or a list of them")
     output = block.get("output")
-    if not isinstance(output, str):
+    if not (isinstance(output, str) or (isinstance(output, list) and output and all(
+            isinstance(o, str) for o in output))):
         raise ConfigError(source, "model.output", "expected v(node), v(node,node), "
-                          "i(inductor, resistor or diode), ic/ib/ie(bjt) or id(mosfet)")
+                          "i(inductor, resistor or diode), ic/ib/ie(bjt) or id(mosfet), or a "
+                          "list of them")
     states = block.get("thesis_states")
     if states is not None and (not isinstance(states, list)
                                or not all(isinstance(s, str) for s in states)):

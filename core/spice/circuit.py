@@ -67,7 +67,8 @@ class Circuit:
 
     netlist: Netlist
     inputs: tuple[str, ...]
-    output: str
+    output: str | tuple[str, ...]
+    """What is measured: one quantity (:data:`OUTPUTS`) or several."""
 
     def __post_init__(self) -> None:
         net, src = self.netlist, self.netlist.source
@@ -166,7 +167,14 @@ class Circuit:
                     raise NetlistError(src, model.line, f".model {model.name}: law "
                                        f"{model.params['law']!r}; expected 0-4 ("
                                        f"{', '.join(f'{i} {n}' for i, n in enumerate(NMOS_LAWS))})")
-        self.output_terms = self._output(self.output)
+        self.outputs = (self.output,) if isinstance(self.output, str) else tuple(self.output)
+        if not self.outputs:
+            raise NetlistError(src, 0, f"no output; expected {OUTPUTS}")
+        self.output_terms = [self._output(text) for text in self.outputs]
+        for i, term in enumerate(self.output_terms):
+            if term in self.output_terms[:i]:
+                raise NetlistError(src, 0, f"output {self.outputs[i]!r} measures what "
+                                   f"{self.outputs[self.output_terms.index(term)]!r} does")
 
     def _set_apart_algebraic(self, C: np.ndarray, B: np.ndarray,
                              root: dict) -> tuple[np.ndarray, np.ndarray]:

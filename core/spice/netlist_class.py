@@ -29,13 +29,13 @@ def build_model_class(circuit: Circuit, name: str) -> type:
         else tuple(circuit.inputs)
     attrs = {"state_names": circuit.state_names, "input_names": inputs,
              "input_is_source_slope": circuit.slope, "input_affine": circuit.slope,
-             "output_names": (circuit.output,), "Params": Params, "variants": {},
+             "output_names": circuit.outputs, "Params": Params, "variants": {},
              "circuit": circuit, "__doc__": f"Netlist model of {net.source} ({net.title})."}
     clean = re.sub(r"\W", "_", name)
     return type(f"Netlist_{clean}", (NetlistModel,), attrs)
 
 
-def model_class(path: Path, inputs, output: str, name: str | None = None,
+def model_class(path: Path, inputs, output: str | tuple, name: str | None = None,
                 hold: str | None = None, thesis_states=None) -> type:
     """The model class of the netlist at ``path`` (registered under ``name``, default
     ``netlist:<stem>``); ``hold`` is how its value inputs hold a sample (``"mean"``, the
@@ -43,6 +43,7 @@ def model_class(path: Path, inputs, output: str, name: str | None = None,
     ``thesis_states`` the quantities a filter's Q and P0 are written in
     (:attr:`NetlistModel.thesis_map`)."""
     inputs = (inputs,) if isinstance(inputs, str) else tuple(inputs)
+    output = output if isinstance(output, str) else tuple(output)
     circuit = Circuit(read(path), tuple(i.lower() for i in inputs), output)
     name = name or f"netlist:{path.stem}"
     cls = build_model_class(circuit, name)

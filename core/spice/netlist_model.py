@@ -157,7 +157,8 @@ class NetlistModel(Model, metaclass=NetlistClass):
         self._A = A if c.controls else None
         self._U = U
         self._linear = G @ self._P + K                # d(linear currents)/dx
-        self._h = output_map(self, c.output_terms)
+        self._h = [output_map(self, term, text)
+                   for term, text in zip(c.output_terms, c.outputs, strict=True)]
 
     def _sum_rows(self, out, d_out):
         """The state rows' currents with each F source's current added (``A``): the rows
@@ -443,33 +444,40 @@ class NetlistModel(Model, metaclass=NetlistClass):
         None where the config names none (the netlist's own states, :attr:`state_scales`)."""
         return thesis_map(self) if self.thesis_states else None
 
-    def h(self, x):
-        term = self.circuit.output_terms
+    def _measured(self, x: np.ndarray, jacobian: bool):
+        """Each output's value ``(..., 1)`` at states ``x`` and, with ``jacobian``, its row
+        ``(..., 1, n)`` (:attr:`Circuit.output_terms`, in the config's order)."""
         x = np.asarray(x, float)
-        if term[0] == "device":
-            return device_output(self, x)[0]
-        if term[0] in ("node", "resistor"):
-            return (x @ self._h[0] + self._h[1])[..., None]
-        if term[0] == "i" or term[2] is None:
-            return x[..., term[1]:term[1] + 1]
-        return (x[..., term[1]] - x[..., term[2]])[..., None]
+        n = self.n_states
+        for term, affine in zip(self.circuit.output_terms, self._h, strict=True):
+            if term[0] == "device":
+                y, H = device_output(self, x, term)
+                yield y, (H if jacobian else None)
+                continue
+            if affine is not None:
+                row, const = affine
+                y = (x @ row + const)[..., None]
+            else:                                   # states: taken as they are
+                row = np.zeros(n)
+                row[term[1]] = 1.0
+                y = x[..., term[1]:term[1] + 1]
+                if term[0] == "v" and term[2] is not None:
+                    row[term[2]] = -1.0
+                    y = (x[..., term[1]] - x[..., term[2]])[..., None]
+            yield y, (np.broadcast_to(row, x.shape[:-1] + (1, n)) if jacobian else None)
+
+    def h(self, x):
+        """The outputs ``(..., m)``."""
+        return np.concatenate([y for y, _ in self._measured(x, False)], axis=-1)
 
     def affine_output(self):
-        term = self.circuit.output_terms
-        if term[0] == "device":
+        """``(H, c)`` when no output is a device's current, else None."""
+        if any(term[0] == "device" for term in self.circuit.output_terms):
             return None
-        H = np.zeros((1, self.n_states))
-        if term[0] in ("node", "resistor"):
-            H[0] = self._h[0]
-            return H, np.array([float(self._h[1])])
-        H[0, term[1]] = 1.0
-        if term[0] == "v" and term[2] is not None:
-            H[0, term[2]] = -1.0
-        return H, np.zeros(1)
+        H = np.vstack([H[0] for _, H in self._measured(np.zeros(self.n_states), True)])
+        c = np.array([y[0] for y, _ in self._measured(np.zeros(self.n_states), False)])
+        return H, c
 
     def h_jacobian(self, x):
-        if self.circuit.output_terms[0] == "device":
-            return device_output(self, np.asarray(x, float))[1]
-        H = self.affine_output()[0]
-        return np.broadcast_to(H, np.shape(x)[:-1] + H.shape).copy()
-
+        """The outputs' Jacobian ``(..., m, n)``."""
+        return np.concatenate([H for _, H in self._measured(x, True)], axis=-2)

@@ -10,7 +10,7 @@ from estim.spice import terminals
 from estim.spice.parser import NetlistError
 
 
-def output_map(model, term: tuple) -> tuple | None:
+def output_map(model, term: tuple, text: str) -> tuple | None:
     """``(row, constant)`` with ``y = row . x + constant`` for an output at nodes or through
     a resistor, else None; an output that follows the model input directly (a node the
     input drives through resistors only, or a device at one) is refused by name: the
@@ -29,18 +29,19 @@ def output_map(model, term: tuple) -> tuple | None:
     signs = np.array([1.0, -1.0][:len(rows)]) if scale is not None else None
     through = model._Q[rows] if scale is None else signs @ model._Q[rows]
     if np.any(through != 0):
-        raise NetlistError(c.netlist.source, 0, f"output {c.output!r} follows the model "
+        raise NetlistError(c.netlist.source, 0, f"output {text!r} follows the model "
                            "input directly; take a node (or element) behind an element")
     if scale is None:
         return None
     return (scale * (signs @ model._P[rows]), float(scale * (signs @ model._r[rows])))
 
 
-def device_output(model, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The measured device current ``(..., 1)`` at states ``x`` and its Jacobian ``(..., 1,
-    n)``: a diode's from anode to cathode, a BJT's into the terminal the output names, a
-    MOSFET's into its drain (the laws the drift uses)."""
-    _, name, terminal = model.circuit.output_terms
+def device_output(model, x: np.ndarray, term: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """The device current ``term`` measures (``("device", name, terminal)``), ``(..., 1)``
+    at states ``x``, and its Jacobian ``(..., 1, n)``: a diode's from anode to cathode, a
+    BJT's into the terminal the output names, a MOSFET's into its drain (the laws the drift
+    uses)."""
+    _, name, terminal = term
     kind, p, idx = model._device_of[name]
     V = x @ model._P.T + model._r
     at = terminals.terms(model._P, kind, p, idx, V)

@@ -82,9 +82,9 @@ def _check_apart(model: NetlistModel, element: str) -> None:
     if touched:
         raise ValueError(f"{element.upper()}: it meets node {touched[0]}, whose voltage is "
                          "solved from the resistors once (D71); its value cannot be a state")
-    term = c.output_terms
-    if term[0] in ("resistor", "device") and term[1] == e.name:
-        raise ValueError(f"{element.upper()}: the output is its current; its value cannot be "
+    if any(term[0] in ("resistor", "device") and term[1] == e.name
+           for term in c.output_terms):
+        raise ValueError(f"{element.upper()}: an output is its current; its value cannot be "
                          "a state")
 
 
@@ -106,8 +106,8 @@ class ParameterStates(Model):
         for p in parameters:
             if p.field is None:
                 _check_apart(base, p.element)
-            elif base.circuit.output_terms[:2] == ("device", p.element):
-                raise ValueError(f"{p.name}: the output is this device's current; its "
+            elif any(term[:2] == ("device", p.element) for term in base.circuit.output_terms):
+                raise ValueError(f"{p.name}: an output is this device's current; its "
                                  "parameter cannot be a state")
 
     def __reduce__(self):

@@ -45,6 +45,7 @@ from estim.experiments.estimation import figures as estimation_figures
 from estim.experiments.estimation import parameters as estimated
 from estim.experiments.estimation import source as waveforms
 from estim.experiments.estimation.config import Config
+from estim.experiments.estimation.points import SweepPoint, sampling, sweep
 from estim.experiments.estimation.printing import printout as printout  # the protocol's printout
 from estim.experiments.shared import claims, pipeline
 from estim.numerics import signals
@@ -80,6 +81,9 @@ TABLES = {
                           reference_ids=("3.3", "3.4")),
     "states": TableSpec("states.csv", (*_ROW_KEYS, "state"), pipeline.STATE_VALUES,
                         title="RMSE of every state against the actual circuit's"),
+    "outputs": TableSpec("outputs.csv", (*_ROW_KEYS, "output"), pipeline.OUTPUT_VALUES,
+                         title="each measured quantity's RMSE and residual (where model.output "
+                               "lists several)"),
     "parameters": TableSpec("parameters.csv", (*_ROW_KEYS, "parameter"), estimated.VALUES,
                             title="element values estimated as states: final estimates "
                                   "against the actual circuit's"),
@@ -159,6 +163,10 @@ def prepare(config: Config, source: str) -> Plan:
     x0 = operating_point(truth, held, source, "model.params")
     actual_circuit.check(config, truth, source)
     values = estimated.check(config, truth, source)
+    sigma = noise.measurement_sigma
+    if isinstance(sigma, list) and len(sigma) != truth.n_outputs:
+        raise ConfigError(source, "noise.measurement_sigma", f"{len(sigma)} levels for "
+                          f"{truth.n_outputs} measured quantities {list(truth.output_names)}")
     filters, labels = [], []
     for i, est in enumerate(config.estimators):
         path = f"estimators[{i}]"
@@ -249,48 +257,8 @@ def tiny(config: Config) -> dict:
             "monte_carlo.runs": 3, "figures": {"names": config.figures.names}}
 
 
-@dataclass(frozen=True)
-class SweepPoint:
-    index: int
-    measurement: str
-    reading: str
-    level: float
-    sigma: float
-    frequency_hz: float
-
-
-def sweep(exp: Experiment) -> list[SweepPoint]:
-    """Sweep points in thesis row order: measurement reading, noise reading, noise level,
-    then frequency (or the (level, frequency) pairs in the order given, with
-    ``noise.pairs``). ``noise.measurement``: ``noisy``, the measured output plus white noise
-    of ``measurement_sigma``; ``noise_free``, the actual output itself (the filters keep
-    their ``R``)."""
-    noise, inp = exp.config.noise, exp.config.input
-    freqs = waveforms.frequencies(inp)
-    if noise.pairs:
-        cells = list(zip(noise.input_levels, freqs, strict=True))
-    else:
-        cells = [(level, f) for level in noise.input_levels for f in freqs]
-    points = []
-    for measurement in noise.measurement:
-        for reading in noise.readings:
-            for level, f in cells:
-                points.append(SweepPoint(len(points), measurement, reading, float(level),
-                                         signals.noise_sigma(level, reading), float(f)))
-    return points
-
-
 def work_units(exp: Experiment) -> int:
     return len(sweep(exp)) + 1
-
-
-def sampling(exp: Experiment, frequency_hz: float) -> tuple[float, int]:
-    """Sample time and number of samples after ``t_0`` for one input frequency."""
-    inp = exp.config.input
-    dt = inp.sample_time_s or 1.0 / (inp.samples_per_period * frequency_hz)
-    if inp.duration_s is not None:
-        return dt, max(1, round(inp.duration_s / dt))
-    return dt, max(1, round(inp.periods / (frequency_hz * dt)))
 
 
 def simulate_point(exp: Experiment, frequency_hz: float, sigma: float, runs: int,
@@ -308,7 +276,7 @@ def simulate_point(exp: Experiment, frequency_hz: float, sigma: float, runs: int
     x0 = exp.plan.x0           # the DC point with the source held at its value at t_0
     states = actual_circuit.states(truth, x0, source, dt, exp.config.simulation)
     actual = truth.h(states)
-    z = actual + noise.measurement_sigma * rng.standard_normal(actual.shape)
+    z = actual + np.asarray(noise.measurement_sigma) * rng.standard_normal(actual.shape)
     if measurement == "noise_free":
         z = actual.copy()
     seen = clean[None] if noise.filters_see == "nominal" else source
@@ -339,12 +307,11 @@ def estimate_point(exp: Experiment, data: dict, key: tuple) -> list:
 
 
 def run_point(exp: Experiment, point: SweepPoint, traces: bool = False) -> tuple[list, dict,
-                                                                                  dict, list,
-                                                                                  list]:
+                                                                                  dict, dict]:
     """Table rows (the measurement baseline, then one per estimator) for one sweep point,
     the per-run losses for the claims, with ``traces`` the figure traces of its first run
-    (the figures show the runs the table averages), the per-state rows and the estimated
-    values' rows."""
+    (the figures show the runs the table averages), and the rows of the tables only some
+    configs have, by table: per state, per estimated value, per measured quantity."""
     mc = exp.config.monte_carlo
     rng = exp.config.monte_carlo.rng(point.index)
     data = simulate_point(exp, point.frequency_hz, point.sigma, mc.runs, rng,
@@ -361,10 +328,13 @@ def run_point(exp: Experiment, point: SweepPoint, traces: bool = False) -> tuple
               "regime": regime or "", "regime_fraction": fraction}
     rows, losses, verdicts = pipeline.score(exp, data, exp.plan.filters, estimates, common)
     drawn = estimation_figures.traces(exp, data, estimates, verdicts) if traces else {}
-    states = pipeline.state_rows(data, exp.plan.filters, estimates, verdicts, common)
-    values = (estimated.rows(exp.plan.filters, estimates, verdicts, exp.plan.theta, common)
-              if exp.plan.parameters else [])
-    return rows, losses, drawn, states, values
+    filters, names = exp.plan.filters, exp.plan.truth.output_names
+    more = {"states": pipeline.state_rows(data, filters, estimates, verdicts, common),
+            "parameters": (estimated.rows(filters, estimates, verdicts, exp.plan.theta, common)
+                           if exp.plan.parameters else []),
+            "outputs": (pipeline.output_rows(data, filters, estimates, verdicts, common, names)
+                        if len(names) > 1 else [])}
+    return rows, losses, drawn, more
 
 
 def _run_point_args(args):
@@ -414,8 +384,6 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
     tasks = [(exp, p, p.index in wanted) for p in points]
     done = map_tasks(_run_point_args, tasks, jobs, on_done)
     rows = [row for part, *_ in done for row in part]
-    states = [row for _, _, _, part, _ in done for row in part]
-    values = [row for *_, part in done for row in part]
     known = {key: done[index][2] for index, keys in wanted.items() for key in keys}
     out = Result(tables={})
     filters_only = [row for row in rows if row["estimator"] != pipeline.MEASUREMENT]
@@ -426,10 +394,10 @@ def run(exp: Experiment, jobs: int = 1, on_done: Callable[[], None] | None = Non
             out.tables[metric] = (result_table(rows, metric, table_id_) if metric == "rmse"
                                   else result_table(filters_only, metric, table_id_))
     out.tables["health"] = result_table(filters_only, "health", table_id)
-    if states:
-        out.tables["states"] = result_table(states, "states", table_id)
-    if values:
-        out.tables["parameters"] = result_table(values, "parameters", table_id)
+    for metric in ("states", "parameters", "outputs"):
+        part = [row for *_, more in done for row in more[metric]]
+        if part:
+            out.tables[metric] = result_table(part, metric, table_id)
     out.tables["claims"] = pipeline.claims_table(exp.config, rmse,
                                                  [losses for _, losses, *_ in done],
                                         ("s_no", "measurement", "noise_reading", "noise_param",

@@ -8,6 +8,7 @@ from typing import Any
 
 from estim.config.settings import (
     MAX_VOLTS,
+    MIN_NOISE,
     REQUIRED,
     Settings,
     block,
@@ -83,9 +84,25 @@ class Input(SourceLevels, Sine):
                                        doc="record length (give this or periods)")
 
 
+_SIGMA = number(minimum=MIN_NOISE, maximum=MAX_VOLTS)
+
+
+def _one_or_each(v):
+    """One noise level, or a list of them (one per measured quantity)."""
+    if isinstance(v, list):
+        ok = 0 < len(v) <= 8 and not any(_SIGMA(i) for i in v)
+        return None if ok else "a list of at most 8 noise levels (positive numbers)"
+    return _SIGMA(v)
+
+
 @settings_class
 class Noise(InputNoise):
     """Noise at the input source (as the thesis prints it) and on the measured output."""
+
+    measurement_sigma: float | list = setting(REQUIRED, _one_or_each, unit="V (A for a current)",
+                                              doc="white noise on each measured value: one "
+                                                  "level, or one per output (model.output a "
+                                                  "list)")
 
     measurement: list = setting(["noisy"], list_of(text({"noisy", "noise_free"}), unique=True,
                                                    max_length=2),

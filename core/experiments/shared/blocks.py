@@ -94,6 +94,13 @@ def _quantities(v):
     return None if ok else "a list of v(node), v(node,node) or i(inductor)"
 
 
+def _outputs(v):
+    ok = (isinstance(v, str) and 0 < len(v) <= 200) or (
+        isinstance(v, list) and 0 < len(v) <= 8 and all(
+            isinstance(i, str) and 0 < len(i) <= 200 for i in v))
+    return None if ok else "a measured quantity or a list of at most 8"
+
+
 def _source_names(v):
     ok = isinstance(v, str) and v or (isinstance(v, list) and v and all(
         isinstance(i, str) and i for i in v))
@@ -117,9 +124,10 @@ class Model(Settings):
     input: list | str | None = setting(None, _source_names, doc="with netlist: the voltage "
                                                                   "source(s) the model input "
                                                                   "drives")
-    output: str | None = setting(None, text(), doc="with netlist: v(node), v(node,node), "
-                                                   "i(inductor, resistor or diode), "
-                                                   "ic/ib/ie(bjt) or id(mosfet)")
+    output: str | list | None = setting(None, _outputs,
+                                        doc="with netlist: v(node), v(node,node), i(inductor, "
+                                            "resistor or diode), ic/ib/ie(bjt) or id(mosfet), "
+                                            "or a list of them (measured together)")
     hold: str | None = setting(None, text({"mean", "start", "end"}),
                                doc="with netlist: the source over an interval held at the "
                                    "mean of its two end samples (default, as the "

@@ -185,11 +185,13 @@ def diverged(est: Estimate, actual: np.ndarray | None = None,
         with np.errstate(invalid="ignore"):
             outside = np.any((est.y_hat < lo) | (est.y_hat > hi), axis=-1)
         out |= _runs_of(outside, consecutive)
-    if actual is not None:
+    if actual is not None:               # each measured quantity against its own swing
         actual = np.asarray(actual, float)
-        swing = np.sqrt(np.mean((actual - actual.mean(axis=1, keepdims=True)) ** 2,
-                                axis=(1, 2)))
-        out |= runaway(est.y_hat - actual, swing, growth)
+        for j in range(actual.shape[-1]):
+            one = actual[..., j:j + 1]
+            swing = np.sqrt(np.mean((one - one.mean(axis=1, keepdims=True)) ** 2,
+                                    axis=(1, 2)))
+            out |= runaway(est.y_hat[..., j:j + 1] - one, swing, growth)
     return out
 
 

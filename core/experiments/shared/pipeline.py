@@ -118,16 +118,45 @@ def state_rows(data: dict, filters: tuple, estimates: list, verdicts: list,
     return rows
 
 
+OUTPUT_VALUES = (*RMSE_VALUES, "residual_mean", "residual_variance")
+"""The per-output table's columns: :data:`RMSE_VALUES` and the residual's mean and variance
+over the runs that did not diverge, of one measured quantity."""
+
+
+def output_rows(data: dict, filters: tuple, estimates: list, verdicts: list, common: dict,
+                names: tuple) -> list[dict]:
+    """One row per measured quantity (``names``) for the raw measurement and each filter:
+    the RMSE columns (eq 3.42 of that quantity alone) and its residual's mean and variance
+    (over the runs that did not diverge; none for the measurement)."""
+    rows = []
+    none = np.zeros(data["z"].shape[0], bool)
+    nan = float("nan")
+    for j, name in enumerate(names):
+        actual = data["actual"][..., j:j + 1]
+        columns, _ = rmse_columns(actual, data["z"][..., j:j + 1], none)
+        rows.append({**common, "estimator": MEASUREMENT, "output": name, **columns,
+                     "residual_mean": nan, "residual_variance": nan})
+        for (label, *_), est, diverged in zip(filters, estimates, verdicts, strict=True):
+            columns, _ = rmse_columns(actual, est.y_hat[..., j:j + 1], diverged)
+            res_mean, res_var = metrics.residual_stats(est.innovation[~diverged][..., j:j + 1])
+            rows.append({**common, "estimator": label, "output": name, **columns,
+                         "residual_mean": metrics.mean_and_se(res_mean)[0],
+                         "residual_variance": metrics.mean_and_se(res_var)[0]})
+    return rows
+
+
 def score(exp: Experiment, data: dict, filters: tuple, estimates: list, common: dict,
           measured: str = "") -> tuple[list[dict], dict, list]:
     """Rows of every table for one batch: the raw measurement's row, then one per filter
     (``filters``: ``(label, estimator, model, ...)``, with their ``estimates``), each with
-    its RMSE, health and residual columns; the per-run losses of every row for the claims;
-    and each filter's per-run divergence flags. ``measured`` names what the measurement row
-    measures, when the table says."""
-    raw = metrics.rmse_per_run(data["actual"], data["z"])
+    its RMSE and residual columns of the first measured quantity (:func:`output_rows` gives
+    each, where there are several) and its health over all of them; the per-run losses of
+    every row for the claims; and each filter's per-run divergence flags. ``measured``
+    names what the measurement row measures, when the table says."""
+    actual = data["actual"][..., :1]          # the first measured quantity (output_rows: each)
+    raw = metrics.rmse_per_run(actual, data["z"][..., :1])
     none = np.zeros(raw.size, bool)
-    columns, _ = rmse_columns(data["actual"], data["z"], none)
+    columns, _ = rmse_columns(actual, data["z"][..., :1], none)
     rows = [{**common, **columns, "estimator": MEASUREMENT, "broken": 0,
              **({"measures": measured} if measured else {})}]
     losses = {MEASUREMENT: claims.Losses(raw)}
@@ -136,9 +165,9 @@ def score(exp: Experiment, data: dict, filters: tuple, estimates: list, common: 
         verdict = judge(exp, data, est, model)
         diverged = verdict["diverged"]
         verdicts.append(diverged)
-        columns, per_run = rmse_columns(data["actual"], est.y_hat, diverged)
+        columns, per_run = rmse_columns(actual, est.y_hat[..., :1], diverged)
         ok = ~diverged
-        res_mean, res_var = metrics.residual_stats(est.innovation[ok])
+        res_mean, res_var = metrics.residual_stats(est.innovation[ok][..., :1])
         mean, mean_se = metrics.mean_and_se(res_mean)
         var, var_se = metrics.mean_and_se(res_var)
         flags = verdict["inconsistent"]

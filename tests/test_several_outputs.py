@@ -1,0 +1,120 @@
+"""Several measured quantities (issue 47, item 2): ``model.output`` a list, each with its own
+noise (``noise.measurement_sigma`` a list) and its own row of ``outputs.csv``; the filters
+get every one (``h`` and its Jacobian stacked)."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+from click.testing import CliRunner
+
+from estim.cli.main import main
+from estim.spice import model_class
+from estim.spice.parser import NetlistError
+
+ROOT = Path(__file__).resolve().parents[1]
+MIRROR = ROOT / "circuits" / "diode_mirror.cir"
+
+
+def _mirror(output, tag):
+    return model_class(MIRROR, "VIN", output, name=f"netlist:test_outs_{tag}")()
+
+
+def test_the_outputs_are_each_ones_own_stacked():
+    """h and its Jacobian of [i(ro), v(a), i(d1)] are those of the three one-output models,
+    in that order; the pair without the diode's current is affine (the compiled loops take
+    it), the three are not."""
+    three = _mirror(["i(ro)", "v(a)", "i(d1)"], "three")
+    ones = [_mirror(o, o.replace("(", "_").replace(")", "")) for o in three.output_names]
+    assert three.output_names == ("i(ro)", "v(a)", "i(d1)")
+    rng = np.random.default_rng(1)
+    x = three.operating_point(u=[1.0]) + rng.normal(0, 1e-3, (4, three.n_states))
+    np.testing.assert_array_equal(three.h(x), np.concatenate([m.h(x) for m in ones], axis=-1))
+    np.testing.assert_array_equal(three.h_jacobian(x),
+                                  np.concatenate([m.h_jacobian(x) for m in ones], axis=-2))
+    assert three.affine_output() is None
+    H, c = _mirror(["i(ro)", "v(a)"], "pair").affine_output()
+    np.testing.assert_array_equal(H, np.vstack([ones[0].affine_output()[0],
+                                                ones[1].affine_output()[0]]))
+    assert c.shape == (2,)
+
+
+def test_an_output_named_twice_is_refused():
+    with pytest.raises(NetlistError, match="measures what 'v\\(a\\)' does"):
+        _mirror(["v(a)", "v(A)"], "twice")
+
+
+def _config(tmp_path, output, sigma, R, name="two.yaml", runs=20):
+    spec = yaml.safe_load((ROOT / "configs" / "netlist" / "diode_mirror_ekf.yaml").read_text())
+    spec["model"].update(netlist=str(MIRROR), output=output)
+    spec.pop("check")
+    spec["input"].update(frequencies_hz=[1000], periods=4)
+    spec["noise"].update(input_levels=[0.02], measurement_sigma=sigma)
+    spec["monte_carlo"]["runs"] = runs
+    for est in spec["estimators"]:
+        est["settings"]["R"] = R
+    spec["figures"] = {"kinds": []}
+    path = tmp_path / name
+    path.write_text(yaml.safe_dump(spec))
+    return path
+
+
+def _run(path, out):
+    result = CliRunner().invoke(main, ["run", str(path), "--out", str(out), "--quiet"])
+    assert result.exit_code == 0, result.output
+    return out / "diode_mirror_ekf"
+
+
+def test_two_outputs_each_with_its_noise_and_its_rows(tmp_path):
+    """The mirror measured by its output current (2 uA of noise) and its diode's node
+    (10 mV): outputs.csv has a row per quantity and filter, each measurement's RMSE its own
+    noise (to 5 %); rmse.csv holds the first quantity's rows; and the second measurement
+    lowers the filters' error of the node it measures below the one-output filters'."""
+    two = _run(_config(tmp_path, ["i(ro)", "v(a)"], [2e-6, 0.01], [4e-12, 1e-4]),
+               tmp_path / "two")
+    one = _run(_config(tmp_path, "i(ro)", 2e-6, 4e-12, "one.yaml"), tmp_path / "one")
+    outputs = pd.read_csv(two / "outputs.csv")
+    assert sorted(set(outputs["output"])) == ["i(ro)", "v(a)"]
+    assert len(outputs) == 2 * 3
+    raw = outputs[outputs["estimator"] == "measurement"].set_index("output")["rmse"]
+    assert raw["i(ro)"] == pytest.approx(2e-6, rel=0.05)
+    assert raw["v(a)"] == pytest.approx(0.01, rel=0.05)
+    rmse = pd.read_csv(two / "rmse.csv")
+    first = outputs[outputs["output"] == "i(ro)"].set_index("estimator")
+    for _, row in rmse.iterrows():
+        assert row["rmse"] == first.loc[row["estimator"], "rmse"]
+    assert not (one / "outputs.csv").exists()
+    node = {label: pd.read_csv(folder / "states.csv").query("state == 'v(a)'")
+            .set_index("estimator")["rmse"] for label, folder in (("one", one), ("two", two))}
+    for label in ("EKF", "UKF"):
+        assert node["two"][label] < 0.9 * node["one"][label], node
+
+
+@pytest.mark.parametrize("changes,key,message", [
+    ({"sigma": [2e-6]}, "noise.measurement_sigma", "1 levels for 2 measured quantities"),
+    ({"sigma": [2e-6, -1.0]}, "noise.measurement_sigma", "noise levels"),
+    ({"R": 4e-12, "output": ["i(ro)", 3]}, "model.output", "a list of them"),
+    ({"R": [4e-12, 1e-4, 1.0]}, "estimators[0].settings", "R"),
+])
+def test_several_outputs_set_up_wrongly_is_one_line_at_its_key(tmp_path, changes, key,
+                                                               message):
+    args = {"output": ["i(ro)", "v(a)"], "sigma": [2e-6, 0.01], "R": [4e-12, 1e-4], **changes}
+    path = _config(tmp_path, **args)
+    result = CliRunner().invoke(main, ["validate", str(path)])
+    assert result.exit_code == 2, result.output
+    assert key in result.output and message in result.output, result.output
+    assert "Traceback" not in result.output
+
+
+@pytest.mark.skipif(shutil.which("ngspice") is None, reason="ngspice is not installed here")
+def test_estim_spice_compares_every_output(tmp_path):
+    path = _config(tmp_path, ["i(ro)", "v(a)"], [2e-6, 0.01], [4e-12, 1e-4])
+    result = CliRunner().invoke(main, ["spice", str(path), "--format", "csv"])
+    assert result.exit_code == 0, result.output
+    assert "i(ro) (output)" in result.output and "v(a) (output)" in result.output
+    assert "gain VIN -> i(ro)" in result.output and "gain VIN -> v(a)" in result.output
