@@ -187,6 +187,11 @@ def _lambertw_exp(z):
     return w
 
 
+DEVICE_ROW = 19
+"""A device's row in the netlist kernel's data: its type, four node indices and up to 14
+parameters (:func:`_netlist`)."""
+
+
 def _netlist(x, u, P, f, J):
     """A netlist model (``estim.spice.netlist_model.NetlistModel``) in scalar form, in the numpy
     path's order: the currents of each row (a state node's supernode, then each controlling
@@ -201,16 +206,19 @@ def _netlist(x, u, P, f, J):
     and caches it.
 
     ``P = [n, k, p, N, devices, nc, Y (R n), W (R p), c (R), Pm (N n), Qm (N p), r (N),
-    -C^-1 (k k), A (k nc), row (N), control row (N), device rows (10 each)]`` with ``R = k
-    + nc + n - k`` rows (``row``: a node's KCL row, -1 for none; ``control row``: its row
-    among the ``nc`` control rows, numbered from ``k``, or -1); a device row is ``[type,
-    four node indices (-1: none), five parameters]``: type 0 a diode (``a, b``; ``I_s, n
-    V_T, r_s``), 1/2 an NPN/PNP (``c, b, e``; ``I_ES, I_CS, alpha_F, alpha_R, V_T``), 3 an
-    NMOS (``d, g, s, b``; ``U_T, V_T0, eta, I_s``, law: 0 EKV, 1 weak inversion, 2 weak
-    saturation, 3 and 4 the Taylor polynomials, ``estim.spice.devices.NMOS_LAWS``), 4 a PMOS
-    (the same, of the negated voltages, its current negated), 5/6 a level-1 NMOS/PMOS
+    -C^-1 (k k), A (k nc), row (N), control row (N), device rows (DEVICE_ROW each)]`` with
+    ``R = k + nc + n - k`` rows (``row``: a node's KCL row, -1 for none; ``control row``: its
+    row among the ``nc`` control rows, numbered from ``k``, or -1); a device row is ``[type,
+    four node indices (-1: none), its parameters (zeros after them)]``: type 0 a diode
+    (``a, b``; ``I_s, n V_T, r_s``), 1/2 an NPN/PNP (``c, b, e``; ``I_ES, I_CS, alpha_F,
+    alpha_R, V_T``), 3 an NMOS (``d, g, s, b``; ``U_T, V_T0, eta, I_s``, law: 0 EKV, 1 weak
+    inversion, 2 weak saturation, 3 and 4 the Taylor polynomials,
+    ``estim.spice.devices.NMOS_LAWS``), 4 a PMOS (the same, of the negated voltages, its
+    current negated), 5/6 a level-1 NMOS/PMOS
     (``d, g, s, b``; ``VTO`` (a PMOS's negated), ``KP W / L``, ``LAMBDA``, ``GAMMA``, ``PHI``:
-    :mod:`estim.spice.level1`)."""
+    :mod:`estim.spice.level1`), 7/8 a Gummel-Poon NPN/PNP (``c, b, e``; ``IS, BF, BR, NF, NR``,
+    ``1/VAF, 1/VAR, 1/IKF, 1/IKR`` (0: infinite), ``ISE, NE, ISC, NC, V_T``:
+    :mod:`estim.spice.gummel_poon`)."""
     n, k, p, N, nd, nc = int(P[0]), int(P[1]), int(P[2]), int(P[3]), int(P[4]), int(P[5])
     kc = k + nc
     R = kc + n - k
@@ -240,7 +248,7 @@ def _netlist(x, u, P, f, J):
             s += P[oB + a * p + c] * u[c]
         cur[a, n] = s
     for d in range(nd):
-        row = odev + 10 * d
+        row = odev + DEVICE_ROW * d
         kind = P[row]
         for c in range(4):
             node = int(P[row + 1 + c])
@@ -332,6 +340,41 @@ def _netlist(x, u, P, f, J):
             for c in range(4):
                 dterm[1, c] = -dterm[0, c]
             t0, t1, t2 = 0, 2, -1
+        elif kind == 7.0 or kind == 8.0:                  # Gummel-Poon (spice/gummel_poon.py)
+            sign = 1.0 if kind == 7.0 else -1.0
+            Is_, bf, br, nf, nr = P[row + 5], P[row + 6], P[row + 7], P[row + 8], P[row + 9]
+            ova, ovb, oik, oikr = P[row + 10], P[row + 11], P[row + 12], P[row + 13]
+            ise, ne, isc, nc_, vt = (P[row + 14], P[row + 15], P[row + 16], P[row + 17],
+                                     P[row + 18])
+            vbe, vbc = sign * (v[1] - v[2]), sign * (v[1] - v[0])
+            ef, er = np.exp(vbe / (nf * vt)), np.exp(vbc / (nr * vt))
+            ibe, gbe = Is_ * (ef - 1.0), Is_ * ef / (nf * vt)
+            ibc, gbc = Is_ * (er - 1.0), Is_ * er / (nr * vt)
+            ele, elc = np.exp(vbe / (ne * vt)), np.exp(vbc / (nc_ * vt))
+            ile, gle = ise * (ele - 1.0), ise * ele / (ne * vt)
+            ilc, glc = isc * (elc - 1.0), isc * elc / (nc_ * vt)
+            q1 = 1.0 / (1.0 - ova * vbc - ovb * vbe)
+            if oik == 0.0 and oikr == 0.0:
+                qb, dqbe, dqbc = q1, q1 * q1 * ovb, q1 * q1 * ova
+            else:
+                root = np.sqrt(max(1.0 + 4.0 * (oik * ibe + oikr * ibc), 0.0))
+                qb = q1 * (1.0 + root) / 2.0
+                dq2 = q1 / root if root > 0.0 else 0.0
+                dqbe = (1.0 + root) / 2.0 * q1 * q1 * ovb + dq2 * oik * gbe
+                dqbc = (1.0 + root) / 2.0 * q1 * q1 * ova + dq2 * oikr * gbc
+            it = (ibe - ibc) / qb
+            dic_be = gbe / qb - it / qb * dqbe
+            dic_bc = -gbc / qb - it / qb * dqbc - gbc / br - glc
+            ic = it - ibc / br - ilc
+            ib = ibe / bf + ile + ibc / br + ilc
+            dib_be, dib_bc = gbe / bf + gle, gbc / br + glc
+            # into collector, base and emitter, by (v_c, v_b, v_e): the signs cancel
+            term[0], term[1], term[2] = sign * ic, sign * ib, -sign * (ic + ib)
+            dterm[0, 0], dterm[0, 1], dterm[0, 2] = -dic_bc, dic_be + dic_bc, -dic_be
+            dterm[1, 0], dterm[1, 1], dterm[1, 2] = -dib_bc, dib_be + dib_bc, -dib_be
+            for c in range(3):
+                dterm[2, c] = -(dterm[0, c] + dterm[1, c])
+            t0, t1, t2 = 0, 1, 2
         else:
             UT, VT0, eta, Is, law = P[row + 5], P[row + 6], P[row + 7], P[row + 8], P[row + 9]
             pm = 1.0 if kind == 3.0 else -1.0              # a PMOS: -I_n(-v), same gradient

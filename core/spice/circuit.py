@@ -47,6 +47,7 @@ import re
 import numpy as np
 
 from estim.spice.devices import NMOS_LAWS, model_defaults
+from estim.spice.gummel_poon import DYNAMIC, GUMMEL_POON
 from estim.spice.parser import Netlist, NetlistError
 from estim.util import lazy
 
@@ -151,6 +152,12 @@ class Circuit:
                                        f"{' or '.join(want)}")
                 known = model_defaults(model)
                 unknown = set(model.params) - set(known)
+                if unknown & set(DYNAMIC) and known is GUMMEL_POON:
+                    raise NetlistError(src, model.line, f".model {model.name}: "
+                                       f"{', '.join(sorted(unknown & set(DYNAMIC)))}: estim's "
+                                       "Gummel-Poon is the static law (no series resistances, "
+                                       "charges or temperature terms); give the resistances "
+                                       "as elements and the nodes capacitors of their own")
                 if unknown:
                     raise NetlistError(src, model.line, f".model {model.name}: unknown "
                                        f"parameter(s) {sorted(unknown)}; expected "

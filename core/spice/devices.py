@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from estim.spice.gummel_poon import GUMMEL_POON, is_gummel_poon
 from estim.spice.level1 import LEVEL1, level1
 from estim.util import lazy
 
@@ -41,9 +42,12 @@ DEFAULTS = {"d": DIODE, "npn": BJT, "pnp": BJT, "nmos": EKV, "pmos": EKV}
 def model_defaults(model) -> dict:
     """The parameters a ``.model`` may give and their defaults: a MOSFET with ``level``
     (1 only) takes SPICE's level-1 parameters (:mod:`estim.spice.level1`), else estim's EKV
-    ones."""
+    ones; a BJT that gives SPICE's (``is bf ...``) the Gummel-Poon ones
+    (:mod:`estim.spice.gummel_poon`), else estim's Ebers-Moll ones."""
     if model.type in ("nmos", "pmos") and "level" in model.params:
         return LEVEL1
+    if model.type in ("npn", "pnp") and is_gummel_poon(model.params):
+        return GUMMEL_POON
     return DEFAULTS[model.type]
 
 

@@ -12,7 +12,7 @@ import numpy as np
 
 from estim.models.base import Model
 from estim.models.devices import ebers_moll
-from estim.spice import terminals
+from estim.spice import gummel_poon, terminals
 from estim.spice.circuit import Circuit
 from estim.spice.devices import (
     DIODE_VT,
@@ -26,6 +26,7 @@ from estim.spice.level1 import mirrored
 from estim.spice.outputs import device_output, output_map, thesis_map
 from estim.spice.parser import NetlistError
 from estim.spice.solved_nodes import solve_algebraic
+from estim.spice.terminals import gummel_poon_derivatives
 from estim.util import lazy
 
 special = lazy.load("scipy.special")
@@ -327,6 +328,12 @@ class NetlistModel(Model, metaclass=NetlistClass):
             if kind == "d":
                 values = [prm["is"], prm["n"] * DIODE_VT, prm["rs"], 0.0, 0.0]
                 code = 0.0
+            elif kind in ("npn", "pnp") and "bf" in prm:    # Gummel-Poon
+                values = [prm["is"], prm["bf"], prm["br"], prm["nf"], prm["nr"],
+                          *(float(gummel_poon.inverse(prm[key]))
+                            for key in ("vaf", "var", "ikf", "ikr")),
+                          prm["ise"], prm["ne"], prm["isc"], prm["nc"], DIODE_VT]
+                code = 7.0 if kind == "npn" else 8.0
             elif kind in ("npn", "pnp"):
                 values = [prm["ies"], collector_saturation(prm),
                           prm["alpha_f"], prm["alpha_r"], prm["vt"]]
@@ -339,7 +346,7 @@ class NetlistModel(Model, metaclass=NetlistClass):
                 values = [prm["u_t"], prm["v_t0"], prm["eta"], prm["i_0"] * prm["w_l"],
                           float(prm.get("law", 0.0))]
                 code = 3.0 if kind == "nmos" else 4.0
-            rows.append([code, *nodes, *values])
+            rows.append([code, *nodes, *values] + [0.0] * (kernels.DEVICE_ROW - 5 - len(values)))
         Y = np.vstack([self._linear, (self._L @ self._P)[k:]])
         W = np.vstack([self._G @ self._Q + self._U, (self._L @ self._Q)[k:]])
         c = np.concatenate([self._G @ self._r + self._i0, (self._L @ self._r)[k:]])
@@ -376,6 +383,8 @@ class NetlistModel(Model, metaclass=NetlistClass):
                 d1 = np.array([g, -g])
                 d2 = dg * np.array([[1.0, -1.0], [-1.0, 1.0]])
                 yield [a, b], [(a, d1, d2), (b, -d1, -d2)]
+            elif kind in ("npn", "pnp") and "bf" in p:
+                yield idx, gummel_poon_derivatives(kind, p, idx, V)
             elif kind in ("npn", "pnp"):
                 c, b, e = idx
                 s = -1.0 if kind == "pnp" else 1.0

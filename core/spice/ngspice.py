@@ -30,6 +30,7 @@ import numpy as np
 
 from estim.errors import EstimError
 from estim.spice.devices import BJT, DIODE_VT, EKV, NMOS_LAWS
+from estim.spice.gummel_poon import GUMMEL_POON, is_gummel_poon
 from estim.spice.level1 import LEVEL1
 from estim.spice.parser import Netlist
 
@@ -62,6 +63,12 @@ def _models(net: Netlist) -> tuple[list[str], float | None]:
             continue
         if m.type in ("nmos", "pmos"):
             continue                    # EKV devices become B sources (:func:`_ekv_source`)
+        if m.type in ("npn", "pnp") and is_gummel_poon(p):
+            q = {**GUMMEL_POON, **p}     # ngspice's own BJT, its static part
+            vt = vt or DIODE_VT
+            lines.append(f".model {m.name} {m.type}("
+                         + " ".join(f"{k}={float(q[k])!r}" for k in GUMMEL_POON) + ")")
+            continue
         if m.type in ("npn", "pnp") and p.get("ics") is not None:
             continue                    # B sources (:func:`_em_sources`)
         if m.type in ("npn", "pnp"):

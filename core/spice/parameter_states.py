@@ -28,9 +28,11 @@ ESTIMABLE = {"d": ("is", "n"), "npn": ("ies", "alpha_f", "alpha_r"),
              "pnp": ("ies", "alpha_f", "alpha_r"), "nmos": ("i_0", "v_t0"),
              "pmos": ("i_0", "v_t0")}
 """The ``.model`` parameters a device's entry may name (``D1.is``), by device type; a
-level-1 MOSFET's are :data:`LEVEL1_ESTIMABLE`. A resistor's entry is its name (``R1``)."""
+level-1 MOSFET's are :data:`LEVEL1_ESTIMABLE`, a Gummel-Poon BJT's
+:data:`GUMMEL_POON_ESTIMABLE`. A resistor's entry is its name (``R1``)."""
 
 LEVEL1_ESTIMABLE = ("vto", "kp", "lambda")
+GUMMEL_POON_ESTIMABLE = ("is", "bf", "br", "vaf")
 
 STEP = 1e-6
 """The central difference's step in ``theta`` (relative to the first guess): its error is
@@ -64,7 +66,8 @@ def value_of(model: NetlistModel, name: str) -> float:
         raise ValueError(f"{name}: only a diode's, BJT's or MOSFET's parameter "
                          "(D1.is, Q1.ies, M1.kp) may be a state")
     kind, prm, _ = model._device_of[e.name]
-    allowed = LEVEL1_ESTIMABLE if "level" in prm else ESTIMABLE[kind]
+    allowed = (LEVEL1_ESTIMABLE if "level" in prm else
+               GUMMEL_POON_ESTIMABLE if "bf" in prm else ESTIMABLE[kind])
     if field not in allowed:
         names = ", ".join(f"{element.upper()}.{a}" for a in allowed)
         raise ValueError(f"{name}: expected one of {names}")

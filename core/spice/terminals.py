@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 
 from estim.models.devices import ebers_moll
-from estim.spice.devices import collector_saturation, diode, mosfet
+from estim.spice import gummel_poon
+from estim.spice.devices import DIODE_VT, collector_saturation, diode, mosfet
 
 
 def terms(P: np.ndarray, kind: str, p: dict, idx: list, V: np.ndarray) -> tuple:
@@ -22,9 +23,12 @@ def terms(P: np.ndarray, kind: str, p: dict, idx: list, V: np.ndarray) -> tuple:
     if kind in ("npn", "pnp"):
         col, base, emi = idx
         sign = -1.0 if kind == "pnp" else 1.0
-        tc = ebers_moll.currents(sign * (V[..., base] - V[..., emi]),
-                                 sign * (V[..., base] - V[..., col]), p["ies"],
-                                 collector_saturation(p), p["alpha_f"], p["alpha_r"], p["vt"])
+        v_be, v_bc = sign * (V[..., base] - V[..., emi]), sign * (V[..., base] - V[..., col])
+        if "bf" in p:                                  # SPICE's Gummel-Poon
+            tc = gummel_poon.currents(v_be, v_bc, p, DIODE_VT)
+        else:
+            tc = ebers_moll.currents(v_be, v_bc, p["ies"], collector_saturation(p),
+                                     p["alpha_f"], p["alpha_r"], p["vt"])
         dbe = sign * (P[base] - P[emi])
         dbc = sign * (P[base] - P[col])
         # a terminal current flows into the device: it leaves the node
@@ -37,3 +41,24 @@ def terms(P: np.ndarray, kind: str, p: dict, idx: list, V: np.ndarray) -> tuple:
     dcur = (grad[..., 0, None] * P[d_] + grad[..., 1, None] * P[g_]
             + grad[..., 2, None] * P[s_] + grad[..., 3, None] * P[b_])
     return (d_, cur, dcur), (s_, -cur, -dcur)
+
+
+def gummel_poon_derivatives(kind: str, p: dict, idx: list, V: np.ndarray) -> list:
+    """A Gummel-Poon BJT's terminals at one point (node voltages ``V``): ``(node, first
+    derivatives, second derivatives)`` of the current leaving each node into the device,
+    w.r.t. the voltages of its nodes ``idx`` (collector, base, emitter); the second by
+    central differences of the first (step 1 uV: ~1e-9 of them, as the law's scale is
+    ``V_T``)."""
+    eye = np.eye(len(V))
+
+    def first(at):
+        return {node: dcur[idx] for node, _, dcur in terms(eye, kind, p, idx, at)}
+
+    step = 1e-6
+    d1 = first(V)
+    d2 = {node: np.zeros((3, 3)) for node in idx}
+    for k, node_k in enumerate(idx):
+        up, down = first(V + step * eye[node_k]), first(V - step * eye[node_k])
+        for node in idx:
+            d2[node][:, k] = (up[node] - down[node]) / (2 * step)
+    return [(node, d1[node], 0.5 * (d2[node] + d2[node].T)) for node in idx]
