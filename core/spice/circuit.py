@@ -79,6 +79,12 @@ class Circuit:
                 if ctrl is None or ctrl.kind != "v":
                     raise NetlistError(src, e.line, f"{e.name}: its controlling source "
                                        f"{e.ref!r} is not a voltage source of the netlist")
+        met = {n for x in net.elements for n in (x.nodes[:2] if x.kind == "b" else x.nodes)}
+        for e in net.elements:
+            missing = [n for n in e.nodes[2:] if e.kind == "b" and n not in met]
+            if missing:
+                raise NetlistError(src, e.line, f"{e.name}: v({missing[0]}) names no node "
+                                   "of the circuit")
         for e in net.elements:
             if e.kind in "vi" and e.waveform[0] != "dc" and e.name not in self.inputs:
                 raise NetlistError(src, e.line, f"{e.name}: a {e.waveform[0].upper()} source "
@@ -200,7 +206,7 @@ class Circuit:
         carried = []
         for e in self.netlist.elements:
             ends = {"d": e.nodes[:2], "q": e.nodes[:3], "m": e.nodes[0:3:2],
-                    "f": e.nodes[:2]}.get(e.kind, ())
+                    "f": e.nodes[:2], "b": e.nodes[:2]}.get(e.kind, ())
             hit = sorted({group[n] for n in ends if n in group})
             if hit:
                 carried.append((hit, e.name))
@@ -296,14 +302,14 @@ class Circuit:
             node = self.fixed_by(vx)
             sign = -1.0 if node == vx.nodes[0] else 1.0
             for x in net.elements:
-                if x is vx or node not in (x.nodes[:2] if x.kind in "veghf" else x.nodes):
+                if x is vx or node not in (x.nodes[:2] if x.kind in "veghfb" else x.nodes):
                     continue
                 why = None
                 if x.kind == "c":
                     why = "a capacitor"
                 elif x.kind in "vehf":
                     why = "another source"
-                elif e.kind == "h" and x.kind in "dqm":
+                elif e.kind == "h" and x.kind in "dqmb":
                     why = "a device (an H source needs a linear controlling current)"
                 elif e.kind == "h" and x.name in self.inputs:
                     why = "a model input (an H source's voltage would follow it)"

@@ -12,7 +12,7 @@ import numpy as np
 
 from estim.models.base import Model
 from estim.models.devices import ebers_moll
-from estim.spice import gummel_poon, terminals
+from estim.spice import behavioural, gummel_poon, terminals
 from estim.spice.circuit import Circuit
 from estim.spice.devices import (
     DIODE_VT,
@@ -26,7 +26,7 @@ from estim.spice.level1 import mirrored
 from estim.spice.outputs import device_output, output_map, thesis_map
 from estim.spice.parser import NetlistError
 from estim.spice.solved_nodes import solve_algebraic
-from estim.spice.terminals import gummel_poon_derivatives
+from estim.spice.terminals import behavioural_derivatives, gummel_poon_derivatives
 from estim.util import lazy
 
 special = lazy.load("scipy.special")
@@ -141,6 +141,10 @@ class NetlistModel(Model, metaclass=NetlistClass):
                     i = self._rowmap[self._node[node]]
                     if i >= 0:
                         A[i, j] += sign * e.value * self._control_sign[j]
+            elif e.kind == "b":
+                law = {"fn": behavioural.compiled(e.ref), "expr": e.ref}
+                self._devices.append(("b", law, [self._node[x] for x in e.nodes]))
+                self._device_of[e.name] = self._devices[-1]
             elif e.kind in "dqm":
                 model = c.netlist.models[e.ref]
                 prm = {**model_defaults(model), **model.params}
@@ -323,6 +327,8 @@ class NetlistModel(Model, metaclass=NetlistClass):
         n, p = self.n_states, self.n_inputs
         k, N = len(self.circuit.state_nodes), self._P.shape[0]
         rows = []
+        if any(kind == "b" for kind, _, _ in self._devices):
+            return None                  # a behavioural source: the numpy path
         for kind, prm, idx in self._devices:
             nodes = [*idx, -1, -1, -1][:4]
             if kind == "d":
@@ -385,6 +391,8 @@ class NetlistModel(Model, metaclass=NetlistClass):
                 yield [a, b], [(a, d1, d2), (b, -d1, -d2)]
             elif kind in ("npn", "pnp") and "bf" in p:
                 yield idx, gummel_poon_derivatives(kind, p, idx, V)
+            elif kind == "b":
+                yield idx[2:], behavioural_derivatives(p["fn"], idx, V)
             elif kind in ("npn", "pnp"):
                 c, b, e = idx
                 s = -1.0 if kind == "pnp" else 1.0

@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from estim.errors import EstimError
+from estim.spice import behavioural
 from estim.spice.devices import BJT, DIODE_VT, EKV, NMOS_LAWS
 from estim.spice.gummel_poon import GUMMEL_POON, is_gummel_poon
 from estim.spice.level1 import LEVEL1
@@ -196,6 +197,9 @@ def netlist_text(net: Netlist, t: np.ndarray, inputs: dict[str, np.ndarray],
             out.append(f"{name} {nodes} {e.ref}")
         elif e.kind in "fh":
             out.append(f"{name} {nodes} {flat(e.ref, 'v')} {float(e.value)!r}")
+        elif e.kind == "b":
+            law = behavioural.ngspice(e.ref, e.nodes[2:], flat)
+            out.append(f"{name} {flat(e.nodes[0])} {flat(e.nodes[1])} I={law}")
         else:
             out.append(f"{name} {nodes} {float(e.value)!r}")
     models, vt = _models(net)

@@ -12,6 +12,8 @@ before):
 * ``E``, ``G`` ``name n+ n- nc+ nc- value`` (voltage-controlled voltage and current
   sources); ``F``, ``H`` ``name n+ n- vsource value`` (current-controlled current and
   voltage sources, by the current of a voltage source: docs/deviations.md D76);
+* ``B name n+ n- I={expression}`` (a current of node voltages ``v(a)``, ``v(a,b)``:
+  :mod:`estim.spice.behavioural`);
 * ``D name anode cathode model``, ``Q name c b e model``, ``M name d g s b model``;
 * ``X name nodes... subckt`` with ``.subckt name pins... [params: k=v ...]`` / ``.ends``,
   one level deep;
@@ -36,6 +38,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from estim.errors import EstimError
+from estim.spice import behavioural
 
 SUFFIXES = {"f": 1e-15, "p": 1e-12, "n": 1e-9, "u": 1e-6, "m": 1e-3, "k": 1e3,
             "meg": 1e6, "g": 1e9, "t": 1e12, "mil": 25.4e-6}
@@ -43,7 +46,7 @@ _NUMBER = re.compile(r"^([+-]?(?:\d+\.?\d*|\.\d+)(?:e[+-]?\d+)?)(meg|mil|[fpnumk
 _FUNCTIONS = {"exp": math.exp, "log": math.log, "ln": math.log, "sqrt": math.sqrt,
               "abs": abs, "min": min, "max": max, "pow": pow}
 _ARITY = {"r": 2, "c": 2, "l": 2, "v": 2, "i": 2, "e": 4, "g": 4, "f": 2, "h": 2, "d": 2,
-          "q": 3, "m": 4}
+          "q": 3, "m": 4, "b": 2}
 MAX_LINES = 100_000
 """A netlist longer than this is refused (a generated netlist of that size is a mistake)."""
 
@@ -104,6 +107,12 @@ def _scaled(number: str, suffix: str | None) -> float:
     return float(number) * SUFFIXES.get(suffix or "", 1.0)
 
 
+def with_numbers(text: str) -> str:
+    """``text`` with each number that carries an SI suffix written out (``1m`` -> ``0.001``)."""
+    return re.sub(r"(?<![\w.])((?:\d+\.?\d*|\.\d+)(?:e[+-]?\d+)?)(meg|mil|[fpnumkgt])(?![\w(])",
+                  lambda mm: repr(_scaled(mm.group(1), mm.group(2))), text)
+
+
 def evaluate(text: str, params: dict, where: tuple[str, int]) -> float:
     """A number with an SI suffix, or an expression of numbers, ``params`` and the
     functions of :data:`_FUNCTIONS`."""
@@ -124,9 +133,7 @@ def evaluate(text: str, params: dict, where: tuple[str, int]) -> float:
         return value
     if text in params:
         return params[text]
-    expr = re.sub(r"(?<![\w.])((?:\d+\.?\d*|\.\d+)(?:e[+-]?\d+)?)(meg|mil|[fpnumkgt])(?![\w(])",
-                  lambda mm: repr(_scaled(mm.group(1), mm.group(2))), text)
-    expr = expr.replace("^", "**")
+    expr = with_numbers(text).replace("^", "**")
     if len(expr) > 1000:            # before parsing: a deep expression exhausts the parser
         raise NetlistError(*where, "expression longer than 1000 characters")
     literal = re.search(r"(?<![\w.])(0[xob]\w*|\d[\d.]*_\w*)", expr)
@@ -361,7 +368,7 @@ def _element(tokens: list[str], params: dict, where, prefix: str = "",
     name = tokens[0]
     kind = name[0]
     if kind not in _ARITY:
-        raise NetlistError(*where, f"unknown element {name!r} (R C L V I E G F H D Q M X "
+        raise NetlistError(*where, f"unknown element {name!r} (R C L V I E G F H B D Q M X "
                            "are read)")
     arity = _ARITY[kind]
     if len(tokens) < arity + 2:
@@ -370,6 +377,17 @@ def _element(tokens: list[str], params: dict, where, prefix: str = "",
     nodes = tuple(rename(n) for n in tokens[1:1 + arity])
     rest = tokens[1 + arity:]
     full = prefix + name
+    if kind == "b":
+        law = " ".join(rest)
+        if law[:2] == "v=":
+            raise NetlistError(*where, f"{name}: a behavioural voltage source (V=) fixes a node "
+                               "by a nonlinear law, which estim's explicit model does not "
+                               "solve (D71); write it as a current (I=) into a node with a "
+                               "capacitor")
+        if law[:2] != "i=":
+            raise NetlistError(*where, f"{name}: expected I={{expression}} after the nodes")
+        expr, controls = behavioural.read(with_numbers(law[2:]), params, rename, where)
+        return Element(kind, full, nodes + controls, ref=expr, line=where[1])
     if kind == "m" and len(rest) > 1:
         size = []
         for token in rest[1:]:

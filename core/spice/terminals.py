@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from estim.models.devices import ebers_moll
-from estim.spice import gummel_poon
+from estim.spice import behavioural, gummel_poon
 from estim.spice.devices import DIODE_VT, collector_saturation, diode, mosfet
 
 
@@ -36,6 +36,11 @@ def terms(P: np.ndarray, kind: str, p: dict, idx: list, V: np.ndarray) -> tuple:
                      for node, cur, d_be, d_bc in ((col, tc.I_C, tc.dIC_be, tc.dIC_bc),
                                                    (emi, tc.I_E, tc.dIE_be, tc.dIE_bc),
                                                    (base, tc.I_B, tc.dIB_be, tc.dIB_bc)))
+    if kind == "b":                                    # from n+ through the source to n-
+        cur, slopes = behavioural.current_and_slopes(p["fn"], V, idx[2:])
+        dcur = sum(slopes[..., j, None] * P[node] for j, node in enumerate(idx[2:]))
+        dcur = dcur + np.zeros(np.shape(cur) + (P.shape[1],))
+        return (idx[0], cur, dcur), (idx[1], -cur, -dcur)
     d_, g_, s_, b_ = idx
     cur, grad, _ = mosfet(kind, V[..., d_], V[..., g_], V[..., s_], V[..., b_], p)
     dcur = (grad[..., 0, None] * P[d_] + grad[..., 1, None] * P[g_]
@@ -62,3 +67,22 @@ def gummel_poon_derivatives(kind: str, p: dict, idx: list, V: np.ndarray) -> lis
         for node in idx:
             d2[node][:, k] = (up[node] - down[node]) / (2 * step)
     return [(node, d1[node], 0.5 * (d2[node] + d2[node].T)) for node in idx]
+
+
+def behavioural_derivatives(fn, idx: list, V: np.ndarray) -> list:
+    """A behavioural source's terminals (``idx[:2]``) at one point: ``(node, first
+    derivatives, second derivatives)`` of the current leaving each into the source w.r.t.
+    its control nodes' voltages (``idx[2:]``); the first exact (complex step), the second
+    central differences of them (step 1 uV)."""
+    controls = idx[2:]
+    step = 1e-6
+    d1 = behavioural.current_and_slopes(fn, V, controls)[1]
+    d2 = np.zeros((len(controls), len(controls)))
+    for k, node in enumerate(controls):
+        e = np.zeros(len(V))
+        e[node] = step
+        up = behavioural.current_and_slopes(fn, V + e, controls)[1]
+        down = behavioural.current_and_slopes(fn, V - e, controls)[1]
+        d2[:, k] = (up - down) / (2 * step)
+    d2 = 0.5 * (d2 + d2.T)
+    return [(idx[0], d1, d2), (idx[1], -d1, -d2)]
