@@ -59,6 +59,20 @@ L1 o 0 1m
 """
 
 
+def kernel_matches(model, x: np.ndarray, u: np.ndarray) -> None:
+    """The compiled netlist kernel's drift and Jacobian at ``(x, u)`` equal numpy's to
+    rounding."""
+    from estim.numerics import kernels
+
+    kind, P = model.kernel()
+    n = model.n_states
+    f, J = model.f_and_jacobian(x, u)
+    fk, Jk = np.empty(n), np.empty((n, n))
+    kernels.evaluate(kind, x, u, P, fk, Jk)
+    np.testing.assert_allclose(fk, f, rtol=1e-12, atol=1e-12 * np.abs(f).max())
+    np.testing.assert_allclose(Jk, J, rtol=1e-12, atol=1e-12 * np.abs(J).max())
+
+
 @pytest.mark.skipif(not importlib.import_module("estim.numerics.kernels").AVAILABLE,
                     reason="numba absent")
 def test_the_compiled_kernel_takes_current_inputs(tmp_path):
@@ -66,20 +80,13 @@ def test_the_compiled_kernel_takes_current_inputs(tmp_path):
     where F1's controlling current is summed (its current then reaches F1's output): the
     compiled drift and Jacobian equal the numpy ones, and the analytic input Jacobian the
     differences of ``f``."""
-    from estim.numerics import kernels
-
     model = model_class(_write(tmp_path, TWO_INPUTS), ["VIN", "IX", "IY"], "v(o)",
                         name="netlist:test_i_kernel")()
-    kind, P = model.kernel()
     rng = np.random.default_rng(3)
     n = model.n_states
     for _ in range(10):
         x, u = rng.uniform(-0.5, 1, n), np.concatenate([[1.0], rng.uniform(-1e-3, 1e-3, 2)])
-        f, J = model.f_and_jacobian(x, u)
-        fk, Jk = np.empty(n), np.empty((n, n))
-        kernels.evaluate(kind, x, u, P, fk, Jk)
-        np.testing.assert_allclose(fk, f, rtol=1e-12, atol=1e-12 * np.abs(f).max())
-        np.testing.assert_allclose(Jk, J, rtol=1e-12, atol=1e-12 * np.abs(J).max())
+        kernel_matches(model, x, u)
         eps = 1e-9
         Bd = np.stack([(model.f(x, u + eps * e) - model.f(x, u - eps * e)) / (2 * eps)
                        for e in np.eye(3)], axis=-1)
