@@ -43,13 +43,11 @@ NGSPICE_NAMES = {"log": "ln"}
 _VOLTAGE = re.compile(r"\bv\(\s*([^,()\s]+)\s*(?:,\s*([^,()\s]+)\s*)?\)")
 
 
-def read(text: str, params: dict, rename, where) -> tuple[str, tuple[str, ...]]:
+def read(text: str, params: dict, rename) -> tuple[str, tuple[str, ...]]:
     """``(expression of _v, control nodes)`` of a B element's ``I=`` text: each ``v(a)`` or
     ``v(a,b)`` becomes ``_v[i]`` or ``(_v[i] - _v[j])`` over the control nodes (renamed by
-    ``rename``, as a subcircuit's are), each ``.param`` its value; a ``NetlistError`` at
-    ``where`` naming what is not allowed."""
-    from estim.spice.parser import NetlistError
-
+    ``rename``, as a subcircuit's are), each ``.param`` its value; a ``ValueError`` naming
+    what is not allowed (the parser's ``NetlistError`` says where)."""
     text = text.strip()
     if text.startswith("{") and text.endswith("}"):
         text = text[1:-1]
@@ -69,11 +67,11 @@ def read(text: str, params: dict, rename, where) -> tuple[str, tuple[str, ...]]:
 
     expr = _VOLTAGE.sub(voltage, text.lower()).replace("^", "**")
     if len(expr) > 2000:
-        raise NetlistError(*where, "B expression longer than 2000 characters")
+        raise ValueError("B expression longer than 2000 characters")
     try:
         tree = ast.parse(expr, mode="eval")
     except (SyntaxError, RecursionError):
-        raise NetlistError(*where, f"{text!r} is not an expression of v(node), numbers, "
+        raise ValueError(f"{text!r} is not an expression of v(node), numbers, "
                            "parameters and functions") from None
 
     class Fold(ast.NodeTransformer):
@@ -82,14 +80,14 @@ def read(text: str, params: dict, rename, where) -> tuple[str, tuple[str, ...]]:
                 return node
             if node.id in params:
                 return ast.Constant(float(params[node.id]))
-            raise NetlistError(*where, f"unknown name {node.id!r} in {text!r}: a .param, or "
+            raise ValueError(f"unknown name {node.id!r} in {text!r}: a .param, or "
                                "v(node)")
 
         def visit_Call(self, node):
             if not (isinstance(node.func, ast.Name) and node.func.id in FUNCTIONS
                     and not node.keywords):
                 name = getattr(node.func, "id", "?")
-                raise NetlistError(*where, f"function {name!r} in {text!r}; expected one of "
+                raise ValueError(f"function {name!r} in {text!r}; expected one of "
                                    f"{', '.join(sorted(FUNCTIONS))}")
             node.args = [self.visit(a) for a in node.args]
             return node
@@ -99,14 +97,14 @@ def read(text: str, params: dict, rename, where) -> tuple[str, tuple[str, ...]]:
 
         def visit_Constant(self, node):
             if not isinstance(node.value, (int, float)) or isinstance(node.value, bool):
-                raise NetlistError(*where, f"{node.value!r} in {text!r} is not a number")
+                raise ValueError(f"{node.value!r} in {text!r} is not a number")
             return ast.Constant(float(node.value))
 
         def generic_visit(self, node):
             allowed = (ast.Expression, ast.BinOp, ast.UnaryOp, ast.Subscript, ast.Load,
                        ast.Add, ast.Sub, ast.Mult, ast.Div, ast.Pow, ast.UAdd, ast.USub)
             if not isinstance(node, allowed):
-                raise NetlistError(*where, f"{type(node).__name__.lower()} not allowed in "
+                raise ValueError(f"{type(node).__name__.lower()} not allowed in "
                                    f"{text!r}")
             return super().generic_visit(node)
 

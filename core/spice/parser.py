@@ -386,7 +386,10 @@ def _element(tokens: list[str], params: dict, where, prefix: str = "",
                                "capacitor")
         if law[:2] != "i=":
             raise NetlistError(*where, f"{name}: expected I={{expression}} after the nodes")
-        expr, controls = behavioural.read(with_numbers(law[2:]), params, rename, where)
+        try:
+            expr, controls = behavioural.read(with_numbers(law[2:]), params, rename)
+        except ValueError as err:
+            raise NetlistError(*where, str(err)) from None
         return Element(kind, full, nodes + controls, ref=expr, line=where[1])
     if kind == "m" and len(rest) > 1:
         size = []
