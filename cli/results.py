@@ -180,4 +180,9 @@ def model_listing(path: Path) -> str:
              + ", ".join(f"`{s}`" for s in model.state_names), "",
              "| parameter | value in this config |", "|---|---|"]
     lines += [f"| {k} | {v!r} |" for k, v in vars(model.params).items()]
+    if block.get("netlist"):
+        from estim.spice.parameter_states import estimable
+
+        lines += ["", "Values that may be estimated as states (the config's `estimate`): "
+                  + ", ".join(f"`{n}`" for n in estimable(model))]
     return "\n".join(lines) + "\n"

@@ -224,3 +224,27 @@ def test_the_limiter_configs_comment_and_the_bias_of_one_step(tmp_path):
         row = pd.read_csv(out / "diode_limiter_ekf" / "parameters.csv").iloc[0]
         errors[substeps] = abs(row["error"]) / row["estimate_se"]
     assert errors[1] > 3 and errors[10] < 3, errors
+
+
+def test_estim_settings_lists_the_values_estimate_accepts(tmp_path):
+    """Every value `estim settings CONFIG` lists for a netlist is accepted (its value read,
+    the model made with it as a state), a subcircuit's named with its instance (X1.M1.i_0);
+    the limiter's RL, whose current is the output, is not listed."""
+    from estim.cli.main import main
+    from estim.spice.parameter_states import estimable, split
+
+    listed = CliRunner().invoke(main, ["settings", str(ROOT / "configs" / "netlist" /
+                                                       "diode_limiter_r1.yaml")])
+    assert listed.exit_code == 0, listed.output
+    assert "`R1`, `D1.is`, `D1.n`, `D2.is`, `D2.n`" in listed.output
+    assert "`RL`" not in listed.output
+    darlington = model_class(ROOT / "circuits" / "mosfet_darlington.cir", "VIN", "v(s2)",
+                             name="netlist:test_ps_darlington")()
+    names = estimable(darlington)
+    assert any(n.startswith("X1.") and n.count(".") == 2 for n in names), names
+    for name in names:
+        element, field = split(darlington, name)
+        start = value_of(darlington, name) * 1.1 or 1.0
+        model = ParameterStates(darlington, (Parameter(name, element, field, start),))
+        x = model.extend(darlington.operating_point(u=[0.0]))
+        assert np.all(np.isfinite(model.f(x, np.array([0.0]))))

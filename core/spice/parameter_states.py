@@ -50,10 +50,43 @@ class Parameter:
     start: float
 
 
+def split(model: NetlistModel, name: str) -> tuple[str, str | None]:
+    """``(element, .model parameter or None)`` of ``name``: ``R1`` or ``X1.R1`` (an element,
+    a subcircuit's too) or ``D1.is``, ``X1.D1.is`` (a device's parameter), lower case."""
+    lower = name.lower()
+    if model.circuit.netlist.element(lower) is not None:
+        return lower, None
+    element, _, field = lower.rpartition(".")
+    return (element, field or None) if element else (lower, None)
+
+
+def allowed(kind: str, prm: dict) -> tuple[str, ...]:
+    """The ``.model`` parameters of a device of type ``kind`` that may be states."""
+    return (LEVEL1_ESTIMABLE if "level" in prm else
+            GUMMEL_POON_ESTIMABLE if "bf" in prm else ESTIMABLE[kind])
+
+
+def estimable(model: NetlistModel) -> list[str]:
+    """Every name ``model``'s config may give in ``estimate``: each resistor whose value can
+    be a state, each device parameter that can (``estim settings CONFIG`` lists them)."""
+    names = []
+    for e in model.circuit.netlist.elements:
+        if e.kind == "r":
+            try:
+                _check_apart(model, e.name)
+            except ValueError:
+                continue
+            names.append(e.name.upper())
+        elif e.name in model._device_of:
+            kind, prm, _ = model._device_of[e.name]
+            names += [f"{e.name.upper()}.{a}" for a in allowed(kind, prm)]
+    return names
+
+
 def value_of(model: NetlistModel, name: str) -> float:
     """The value ``name`` (``R1`` or ``D1.is``) has in ``model``; ``ValueError`` saying what
     may be named when it names nothing estimable."""
-    element, _, field = name.lower().partition(".")
+    element, field = split(model, name)
     e = model.circuit.netlist.element(element)
     if e is None:
         raise ValueError(f"no element {element.upper()!r} in the netlist")
@@ -66,10 +99,8 @@ def value_of(model: NetlistModel, name: str) -> float:
         raise ValueError(f"{name}: only a diode's, BJT's or MOSFET's parameter "
                          "(D1.is, Q1.ies, M1.kp) may be a state")
     kind, prm, _ = model._device_of[e.name]
-    allowed = (LEVEL1_ESTIMABLE if "level" in prm else
-               GUMMEL_POON_ESTIMABLE if "bf" in prm else ESTIMABLE[kind])
-    if field not in allowed:
-        names = ", ".join(f"{element.upper()}.{a}" for a in allowed)
+    if field not in allowed(kind, prm):
+        names = ", ".join(f"{element.upper()}.{a}" for a in allowed(kind, prm))
         raise ValueError(f"{name}: expected one of {names}")
     value = prm[field]
     return float(-value if field == "vto" and kind == "pmos" else value)

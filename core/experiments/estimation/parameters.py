@@ -13,7 +13,7 @@ from estim.errors import ConfigError
 from estim.estimators.base import GaussianFilter, as_matrix
 from estim.numerics import metrics
 from estim.spice.netlist_model import NetlistModel
-from estim.spice.parameter_states import Parameter, ParameterStates, value_of
+from estim.spice.parameter_states import Parameter, ParameterStates, split, value_of
 
 VALUES = ("true", "start", "estimate", "estimate_se", "sigma", "error", "within_3_sigma",
           "runs", "diverged")
@@ -47,8 +47,8 @@ def check(config, truth, source: str) -> tuple[Parameter, ...]:
         if entry.start == 0:
             raise ConfigError(source, f"{path}.start", "expected a first guess other than 0 "
                               "(the state is the value over it)")
-        element, _, field = key.partition(".")
-        out.append(Parameter(entry.name, element, field or None, float(entry.start)))
+        element, field = split(truth, entry.name)
+        out.append(Parameter(entry.name, element, field, float(entry.start)))
     return tuple(out)
 
 
