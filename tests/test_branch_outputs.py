@@ -70,7 +70,7 @@ def test_a_mosfets_drain_current_is_what_its_source_resistor_carries():
 
 
 @pytest.mark.parametrize("circuit, output, message", [
-    ("rectifier.cir", "i(c1)", "i() of an inductor, resistor or diode"),
+    ("rectifier.cir", "i(c1)", "i() of an inductor, resistor, diode or voltage source"),
     ("rectifier.cir", "ic(d1)", "ic() of a BJT"),
     ("rectifier.cir", "id(q1)", "id() of a MOSFET"),
     ("rectifier.cir", "i(d1)", "follows the model input directly"),

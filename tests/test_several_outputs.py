@@ -118,3 +118,60 @@ def test_estim_spice_compares_every_output(tmp_path):
     assert result.exit_code == 0, result.output
     assert "i(ro) (output)" in result.output and "v(a) (output)" in result.output
     assert "gain VIN -> i(ro)" in result.output and "gain VIN -> v(a)" in result.output
+
+
+def test_a_voltage_sources_current_is_an_output():
+    """i(VS), the mirror's 0 V ammeter under the diode, is the diode's current (SPICE's
+    sign: from VS's + node through it); i(VCC) of the two-stage amplifier is minus the
+    current the supply gives its collector resistor and the follower, negative as ngspice
+    prints it; both are nonlinear outputs whose Jacobians are their differences."""
+    mirror = _mirror(["i(vs)", "i(d1)"], "ammeter")
+    x = mirror.operating_point(u=[1.0]) + np.array([[0.0, 0.0], [0.01, -0.2], [0.05, 0.1]])
+    y = mirror.h(x)
+    np.testing.assert_allclose(y[:, 0], y[:, 1], rtol=1e-12, atol=1e-18)
+    assert mirror.affine_output() is None
+    stage = model_class(ROOT / "circuits" / "gp_two_stage.cir", "VIN", ["i(vcc)", "v(c1)"],
+                        name="netlist:test_outs_vcc")()
+    x0 = stage.operating_point(u=[1.7])
+    v_c1 = x0[stage.state_names.index("v(c1)")]
+    i_vcc = stage.h(x0)[0]
+    follower = model_class(ROOT / "circuits" / "gp_two_stage.cir", "VIN", "ic(q2)",
+                           name="netlist:test_outs_icq2")()
+    assert i_vcc == pytest.approx(-((10.0 - v_c1) / 4.7e3 + follower.h(x0)[0]), rel=1e-12)
+    assert i_vcc < 0
+    eps = 1e-7
+    for model, point in ((mirror, x[1]), (stage, x0)):
+        Hd = np.stack([(model.h(point + eps * e) - model.h(point - eps * e)) / (2 * eps)
+                       for e in np.eye(model.n_states)], axis=-1)
+        np.testing.assert_allclose(model.h_jacobian(point), Hd, rtol=1e-6,
+                                   atol=1e-9 * np.abs(Hd).max())
+
+
+def test_a_source_current_the_model_cannot_give_is_refused(tmp_path):
+    """The input source's own current follows the input; a source whose node meets a
+    capacitor would need the states' slope: each refused by name."""
+    with pytest.raises(NetlistError, match="follows the model input directly"):
+        _mirror("i(vin)", "vin")
+    path = tmp_path / "c.cir"
+    path.write_text("c\nVIN in 0 DC 0\nR1 in a 1k\nCA a 0 1n\nVX a2 0 DC 1\nC2 a2 a 1n\n"
+                    "R2 a2 a 1k\n.end\n")
+    with pytest.raises(NetlistError, match="which c2 meets: a capacitor"):
+        model_class(path, "VIN", "i(vx)", name="netlist:test_outs_cap")()
+
+
+@pytest.mark.skipif(shutil.which("ngspice") is None, reason="ngspice is not installed here")
+def test_estim_spice_compares_a_supply_current(tmp_path):
+    """The two-stage amplifier measured at its supply current and its output: both traces
+    within their bars against ngspice (the supply current as estim's model gives it from
+    ngspice's node voltages; no AC row for it)."""
+    spec = yaml.safe_load((ROOT / "configs" / "netlist" / "gp_two_stage_ekf.yaml").read_text())
+    spec["model"].update(netlist=str(ROOT / "circuits" / "gp_two_stage.cir"),
+                         output=["i(vcc)", "v(out)"])
+    spec["input"].update(frequencies_hz=[1000], periods=2)
+    spec["noise"].update(input_levels=[0.01], measurement_sigma=[2e-5, 0.02])
+    spec.pop("check")
+    path = tmp_path / "vcc.yaml"
+    path.write_text(yaml.safe_dump(spec))
+    result = CliRunner().invoke(main, ["spice", str(path), "--format", "csv"])
+    assert result.exit_code == 0, result.output
+    assert "i(vcc) (output)" in result.output and "gain VIN -> i(vcc)" not in result.output

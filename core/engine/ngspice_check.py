@@ -128,7 +128,7 @@ def compare_case(label: str, model, source: np.ndarray, dt: float, frequency: fl
         # a current the node voltages set (a resistor's, a device's) moves by its
         # conductances times a node's difference: the node scale carried through its Jacobian
         carried = (H[:, j].sum(axis=-1).max() * node_scale
-                   if term[0] in ("resistor", "device") else 0.0)
+                   if term[0] in ("resistor", "device", "source") else 0.0)
         series.append((f"{output} (output)", y_ours[:, j], y_theirs[:, j], carried))
     for name, a, b, carried in series:
         gap = np.abs(a - b).max()
@@ -147,8 +147,8 @@ def compare_case(label: str, model, source: np.ndarray, dt: float, frequency: fl
 def _ac_rows(label: str, model, source: np.ndarray, frequency: float, x0: np.ndarray,
              u_op: np.ndarray, executable: str | None) -> list[dict]:
     """The AC gain from each input to each output at ``frequency`` against ngspice's AC
-    analysis about the DC point (none for a device's current, which ngspice's AC analysis
-    does not give)."""
+    analysis about the DC point (none for a device's or a voltage source's current, which
+    the probe here does not read)."""
     circuit, net = model.circuit, model.circuit.netlist
     A = model.jacobian(x0, u_op)
     B = model.input_jacobian(x0, u_op)
@@ -161,7 +161,7 @@ def _ac_rows(label: str, model, source: np.ndarray, frequency: float, x0: np.nda
     rows = []
     for j, (output, term) in enumerate(zip(model.output_names, circuit.output_terms,
                                            strict=True)):
-        if term[0] == "device":
+        if term[0] in ("device", "source"):
             continue
         probe, scale = output, 1.0
         if term[0] == "resistor":                  # its current: the voltage across it / R

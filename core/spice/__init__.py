@@ -85,8 +85,8 @@ def resolve_model_block(data: dict, source: str) -> None:
     if not (isinstance(output, str) or (isinstance(output, list) and output and all(
             isinstance(o, str) for o in output))):
         raise ConfigError(source, "model.output", "expected v(node), v(node,node), "
-                          "i(inductor, resistor or diode), ic/ib/ie(bjt) or id(mosfet), or a "
-                          "list of them")
+                          "i(inductor, resistor, diode or voltage source), ic/ib/ie(bjt) or "
+                          "id(mosfet), or a list of them")
     states = block.get("thesis_states")
     if states is not None and (not isinstance(states, list)
                                or not all(isinstance(s, str) for s in states)):

@@ -57,7 +57,8 @@ kernels = lazy.load("estim.numerics.kernels")
 
 GROUND = ("0", "gnd")
 
-OUTPUTS = "v(node), v(node,node), i(inductor, resistor or diode), ic/ib/ie(bjt) or id(mosfet)"
+OUTPUTS = ("v(node), v(node,node), i(inductor, resistor, diode or voltage source), "
+           "ic/ib/ie(bjt) or id(mosfet)")
 """What a netlist model's output may be (:meth:`Circuit._output`)."""
 
 
@@ -73,6 +74,9 @@ class Circuit:
 
     def __post_init__(self) -> None:
         net, src = self.netlist, self.netlist.source
+        self.outputs = (self.output,) if isinstance(self.output, str) else tuple(self.output)
+        if not self.outputs:
+            raise NetlistError(src, 0, f"no output; expected {OUTPUTS}")
         for e in net.elements:
             if e.kind in "fh":
                 ctrl = net.element(e.ref)
@@ -180,9 +184,6 @@ class Circuit:
                     raise NetlistError(src, model.line, f".model {model.name}: law "
                                        f"{model.params['law']!r}; expected 0-4 ("
                                        f"{', '.join(f'{i} {n}' for i, n in enumerate(NMOS_LAWS))})")
-        self.outputs = (self.output,) if isinstance(self.output, str) else tuple(self.output)
-        if not self.outputs:
-            raise NetlistError(src, 0, f"no output; expected {OUTPUTS}")
         self.output_terms = [self._output(text) for text in self.outputs]
         for i, term in enumerate(self.output_terms):
             if term in self.output_terms[:i]:
@@ -301,26 +302,44 @@ class Circuit:
             vx = net.element(e.ref)
             node = self.fixed_by(vx)
             sign = -1.0 if node == vx.nodes[0] else 1.0
-            for x in net.elements:
-                if x is vx or node not in (x.nodes[:2] if x.kind in "veghfb" else x.nodes):
-                    continue
-                why = None
-                if x.kind == "c":
-                    why = "a capacitor"
-                elif x.kind in "vehf":
-                    why = "another source"
-                elif e.kind == "h" and x.kind in "dqmb":
-                    why = "a device (an H source needs a linear controlling current)"
-                elif e.kind == "h" and x.name in self.inputs:
-                    why = "a model input (an H source's voltage would follow it)"
-                if why:
-                    raise NetlistError(src, e.line, f"{e.name}: the current of {vx.name} is "
-                                       f"summed at node {node}, which {x.name} meets: {why}; "
-                                       f"move {vx.name} next to a branch of R, G, I, L"
-                                       f"{'' if e.kind == 'h' else ', D, Q, M'} only")
+            met = self._summed_at(vx, node, linear=e.kind == "h")
+            if met:
+                raise NetlistError(src, e.line, f"{e.name}: the current of {vx.name} is "
+                                   f"summed at node {node}, which {met[0]} meets: {met[1]}; "
+                                   f"move {vx.name} next to a branch of R, G, I, L"
+                                   f"{'' if e.kind == 'h' else ', D, Q, M'} only")
             if not any(c[0] is vx for c in out):
                 out.append((vx, node, sign))
+        for text in self.outputs:                  # a voltage source's current measured
+            m = re.fullmatch(r"\s*i\(\s*([^,()\s]+)\s*\)\s*", text.lower())
+            vx = net.element(m.group(1)) if m else None
+            if vx is None or vx.kind != "v" or any(c[0] is vx for c in out):
+                continue
+            node = self.fixed_by(vx)
+            met = self._summed_at(vx, node, linear=False)
+            if met:
+                raise NetlistError(src, 0, f"output {text!r}: the current of {vx.name} is "
+                                   f"summed at node {node}, which {met[0]} meets: {met[1]}")
+            out.append((vx, node, -1.0 if node == vx.nodes[0] else 1.0))
         return out
+
+    def _summed_at(self, vx, node: str, linear: bool) -> tuple[str, str] | None:
+        """``(element, why)`` of the first element at ``node`` (which voltage source ``vx``
+        fixes) that keeps its current from being summed there: a capacitor (the current
+        would need the states' slope), another source, and with ``linear`` a device or the
+        model input; None where there is none."""
+        for x in self.netlist.elements:
+            if x is vx or node not in (x.nodes[:2] if x.kind in "veghfb" else x.nodes):
+                continue
+            if x.kind == "c":
+                return x.name, "a capacitor (its current would need the states' slope)"
+            if x.kind in "vehf":
+                return x.name, "another source"
+            if linear and x.kind in "dqmb":
+                return x.name, "a device (an H source needs a linear controlling current)"
+            if linear and x.name in self.inputs:
+                return x.name, "a model input (an H source's voltage would follow it)"
+        return None
 
     def _floating_group(self, C: np.ndarray) -> list[str]:
         """The state nodes in the null space of the nodal capacitance matrix ``C`` (a group
@@ -418,10 +437,12 @@ class Circuit:
         if m.group(1) == "i":
             names = [e.name for e in self.inductors]
             e = self.netlist.element(m.group(2))
+            if e is not None and e.kind == "v" and not m.group(3):
+                return ("source", e.name, self.control_index(e.name))
             if m.group(3) or e is None or e.kind not in "lrd":
-                raise NetlistError(src, 0, f"output {text!r}: i() of an inductor, resistor or "
-                                   "diode of the netlist (ic/ib/ie() of a BJT, id() of a "
-                                   "MOSFET)")
+                raise NetlistError(src, 0, f"output {text!r}: i() of an inductor, resistor, "
+                                   "diode or voltage source of the netlist (ic/ib/ie() of a "
+                                   "BJT, id() of a MOSFET)")
             if e.kind == "l":
                 return ("i", len(self.state_nodes) + names.index(m.group(2)))
             return ("resistor", e.name) if e.kind == "r" else ("device", e.name, 0)

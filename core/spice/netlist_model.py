@@ -12,7 +12,7 @@ import numpy as np
 
 from estim.models.base import Model
 from estim.models.devices import ebers_moll
-from estim.spice import behavioural, gummel_poon, terminals
+from estim.spice import behavioural, controls, gummel_poon, terminals
 from estim.spice.circuit import Circuit
 from estim.spice.devices import (
     DIODE_VT,
@@ -23,7 +23,7 @@ from estim.spice.devices import (
     mosfet,
 )
 from estim.spice.level1 import mirrored
-from estim.spice.outputs import device_output, output_map, thesis_map
+from estim.spice.outputs import device_output, output_map, source_output, thesis_map
 from estim.spice.parser import NetlistError
 from estim.spice.solved_nodes import solve_algebraic
 from estim.spice.terminals import behavioural_derivatives, gummel_poon_derivatives
@@ -190,7 +190,7 @@ class NetlistModel(Model, metaclass=NetlistClass):
             e, other, sign = c.fixed[node]
             need = [other] + (list(e.nodes[2:4]) if e.kind == "e" else [])
             if e.kind == "h":
-                need += self._control_nodes(e.ref)
+                need += controls.control_nodes(c, e.ref)
             if not all(x_ in v for x_ in need):
                 if guard > 10 * len(c.fixed) + 10:
                     raise NetlistError(c.netlist.source, e.line, f"{e.name}: its controlling "
@@ -204,40 +204,10 @@ class NetlistModel(Model, metaclass=NetlistClass):
             elif e.kind == "e":                    # v(p) - v(m) = gain (v(cp) - v(cm))
                 value = e.value * (v[e.nodes[2]] - v[e.nodes[3]])
             else:                                  # H: v(p) - v(m) = gain i(control)
-                value = e.value * self._control_current(e.ref, v, x)
+                value = e.value * controls.control_current(c, e.ref, v, x)
             v[node] = v[other] + sign * value
         nodes = sorted(self._node, key=self._node.get)
         return np.array([v[n] for n in nodes if n != "gnd"])
-
-    def _control_nodes(self, ref: str) -> list[str]:
-        """The nodes whose voltages set the current of source ``ref`` (an H's control)."""
-        vx, node, _ = self.circuit.controls[self.circuit.control_index(ref)]
-        out = [node]
-        for e in self.circuit.netlist.elements:
-            if e is not vx and node in e.nodes[:2] and e.kind in "rg":
-                out += list(e.nodes[:2] if e.kind == "r" else e.nodes[2:4])
-        return out
-
-    def _control_current(self, ref: str, v: dict, x: np.ndarray) -> float:
-        """SPICE's current through source ``ref`` from the linear branches (R, G, I, L) at
-        the node it fixes (:meth:`Circuit._controls`)."""
-        c = self.circuit
-        vx, node, sign = c.controls[c.control_index(ref)]
-        total = 0.0
-        for e in c.netlist.elements:
-            if e is vx or node not in e.nodes[:2]:
-                continue
-            way = 1.0 if e.nodes[0] == node else -1.0      # the branch current leaves node
-            if e.kind == "r":
-                total += way * (v[e.nodes[0]] - v[e.nodes[1]]) / e.value
-            elif e.kind == "g":
-                total += way * e.value * (v[e.nodes[2]] - v[e.nodes[3]])
-            elif e.kind == "i":
-                total += way * e.waveform[1]
-            elif e.kind == "l":
-                j = len(c.state_nodes) + [y.name for y in c.inductors].index(e.name)
-                total += way * x[j]
-        return sign * total
 
     def f_and_jacobian(self, x, u, t: float = 0.0):
         """``f = -C^-1 (currents leaving the state nodes)`` on the node states and
@@ -261,9 +231,10 @@ class NetlistModel(Model, metaclass=NetlistClass):
         J[..., :k, :] = -np.einsum("ij,...jn->...in", c.C_inv, d_out)
         return dxdt, J
 
-    def _currents(self, x, u, changes: tuple | None = None):
+    def _currents(self, x, u, changes: tuple | None = None, raw: bool = False):
         """The currents leaving each state node (KCL), their Jacobian w.r.t. the states, and
-        every node's voltage. ``changes``: ``(resistors, devices)``, the conductance each
+        every node's voltage (with ``raw``, every row's, before each F source's current is
+        added to the state rows). ``changes``: ``(resistors, devices)``, the conductance each
         listed resistor adds, ``[(node a, node b, conductance (...))]``, and the parameters
         of listed devices, ``{device index: {name: values (...)}}``, each value an array over
         the leading axes (a parameter as a state per run)."""
@@ -282,6 +253,8 @@ class NetlistModel(Model, metaclass=NetlistClass):
             if d in changed:
                 p = {**p, **changed[d]}
             self._leave(out, d_out, terminals.terms(self._P, kind, p, idx, V))
+        if raw:                                    # every row, the control rows too
+            return out, d_out, V
         out, d_out = self._sum_rows(out, d_out)
         return out, d_out, V
 
@@ -467,8 +440,8 @@ class NetlistModel(Model, metaclass=NetlistClass):
         x = np.asarray(x, float)
         n = self.n_states
         for term, affine in zip(self.circuit.output_terms, self._h, strict=True):
-            if term[0] == "device":
-                y, H = device_output(self, x, term)
+            if term[0] in ("device", "source"):
+                y, H = (device_output if term[0] == "device" else source_output)(self, x, term)
                 yield y, (H if jacobian else None)
                 continue
             if affine is not None:
@@ -488,8 +461,9 @@ class NetlistModel(Model, metaclass=NetlistClass):
         return np.concatenate([y for y, _ in self._measured(x, False)], axis=-1)
 
     def affine_output(self):
-        """``(H, c)`` when no output is a device's current, else None."""
-        if any(term[0] == "device" for term in self.circuit.output_terms):
+        """``(H, c)`` when no output is a device's or a voltage source's current, else
+        None."""
+        if any(term[0] in ("device", "source") for term in self.circuit.output_terms):
             return None
         H = np.vstack([H[0] for _, H in self._measured(np.zeros(self.n_states), True)])
         c = np.array([y[0] for y, _ in self._measured(np.zeros(self.n_states), False)])

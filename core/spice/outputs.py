@@ -1,6 +1,7 @@
 """A netlist model's measured output when it is not a state: an affine map of the node
-voltages (a node, a difference, a resistor's current) or a device's current, by the
-device's own law at the node voltages (:meth:`estim.spice.circuit.Circuit._output`)."""
+voltages (a node, a difference, a resistor's current), a device's current, by the
+device's own law at the node voltages, or a voltage source's current, summed at the node it
+fixes (:meth:`estim.spice.circuit.Circuit._output`)."""
 
 from __future__ import annotations
 
@@ -24,6 +25,18 @@ def output_map(model, term: tuple, text: str) -> tuple | None:
         rows, scale = [model._node[x] for x in e.nodes[:2]], 1.0 / e.value
     elif term[0] == "device":
         rows, scale = model._device_of[term[1]][2], None
+    elif term[0] == "source":
+        row = len(c.state_nodes) + term[2]
+        node = model._node[c.controls[term[2]][1]]
+        through = (model._G @ model._Q + model._U)[row]
+        for _, _, idx in model._devices:
+            if node in idx and np.any(model._Q[idx] != 0):
+                through = through + 1.0
+        if np.any(through != 0):
+            raise NetlistError(c.netlist.source, 0, f"output {text!r} follows the model "
+                               "input directly (an element at the node its source fixes is "
+                               "driven by the input); measure a source away from the input")
+        return None
     else:
         return None
     signs = np.array([1.0, -1.0][:len(rows)]) if scale is not None else None
@@ -82,3 +95,16 @@ def thesis_map(model) -> np.ndarray:
         raise NetlistError(src, 0, "thesis_states: the quantities do not determine the "
                            "states (one is a combination of the others)")
     return np.linalg.inv(T)
+
+
+def source_output(model, x: np.ndarray, term: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """A voltage source's current (SPICE's, from its + terminal through it to its -) that
+    ``term`` (``("source", name, control index)``) measures, ``(..., 1)`` at states ``x``,
+    and its Jacobian ``(..., 1, n)``: the currents leaving the node it fixes through every
+    other element there, its control row (input-free: :func:`output_map` checks)."""
+    c = model.circuit
+    row = len(c.state_nodes) + term[2]
+    sign = c.controls[term[2]][2]
+    x = np.asarray(x, float)
+    out, d_out, _ = model._currents(x, np.zeros(model.n_inputs), raw=True)
+    return sign * out[..., row:row + 1], sign * d_out[..., row:row + 1, :]

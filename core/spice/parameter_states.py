@@ -137,7 +137,14 @@ class ParameterStates(Model):
         self.input_is_source_slope = base.input_is_source_slope
         self.input_affine = False
         self.regimes = base.regimes
+        c = base.circuit
+        summed = {c.controls[t[2]][1]: t[1] for t in c.output_terms if t[0] == "source"}
         for p in parameters:
+            at = set(c.netlist.element(p.element).nodes[:4]) & set(summed)
+            if at:
+                raise ValueError(f"{p.name}: an output is the current of "
+                                 f"{summed[min(at)].upper()}, which {p.element.upper()} "
+                                 "carries; its value cannot be a state")
             if p.field is None:
                 _check_apart(base, p.element)
             elif any(term[:2] == ("device", p.element) for term in base.circuit.output_terms):

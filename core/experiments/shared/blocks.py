@@ -126,8 +126,9 @@ class Model(Settings):
                                                                   "drives")
     output: str | list | None = setting(None, _outputs,
                                         doc="with netlist: v(node), v(node,node), i(inductor, "
-                                            "resistor or diode), ic/ib/ie(bjt) or id(mosfet), "
-                                            "or a list of them (measured together)")
+                                            "resistor, diode or voltage source), ic/ib/ie(bjt) "
+                                            "or id(mosfet), or a list of them (measured "
+                                            "together)")
     hold: str | None = setting(None, text({"mean", "start", "end"}),
                                doc="with netlist: the source over an interval held at the "
                                    "mean of its two end samples (default, as the "
