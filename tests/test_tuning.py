@@ -97,3 +97,28 @@ def test_estim_tune_reports_progress_on_standard_error(capsys):
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 1 and err[0].startswith("tune: 12 likelihood evaluations, best "
                                                "log-likelihood -345.678, 10 s")
+
+
+def test_estim_tune_takes_q_by_state_name_and_refuses_estimated_values(tmp_path):
+    """rlc_current_ekf gives Q and P0 by state name: estim tune fits it (it raised a
+    TypeError reading the names as a matrix), its overlay a Q diagonal in the states'
+    order; rlc_current_r1 carries R1 as a state: one line before any work."""
+    from pathlib import Path
+
+    import yaml
+    from click.testing import CliRunner
+
+    from estim.cli.main import main
+
+    configs = Path(__file__).resolve().parents[1] / "configs" / "netlist"
+    out = tmp_path / "tuned.yaml"
+    result = CliRunner().invoke(main, ["tune", str(configs / "rlc_current_ekf.yaml"),
+                                       "--estimator", "EKF", "--runs", "2", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    fitted = yaml.safe_load(out.read_text())["estimators"][0]["settings"]["Q"]
+    assert len(fitted) == 2 and all(q > 0 for q in fitted)
+    refused = CliRunner().invoke(main, ["tune", str(configs / "rlc_current_r1.yaml"),
+                                        "--estimator", "EKF", "--runs", "2"])
+    assert refused.exit_code == 2, refused.output
+    assert "carry element values (estimate) as states" in refused.output
+    assert "Traceback" not in refused.output

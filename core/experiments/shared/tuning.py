@@ -197,17 +197,26 @@ def _why(names: list[str], flat: np.ndarray, spread: list[str], condition: float
 
 def check_tunable(exp, label: str) -> None:
     """What :func:`tune` cannot fit, as a ``UsageError`` before any work: a swept config (it
-    would fit the config's own values, no cell of the sweep) and a full-matrix ``Q`` or
-    ``R`` of ``label`` (the fit is of diagonals; the off-diagonal entries would be lost)."""
+    would fit the config's own values, no cell of the sweep), a config whose filters carry
+    element values as states (``estimate``: the fitted Q would not be the config's), and a
+    full-matrix ``Q`` or ``R`` of ``label`` (the fit is of diagonals; the off-diagonal
+    entries would be lost)."""
     from estim.errors import UsageError
 
     if exp.sweep:
         raise UsageError(f"{exp.source}: estim tune fits one config, and this one sweeps "
                          f"{', '.join(exp.sweep)}; tune one cell (its values as "
                          "overrides of a copy without the sweep block)")
+    if getattr(exp.config, "estimate", ()):
+        raise UsageError(f"{exp.source}: estim tune fits the Q of the circuit's states, and "
+                         "this config's filters carry element values (estimate) as states "
+                         "too; tune a copy without the estimate block")
     entry = next((e for e in getattr(exp.config, "estimators", ()) if e.label == label), None)
     for key in ("Q", "R"):
-        M = np.asarray((entry.settings if entry else {}).get(key, 0.0), dtype=float)
+        given = (entry.settings if entry else {}).get(key, 0.0)
+        if isinstance(given, dict):          # by state name: a diagonal
+            continue
+        M = np.asarray(given, dtype=float)
         if M.ndim == 2 and np.any(M - np.diag(np.diag(M))):
             raise UsageError(f"{exp.source}: estim tune fits diagonal covariances; the {key} "
                              f"of {label!r} is a full matrix (its off-diagonal entries would "
