@@ -142,7 +142,8 @@ def test_a_resistors_estimate_converges_to_the_actual_value(tmp_path):
 
 @pytest.mark.parametrize("entry,key,message", [
     ({"name": "R9", "start": 1.0, "sigma0": 1.0}, "estimate[0].name", "no element 'R9'"),
-    ({"name": "CA", "start": 1.0, "sigma0": 1.0}, "estimate[0].name", "a resistor's value"),
+    ({"name": "CA", "start": 1.0, "sigma0": 1.0}, "estimate[0].name",
+     "a resistor's or an inductor's value"),
     ({"name": "D1.rs", "start": 1.0, "sigma0": 1.0}, "estimate[0].name", "D1.is, D1.n"),
     ({"name": "VP.dc", "start": 1.0, "sigma0": 1.0}, "estimate[0].name", "only a diode's"),
     ({"name": "R1", "start": 0.0, "sigma0": 1.0}, "estimate[0].start", "other than 0"),
@@ -248,3 +249,26 @@ def test_estim_settings_lists_the_values_estimate_accepts(tmp_path):
         model = ParameterStates(darlington, (Parameter(name, element, field, start),))
         x = model.extend(darlington.operating_point(u=[0.0]))
         assert np.all(np.isfinite(model.f(x, np.array([0.0]))))
+
+
+def test_an_inductors_value_may_be_a_state(tmp_path):
+    """L1 of the RLC tank: the drift at a moved value equals the netlist written with it,
+    the column in the value equals the drift's difference, and estim settings lists L1."""
+    from estim.spice.parameter_states import estimable
+
+    text = (ROOT / "circuits" / "rlc_current.cir").read_text()
+    base = model_class(ROOT / "circuits" / "rlc_current.cir", "IIN", "i(l1)",
+                       name="netlist:test_ps_l")()
+    assert "L1" in estimable(base) and value_of(base, "L1") == pytest.approx(10e-3)
+    model = ParameterStates(base, (Parameter("L1", "l1", None, 8e-3),))
+    path = tmp_path / "rlc.cir"
+    path.write_text(text.replace("L1 top 0 10m", "L1 top 0 12m"))
+    changed = model_class(path, "IIN", "i(l1)", name="netlist:test_ps_l2")()
+    x0 = np.array([0.3, 2e-4])
+    u = np.array([1e-3])
+    x = np.concatenate([x0, [1.5]])
+    np.testing.assert_allclose(model.f(x, u)[:2], changed.f(x0, u), rtol=1e-13)
+    h = 1e-6
+    e = np.array([0.0, 0.0, h])
+    column = (model.f(x + e, u) - model.f(x - e, u)) / (2 * h)
+    np.testing.assert_allclose(model.jacobian(x, u)[:, 2], column, rtol=1e-7)

@@ -1,13 +1,14 @@
 """A netlist model with element values as states (issue 47): a resistor's resistance
-(``R1``) or a device's ``.model`` parameter (``D1.is``) estimated along with the circuit's
-states, each a random walk
+(``R1``), an inductor's inductance (``L1``) or a device's ``.model`` parameter (``D1.is``)
+estimated along with the circuit's states, each a random walk
 
     d theta / dt = 0,      theta_k = theta_{k-1} + w_k,   w_k ~ N(0, drift^2 / start^2),
 
 on the augmented state ``[x, theta]``. ``theta`` is the value over the filter's first guess
 ``start`` (so it starts at 1 and a filter's bound on ``|x|`` reads it without units); the
 drift ``f(x, u; theta start)`` is the netlist model's with that value, per run (each run's
-estimate of it), and its columns in ``theta`` are central differences of the drift.
+estimate of it); its columns in ``theta`` are exact for a resistor and an inductor and
+central differences of the one device's currents for a device parameter.
 """
 
 from __future__ import annotations
@@ -42,7 +43,8 @@ STEP = 1e-6
 @dataclass(frozen=True)
 class Parameter:
     """One estimated value: its name as the config gives it, the element, the ``.model``
-    parameter (``None``: a resistor's resistance) and the filter's first guess."""
+    parameter (``None``: a resistor's resistance or an inductor's inductance) and the
+    filter's first guess."""
 
     name: str
     element: str
@@ -71,7 +73,9 @@ def estimable(model: NetlistModel) -> list[str]:
     be a state, each device parameter that can (``estim settings CONFIG`` lists them)."""
     names = []
     for e in model.circuit.netlist.elements:
-        if e.kind == "r":
+        if e.kind == "l":
+            names.append(e.name.upper())
+        elif e.kind == "r":
             try:
                 _check_apart(model, e.name)
             except ValueError:
@@ -91,9 +95,9 @@ def value_of(model: NetlistModel, name: str) -> float:
     if e is None:
         raise ValueError(f"no element {element.upper()!r} in the netlist")
     if not field:
-        if e.kind != "r":
-            raise ValueError(f"{name}: a resistor's value, or a device's parameter as "
-                             "D1.is, may be a state")
+        if e.kind not in ("r", "l"):
+            raise ValueError(f"{name}: a resistor's or an inductor's value, or a device's "
+                             "parameter as D1.is, may be a state")
         return float(e.value)
     if e.kind not in ("d", "q", "m"):
         raise ValueError(f"{name}: only a diode's, BJT's or MOSFET's parameter "
@@ -145,7 +149,7 @@ class ParameterStates(Model):
                 raise ValueError(f"{p.name}: an output is the current of "
                                  f"{summed[min(at)].upper()}, which {p.element.upper()} "
                                  "carries; its value cannot be a state")
-            if p.field is None:
+            if p.field is None and c.netlist.element(p.element).kind == "r":
                 _check_apart(base, p.element)
             elif any(term[:2] == ("device", p.element) for term in base.circuit.output_terms):
                 raise ValueError(f"{p.name}: an output is this device's current; its "
@@ -209,10 +213,10 @@ class ParameterStates(Model):
         for j, p in enumerate(self.parameters):
             value = theta[..., j] * p.start
             e = base.circuit.netlist.element(p.element)
-            if p.field is None:
+            if p.field is None and e.kind == "r":
                 a, b = (base._node[x] for x in e.nodes[:2])
                 resistors.append((a, b, 1.0 / value - 1.0 / e.value))
-            else:
+            elif p.field is not None:
                 changed = devices.setdefault(self._device(p), {})
                 changed.update(mirrored(base._device_of[p.element][0], {p.field: value})
                                if p.field == "vto" else {p.field: value})
@@ -227,8 +231,10 @@ class ParameterStates(Model):
         cols = np.zeros(lead + (base._G.shape[0], self.k))
         for j, p in enumerate(self.parameters):
             col = np.zeros(lead + (base._G.shape[0],))
+            e = base.circuit.netlist.element(p.element)
+            if p.field is None and e.kind == "l":
+                continue                               # an inductor's: f_and_jacobian
             if p.field is None:
-                e = base.circuit.netlist.element(p.element)
                 a, b = (base._node[x] for x in e.nodes[:2])
                 cur = -(V[..., a] - V[..., b]) / (theta[..., j] ** 2 * p.start)
                 base._leave(col, None, ((a, cur, None), (b, -cur, None)))
@@ -263,6 +269,14 @@ class ParameterStates(Model):
             _, cols = base._sum_rows(np.zeros(cols.shape[:-1]), cols)
             rows = len(base.circuit.state_nodes)
             Ja[..., :rows, n:] = -np.einsum("ij,...jn->...in", base.circuit.C_inv, cols)
+        for j, p in enumerate(self.parameters):        # di/dt = (v_a - v_b) / L
+            e = base.circuit.netlist.element(p.element)
+            if p.field is None and e.kind == "l":
+                row = len(base.circuit.state_nodes) + base.circuit.inductors.index(e)
+                ratio = e.value / (theta[..., j] * p.start)
+                f[..., row] *= ratio
+                Ja[..., row, :n] *= ratio[..., None]
+                Ja[..., row, n + j] = -f[..., row] / theta[..., j]
         return np.concatenate([f, np.zeros(lead + (k,))], axis=-1), Ja
 
     def h(self, x):

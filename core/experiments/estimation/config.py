@@ -159,8 +159,8 @@ class Estimated(Settings):
     value."""
 
     name: str = setting(REQUIRED, text(max_length=60),
-                        doc="R1 (a resistor's resistance) or D1.is (a diode's, BJT's or "
-                            "MOSFET's .model parameter)")
+                        doc="R1 or L1 (a resistor's or an inductor's value) or D1.is (a "
+                            "diode's, BJT's or MOSFET's .model parameter)")
     start: float = setting(REQUIRED, number(), unit="its unit",
                            doc="the filters' first guess (not 0)")
     sigma0: float = setting(REQUIRED, number(positive=True), unit="its unit",

@@ -120,7 +120,8 @@ def traces(filters: tuple, estimates: list, theta: np.ndarray) -> dict:
             continue
         n = model.base.n_states
         for j, p in enumerate(model.parameters):
-            name = f"{p.name} [\u03a9]" if p.field is None else p.name
+            unit = {"r": " [\u03a9]", "l": " [H]"}.get(p.element.rpartition(".")[2][:1], "")
+            name = f"{p.name}{unit}" if p.field is None else p.name
             values = out.setdefault(name, {"true": theta[j] * p.start, "filters": {}})
             with np.errstate(invalid="ignore"):
                 values["filters"][label] = (est.x_hat[0, :, n + j] * p.start,
