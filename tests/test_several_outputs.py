@@ -14,6 +14,7 @@ import yaml
 from click.testing import CliRunner
 
 from estim.cli.main import main
+from estim.estimators.ekf import ExtendedKalmanFilter
 from estim.spice import model_class
 from estim.spice.parser import NetlistError
 
@@ -175,3 +176,21 @@ def test_estim_spice_compares_a_supply_current(tmp_path):
     result = CliRunner().invoke(main, ["spice", str(path), "--format", "csv"])
     assert result.exit_code == 0, result.output
     assert "i(vcc) (output)" in result.output and "gain VIN -> i(vcc)" not in result.output
+
+
+def test_the_compiled_ekf_takes_two_outputs_as_the_numpy_one(monkeypatch):
+    """The mirror measured at i(ro) and v(a) (both affine, so the compiled EKF runs it): its
+    estimates, covariances and innovations equal the numpy loop's to rounding."""
+    from test_compiled_filters import assert_same, both
+
+    model = _mirror(["i(ro)", "v(a)"], "compiled")
+    rng = np.random.default_rng(4)
+    dt, steps = 2.5e-5, 80
+    t = np.arange(steps + 1) * dt
+    u = model.source_to_input((1.0 + np.sin(2 * np.pi * 1e3 * t))[:, None], dt)
+    x0 = model.operating_point(u=[1.0])
+    z = model.h(x0)[None, None, :] + np.array([2e-6, 0.01]) * rng.standard_normal((5, steps, 2))
+    ekf = ExtendedKalmanFilter(Q=[4e-5, 1e-6], R=[4e-12, 1e-4], P0=[1e-4, 1e-4])
+    fast, slow = both(ekf, model, z, u, dt, x0, monkeypatch)
+    assert fast.S.shape[-2:] == (2, 2)
+    assert_same(fast, slow, 1e-9)
