@@ -157,9 +157,9 @@ def test_the_configs_comment_a_ukf_breaks_at_5_khz(tmp_path):
     assert "breaks in every run at 5 kHz" in config.read_text()
     result = CliRunner().invoke(main, [
         "run", str(config), "estimators.0.type=ukf", "estimators.0.label=UKF",
-        "noise.input_levels=[0.005]", "input.frequencies_hz=[5000]", "monte_carlo.runs=10",
-        "--out", str(tmp_path), "--quiet"])
+        "input.frequencies_hz=[5000]", "--out", str(tmp_path), "--quiet"])
     assert result.exit_code == 0, result.output
-    health = pd.read_csv(tmp_path / "gp_two_stage_ekf" / "health.csv").iloc[0]
-    assert health["broken"] == health["runs"] == 10
-    assert health["first_break_state"].startswith("v(")
+    health = pd.read_csv(tmp_path / "gp_two_stage_ekf" / "health.csv")
+    assert len(health) == 2                      # both noise levels, every run of each
+    assert (health["broken"] == health["runs"]).all() and (health["runs"] == 30).all()
+    assert health["first_break_state"].str.startswith("v(").all()

@@ -149,6 +149,10 @@ def test_a_resistors_estimate_converges_to_the_actual_value(tmp_path):
     ({"name": "R1", "start": 0.0, "sigma0": 1.0}, "estimate[0].start", "other than 0"),
     ({"name": "R1", "start": 1.0, "sigma0": -1.0}, "estimate[0].sigma0", "positive"),
     ({"name": "RL", "start": 1.0, "sigma0": 1.0}, "estimate", "an output is its current"),
+    ({"name": "R1", "start": "x", "sigma0": 1.0}, "estimate[0].start", "a finite number"),
+    ({"name": "R1", "sigma0": 1.0}, "estimate[0].start", "missing required key"),
+    ({"name": "R1", "start": 1.0, "sigma0": 1.0, "drift": -1}, "estimate[0].drift",
+     "a number >= 0"),
 ])
 def test_a_value_named_wrongly_is_one_line_at_its_key(tmp_path, entry, key, message):
     from estim.cli.main import main
@@ -162,6 +166,9 @@ def test_a_value_named_wrongly_is_one_line_at_its_key(tmp_path, entry, key, mess
 
 def test_a_value_named_twice_or_for_a_filter_without_covariance_is_refused(tmp_path):
     from estim.cli.main import main
+
+    result = CliRunner().invoke(main, ["validate", str(_config(tmp_path, estimate="R1"))])
+    assert result.exit_code == 2 and "estimate: expected a list, got str" in result.output
 
     twice = [{"name": "R1", "start": 1.0, "sigma0": 1.0}, {"name": "r1", "start": 2.0,
                                                            "sigma0": 1.0}]
