@@ -28,11 +28,9 @@ def output_map(model, term: tuple, text: str) -> tuple | None:
     elif term[0] == "source":
         row = len(c.state_nodes) + term[2]
         node = model._node[c.controls[term[2]][1]]
-        through = (model._G @ model._Q + model._U)[row]
-        for _, _, idx in model._devices:
-            if node in idx and np.any(model._Q[idx] != 0):
-                through = through + 1.0
-        if np.any(through != 0):
+        linear = (model._G @ model._Q + model._U)[row]
+        device = any(node in idx and np.any(model._Q[idx] != 0) for _, _, idx in model._devices)
+        if device or np.any(linear != 0):
             raise NetlistError(c.netlist.source, 0, f"output {text!r} follows the model "
                                "input directly (an element at the node its source fixes is "
                                "driven by the input); measure a source away from the input")
