@@ -146,3 +146,84 @@ def test_a_level_1_device_estim_cannot_take_is_refused(tmp_path, model_line, ele
     with pytest.raises(NetlistError, match=message.replace("(", r"\(").replace(")", r"\)")
                        .replace("[", r"\[").replace("]", r"\]")):
         model_class(_write(tmp_path, text), "VIN", "v(d)", name="netlist:test_l1_bad")()
+
+
+OVERLAP_STAGE = """a level-1 NMOS stage whose only capacitances are its overlap capacitances
+VIN in 0 DC 0.9
+RG in g 50k
+M1 d g s 0 mn w=20u l=2u
+RS s 0 2k
+RD dd d 20k
+VDD dd 0 DC 5
+.model mn nmos(level=1 vto=0.7 kp=110u lambda=0.04 cgso=0.5n cgdo=0.4n cgbo=0.2n)
+"""
+
+
+def test_overlap_capacitances_join_the_capacitance_matrix(tmp_path):
+    """``cgso`` and ``cgdo`` times the width, ``cgbo`` times the length, from the gate to
+    the source, drain and bulk: the gate, drain and source become states through them
+    alone, the nodal capacitance matrix is theirs, and the static law (so the DC point) is
+    that of the same device without them."""
+    model = model_class(_write(tmp_path, OVERLAP_STAGE), "VIN", "v(d)",
+                        name="netlist:test_l1_overlap")()
+    assert model.state_names == ("v(d)", "v(g)", "v(s)")
+    cgs, cgd, cgb = 0.5e-9 * 20e-6, 0.4e-9 * 20e-6, 0.2e-9 * 2e-6
+    C = np.array([[cgd, -cgd, 0.0], [-cgd, cgs + cgd + cgb, -cgs], [0.0, -cgs, cgs]])
+    np.testing.assert_allclose(np.linalg.inv(model.circuit.C_inv), C, rtol=1e-12, atol=1e-27)
+    plain = OVERLAP_STAGE.replace(" cgso=0.5n cgdo=0.4n cgbo=0.2n", "").replace(
+        "RD dd d 20k", "RD dd d 20k\nCD d 0 1p\nCG g 0 1p\nCS s 0 1p")
+    other = model_class(_write(tmp_path, plain), "VIN", "v(d)", name="netlist:test_l1_no")()
+    np.testing.assert_allclose(model.operating_point(u=[0.9]), other.operating_point(u=[0.9]),
+                               rtol=1e-12)
+
+
+def test_a_device_without_a_size_has_ngspices_default_width(tmp_path):
+    """No ``w=``/``l=``: ngspice's 100 um by 100 um, so ``cgdo`` alone gives ``cgdo *
+    1e-4`` from gate to drain."""
+    text = ("m\nVIN in 0 DC 0.9\nRG in g 50k\nCG g 0 1p\nM1 d g 0 0 mn\nRD dd d 20k\n"
+            "VDD dd 0 DC 5\n.model mn nmos(level=1 vto=0.7 cgdo=0.4n)\n")
+    model = model_class(_write(tmp_path, text), "VIN", "v(d)", name="netlist:test_l1_w")()
+    C = np.linalg.inv(model.circuit.C_inv)
+    assert model.state_names == ("v(d)", "v(g)")
+    np.testing.assert_allclose(C, [[4e-14, -4e-14], [-4e-14, 1e-12 + 4e-14]], rtol=1e-12,
+                               atol=1e-27)
+
+
+@NGSPICE
+def test_overlap_capacitances_agree_with_ngspices_own_level_1(tmp_path):
+    """ngspice's MOS1 with the same ``cgso cgdo cgbo`` (its Meyer capacitances zero without
+    ``tox``): DC point, every state over a noisy 10 MHz sine (the gate's time constant some
+    nanoseconds, the Miller capacitance among it) and the AC gain within estim spice's
+    bars."""
+    from estim.engine import ngspice_check as compare
+
+    model = model_class(_write(tmp_path, OVERLAP_STAGE), "VIN", "v(d)",
+                        name="netlist:test_l1_overlap_ng")()
+    dt = 1e-9
+    t = np.arange(201) * dt
+    rng = np.random.default_rng(3)
+    source = 0.9 + 0.03 * np.sin(2e7 * np.pi * t) + 0.002 * rng.standard_normal(t.size)
+    rows = compare._tightening("10 MHz", model, source[:, None], dt, 1e7, None, 1e-10, 1e-7, 2)
+    bad = [r for r in rows if r["difference"] > compare.BARS[r["check"]]]
+    assert not bad, bad
+    assert {r["check"] for r in rows} >= {"dc", "ac"}
+
+
+def test_a_negative_overlap_capacitance_is_refused(tmp_path):
+    text = ("m\nVIN g 0 DC 1\nRD dd d 10k\nVDD dd 0 DC 3\nCD d 0 1p\nM1 d g 0 0 mn\n"
+            ".model mn nmos(level=1 vto=0.7 cgdo=-1n)\n")
+    with pytest.raises(NetlistError, match="cgdo -1e-09; an overlap capacitance is not "
+                                           "negative"):
+        model_class(_write(tmp_path, text), "VIN", "v(d)", name="netlist:test_l1_neg")()
+
+
+def test_an_input_at_a_gate_with_overlap_capacitance_is_refused_by_name(tmp_path):
+    """An input source straight at the gate would drive it by its value (the device) and
+    by its slope (the overlap capacitor): refused, naming the capacitance and its device."""
+    text = ("m\nVIN g 0 DC 1\nRD dd d 10k\nVDD dd 0 DC 3\nCD d 0 1p\nM1 d g 0 0 mn\n"
+            ".model mn nmos(level=1 vto=0.7 cgdo=1n)\n")
+    with pytest.raises(NetlistError, match=r"m1.cgdo: input vin drives node g through "
+                                           r"m1.cgdo \(an overlap capacitance of m1\) and "
+                                           r"through m1; .* put a resistor between vin and "
+                                           r"node g"):
+        model_class(_write(tmp_path, text), "VIN", "v(d)", name="netlist:test_l1_gate")()

@@ -33,9 +33,10 @@ w_l law``; the laws of :mod:`estim.models.mosfet_ekv`, ``law`` the index in
 :data:`NMOS_LAWS`, 0 EKV) and PMOS (``pmos``: the same parameters, the NMOS law of the
 negated voltages, negated: :func:`estim.spice.devices.mosfet`); with ``level=1`` in its
 ``.model``, an NMOS or PMOS is SPICE's level-1 MOSFET (``vto kp lambda gamma phi``, ``w=``
-and ``l=`` on its line; :mod:`estim.spice.level1`). Jacobian, input Jacobian and Hessian are
-analytic. ``F`` and ``H`` sources take the current of a voltage source as
-KCL at the node it fixes (no capacitor there; for ``H`` only linear branches: D76).
+and ``l=`` on its line; :mod:`estim.spice.level1`), whose overlap capacitances ``cgso
+cgdo cgbo`` join the nodal capacitance matrix as capacitors of their own. Jacobian, input
+Jacobian and Hessian are analytic. ``F`` and ``H`` sources take the current of a voltage
+source as KCL at the node it fixes (no capacitor there; for ``H`` only linear branches: D76).
 """
 
 
@@ -48,6 +49,7 @@ import numpy as np
 
 from estim.spice.devices import NMOS_LAWS, model_defaults
 from estim.spice.gummel_poon import DYNAMIC, GUMMEL_POON
+from estim.spice.level1 import overlap_capacitors
 from estim.spice.parser import Netlist, NetlistError
 from estim.util import lazy
 
@@ -74,6 +76,8 @@ class Circuit:
 
     def __post_init__(self) -> None:
         net, src = self.netlist, self.netlist.source
+        self.elements = [*net.elements, *overlap_capacitors(net)]
+        """The netlist's elements and the level-1 MOSFETs' overlap capacitors."""
         self.outputs = (self.output,) if isinstance(self.output, str) else tuple(self.output)
         if not self.outputs:
             raise NetlistError(src, 0, f"no output; expected {OUTPUTS}")
@@ -103,7 +107,7 @@ class Circuit:
             if e is None or e.kind not in "vi":
                 raise NetlistError(src, 0, f"input {name!r} is not a voltage or current "
                                    "source of the netlist")
-        nodes = sorted({n for e in net.elements for n in e.nodes} - set(GROUND))
+        nodes = sorted({n for e in self.elements for n in e.nodes} - set(GROUND))
         if not nodes:
             raise NetlistError(src, 0, "no node but ground")
         self.fixed, root = self._fix_nodes()
@@ -114,7 +118,7 @@ class Circuit:
         self.index = {n: i for i, n in enumerate(self.state_nodes)}
         # a floating node: connected to only one element terminal
         touches: dict[str, int] = {}
-        for e in net.elements:
+        for e in self.elements:
             for n in e.nodes:
                 touches[n] = touches.get(n, 0) + 1
         lonely = sorted(n for n in self.state_nodes if touches.get(n, 0) < 2)
@@ -126,7 +130,7 @@ class Circuit:
         self.controls = self._controls()
         C = np.zeros((k, k))
         B = np.zeros((k, len(self.inputs)))
-        for e in net.elements:
+        for e in self.elements:
             if e.kind != "c":
                 continue
             ends = [self._follows(n, e) for n in e.nodes]
@@ -328,7 +332,7 @@ class Circuit:
         fixes) that keeps its current from being summed there: a capacitor (the current
         would need the states' slope), another source, and with ``linear`` a device or the
         model input; None where there is none."""
-        for x in self.netlist.elements:
+        for x in self.elements:
             if x is vx or node not in (x.nodes[:2] if x.kind in "veghfb" else x.nodes):
                 continue
             if x.kind == "c":
@@ -398,15 +402,20 @@ class Circuit:
                                    "ground or to a node a DC source fixes; it floats between "
                                    f"{e.nodes[0]} and {e.nodes[1]}")
             self.input_nodes.append(node)
-            others = [x for x in net.elements if x is not e and node in x.nodes]
+            others = [x for x in self.elements if x is not e and node in x.nodes]
             caps = [x for x in others if x.kind == "c"]
             if caps and len(caps) < len(others):
                 rest = next(x for x in others if x.kind != "c")
-                raise NetlistError(src, caps[0].line, f"{caps[0].name}: input {e.name} "
-                                   f"drives node {node} through this capacitor and through "
-                                   f"{rest.name}; estim takes an input by its slope "
-                                   "(capacitors only) or by its value (no capacitor): put a "
-                                   "resistor in series with the capacitor")
+                cap = caps[0]
+                own = cap in net.elements
+                where = ("this capacitor" if own else
+                         f"{cap.name} (an overlap capacitance of {cap.name.split('.')[0]})")
+                fix = ("in series with the capacitor" if own else
+                       f"between {e.name} and node {node}")
+                raise NetlistError(src, cap.line, f"{cap.name}: input {e.name} drives node "
+                                   f"{node} through {where} and through {rest.name}; estim "
+                                   "takes an input by its slope (capacitors only) or by its "
+                                   f"value (no capacitor): put a resistor {fix}")
             kinds.add(bool(caps))
         if len(kinds) > 1:
             raise NetlistError(src, 0, "inputs driving through capacitors (by their slope) "

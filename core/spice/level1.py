@@ -11,14 +11,52 @@ with ``beta = KP W / L`` and, for ``v_BS > 0``, ``sqrt(PHI - v_BS)`` replaced by
 ``max(0, sqrt(PHI) - v_BS / (2 sqrt(PHI)))`` as ngspice does; in reverse mode (``v_DS <
 0``) drain and source trade places and the current changes sign. A PMOS is the NMOS of the
 negated voltages with ``VTO`` negated, its current negated (SPICE's ``type = -1``).
+
+Its overlap capacitances (``cgso``, ``cgdo`` per metre of width, ``cgbo`` per metre of
+length) are linear capacitors from the gate to the source, the drain and the bulk
+(:func:`overlap_capacitors`), as ngspice's ``MOS1`` adds them; without ``tox`` its Meyer
+gate capacitances are zero, as in ngspice.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-LEVEL1 = {"level": 1.0, "vto": 0.0, "kp": 2e-5, "lambda": 0.0, "gamma": 0.0, "phi": 0.6}
+from estim.spice.parser import Element, NetlistError
+
+LEVEL1 = {"level": 1.0, "vto": 0.0, "kp": 2e-5, "lambda": 0.0, "gamma": 0.0, "phi": 0.6,
+          "cgso": 0.0, "cgdo": 0.0, "cgbo": 0.0}
 """A level-1 ``.model``'s parameters and ngspice's defaults (``level=1`` selects the law)."""
+
+OVERLAP = {"cgso": (2, "w"), "cgdo": (0, "w"), "cgbo": (3, "l")}
+"""Each overlap capacitance: the terminal (of drain, gate, source, bulk) it joins to the
+gate, and the size it is per metre of."""
+
+DEFAULT_SIZE = {"w": 100e-6, "l": 100e-6}
+"""ngspice's width and length of a MOSFET whose line gives none (its ``defw``, ``defl``)."""
+
+
+def overlap_capacitors(netlist) -> list[Element]:
+    """The overlap capacitances of the netlist's level-1 MOSFETs as capacitor elements
+    (``M1.cgdo``: ``cgdo`` times the device's width, from its gate to its drain), those
+    that are not zero; a device whose ``.model`` is missing or not level 1 has none. A
+    negative one is refused."""
+    caps = []
+    for e in netlist.elements:
+        model = netlist.models.get(e.ref) if e.kind == "m" else None
+        if model is None or "level" not in model.params:
+            continue
+        size = {**DEFAULT_SIZE, **dict(e.size)}
+        for name, (terminal, per) in OVERLAP.items():
+            if model.params.get(name, 0.0) < 0:
+                raise NetlistError(netlist.source, model.line, f".model {model.name}: {name} "
+                                   f"{model.params[name]:g}; an overlap capacitance is not "
+                                   "negative")
+            value = model.params.get(name, 0.0) * size[per]
+            if value:
+                caps.append(Element("c", f"{e.name}.{name}", (e.nodes[1], e.nodes[terminal]),
+                                    value, line=e.line))
+    return caps
 
 
 def level1(vd, vg, vs, vb, p: dict, second: bool = False):
