@@ -25,7 +25,8 @@ as SPICE's current flows from ``+`` through the source to ``-``). An input whose
 reaches the circuit only through capacitors drives it by its slope (D72).
 
 Device laws and their ``.model`` parameters: Shockley diodes with series resistance
-(``d``: ``is n rs``; closed form by the Lambert W function; SPICE's reverse law below
+(``d``: ``is n rs``; closed form by the Lambert W function; junction capacitance ``cjo vj
+m tt fc``, :mod:`estim.spice.junctions`; SPICE's reverse law below
 ``-3 n V_T``), Ebers-Moll NPN/PNP (``npn``,
 ``pnp``: ``ies alpha_f alpha_r vt``, ``I_CS`` by reciprocity unless ``ics`` is given;
 :mod:`estim.models.devices.ebers_moll`, the thesis' law), EKV NMOS (``nmos``: ``u_t v_t0 eta i_0
@@ -49,6 +50,7 @@ import numpy as np
 
 from estim.spice.devices import NMOS_LAWS, model_defaults
 from estim.spice.gummel_poon import DYNAMIC, GUMMEL_POON
+from estim.spice.junctions import junction_capacitors
 from estim.spice.level1 import overlap_capacitors
 from estim.spice.parser import Netlist, NetlistError
 from estim.util import lazy
@@ -76,8 +78,12 @@ class Circuit:
 
     def __post_init__(self) -> None:
         net, src = self.netlist, self.netlist.source
-        self.elements = [*net.elements, *overlap_capacitors(net)]
-        """The netlist's elements and the level-1 MOSFETs' overlap capacitors."""
+        junctions = junction_capacitors(net)
+        self.elements = [*net.elements, *overlap_capacitors(net), *junctions]
+        """The netlist's elements, the level-1 MOSFETs' overlap capacitors and each
+        charge-storing diode's zero-bias capacitance (:mod:`estim.spice.junctions`)."""
+        self.junctions = [net.element(c.name.rsplit(".", 1)[0]) for c in junctions]
+        """The diodes that store charge: the model adds ``C(v) - cjo`` for each."""
         self.outputs = (self.output,) if isinstance(self.output, str) else tuple(self.output)
         if not self.outputs:
             raise NetlistError(src, 0, f"no output; expected {OUTPUTS}")
@@ -152,6 +158,7 @@ class Circuit:
                                f"{', '.join(self._floating_group(C))} are joined only by "
                                "capacitors, with no capacitor to the rest: add a shunt "
                                "capacitor to one of them")
+        self.C = C
         self.C_inv = np.linalg.inv(C) if k else np.zeros((0, 0))
         self.B = B
         for e in net.elements:
@@ -408,8 +415,9 @@ class Circuit:
                 rest = next(x for x in others if x.kind != "c")
                 cap = caps[0]
                 own = cap in net.elements
-                where = ("this capacitor" if own else
-                         f"{cap.name} (an overlap capacitance of {cap.name.split('.')[0]})")
+                device, _, what = cap.name.rpartition(".")
+                what = "the junction capacitance" if what == "cjo" else "an overlap capacitance"
+                where = "this capacitor" if own else f"{cap.name} ({what} of {device})"
                 fix = ("in series with the capacitor" if own else
                        f"between {e.name} and node {node}")
                 raise NetlistError(src, cap.line, f"{cap.name}: input {e.name} drives node "
@@ -454,6 +462,10 @@ class Circuit:
                                    "BJT, id() of a MOSFET)")
             if e.kind == "l":
                 return ("i", len(self.state_nodes) + names.index(m.group(2)))
+            if e in self.junctions:
+                raise NetlistError(src, 0, f"output {text!r}: {e.name} stores charge, and "
+                                   "estim's device current is its static one; measure the "
+                                   "current of a resistor in series with it")
             return ("resistor", e.name) if e.kind == "r" else ("device", e.name, 0)
         if m.group(3) is not None and (m.group(2) == m.group(3) or
                                        {m.group(2), m.group(3)} <= set(GROUND)):

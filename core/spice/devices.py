@@ -20,7 +20,10 @@ DIODE_VT = 0.025852
 """The diode's thermal voltage (300 K), as the BJT model's default ``vt``."""
 
 
-DIODE = {"is": 1e-14, "n": 1.0, "rs": 0.0}
+DIODE = {"is": 1e-14, "n": 1.0, "rs": 0.0, "cjo": 0.0, "vj": 1.0, "m": 0.5, "tt": 0.0,
+         "fc": 0.5}
+"""A diode ``.model``'s parameters and SPICE's defaults (the charge ones:
+:mod:`estim.spice.junctions`)."""
 
 
 BJT = {"ies": 1e-14, "alpha_f": 0.99, "alpha_r": 0.5, "vt": 0.025852, "ics": None}

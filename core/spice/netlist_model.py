@@ -12,7 +12,7 @@ import numpy as np
 
 from estim.models.base import Model
 from estim.models.devices import ebers_moll
-from estim.spice import behavioural, controls, gummel_poon, terminals
+from estim.spice import behavioural, controls, gummel_poon, junctions, terminals
 from estim.spice.circuit import Circuit
 from estim.spice.devices import (
     DIODE_VT,
@@ -164,6 +164,7 @@ class NetlistModel(Model, metaclass=NetlistClass):
         self._linear = G @ self._P + K                # d(linear currents)/dx
         self._h = [output_map(self, term, text)
                    for term, text in zip(c.output_terms, c.outputs, strict=True)]
+        self._junctions = junctions.junction_rows(self)
 
     def _sum_rows(self, out, d_out):
         """The state rows' currents with each F source's current added (``A``): the rows
@@ -226,8 +227,11 @@ class NetlistModel(Model, metaclass=NetlistClass):
         k = len(c.state_nodes)
         lead = out.shape[:-1]
         dxdt = V @ self._L.T
-        dxdt[..., :k] = -out @ c.C_inv.T
         J = np.broadcast_to(self._L @ self._P, lead + (self.n_states, self.n_states)).copy()
+        if self._junctions:                      # C(x): junction capacitances
+            dxdt[..., :k], J[..., :k, :] = junctions.charged_drift(self, out, d_out, V)
+            return dxdt, J
+        dxdt[..., :k] = -out @ c.C_inv.T
         J[..., :k, :] = -np.einsum("ij,...jn->...in", c.C_inv, d_out)
         return dxdt, J
 
@@ -300,8 +304,8 @@ class NetlistModel(Model, metaclass=NetlistClass):
         n, p = self.n_states, self.n_inputs
         k, N = len(self.circuit.state_nodes), self._P.shape[0]
         rows = []
-        if any(kind == "b" for kind, _, _ in self._devices):
-            return None                  # a behavioural source: the numpy path
+        if any(kind == "b" for kind, _, _ in self._devices) or self._junctions:
+            return None                  # a behavioural source or C(x): the numpy path
         for kind, prm, idx in self._devices:
             nodes = [*idx, -1, -1, -1][:4]
             if kind == "d":
@@ -401,7 +405,9 @@ class NetlistModel(Model, metaclass=NetlistClass):
         if self._A is not None:
             dcur = dcur[:k] + self._A @ dcur[k:]
         out = self._L @ self._Q
-        out[:k] = -self.circuit.C_inv @ dcur
+        C_inv = (np.linalg.inv(junctions.capacitance_matrix(self, self._node_voltages(x, u)))
+                 if self._junctions else self.circuit.C_inv)
+        out[:k] = -C_inv @ dcur
         return out
 
     def hessian(self, x: np.ndarray, u: np.ndarray, t: float = 0.0) -> np.ndarray:
@@ -411,6 +417,10 @@ class NetlistModel(Model, metaclass=NetlistClass):
         ``[P Q]`` at the device's nodes. (The default second differences of ``f`` are at the
         mercy of its rounding: with shunt capacitors of 1 pF, ``f`` sums currents into 1e9 V/s,
         and the percent distortion moved by 3e-3 relative as the difference step changed.)"""
+        if self._junctions:
+            raise NetlistError(self.circuit.netlist.source, 0, "junction capacitances make "
+                               "C depend on the state: the analytic Hessian (a distortion "
+                               "analysis) takes a constant C")
         k, n = len(self.circuit.state_nodes), self.n_states
         Z = np.hstack([self._P, self._Q])
         m = Z.shape[1]

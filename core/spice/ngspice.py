@@ -30,7 +30,7 @@ import numpy as np
 
 from estim.errors import EstimError
 from estim.spice import behavioural
-from estim.spice.devices import BJT, DIODE_VT, EKV, NMOS_LAWS
+from estim.spice.devices import BJT, DIODE, DIODE_VT, EKV, NMOS_LAWS
 from estim.spice.gummel_poon import GUMMEL_POON, is_gummel_poon
 from estim.spice.level1 import LEVEL1
 from estim.spice.parser import Netlist
@@ -80,8 +80,9 @@ def _models(net: Netlist) -> tuple[list[str], float | None]:
                          f"bf={aF / (1 - aF)!r} br={aR / (1 - aR)!r})")
         elif m.type == "d":
             vt = vt or DIODE_VT
-            lines.append(f".model {m.name} d(is={p.get('is', 1e-14)!r} n={p.get('n', 1.0)!r} "
-                         f"rs={p.get('rs', 0.0)!r})")
+            q = {**DIODE, **p}
+            lines.append(f".model {m.name} d("
+                         + " ".join(f"{k}={float(q[k])!r}" for k in DIODE) + ")")
         else:
             raise NgspiceError(f".model {m.name}: type {m.type} has no ngspice translation yet")
     return lines, vt
