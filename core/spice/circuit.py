@@ -78,12 +78,13 @@ class Circuit:
 
     def __post_init__(self) -> None:
         net, src = self.netlist, self.netlist.source
-        junctions = junction_capacitors(net)
-        self.elements = [*net.elements, *overlap_capacitors(net), *junctions]
-        """The netlist's elements, the level-1 MOSFETs' overlap capacitors and each
-        charge-storing diode's zero-bias capacitance (:mod:`estim.spice.junctions`)."""
-        self.junctions = [net.element(c.name.rsplit(".", 1)[0]) for c in junctions]
-        """The diodes that store charge: the model adds ``C(v) - cjo`` for each."""
+        self.junctions = junction_capacitors(net)
+        """The junction capacitances (:mod:`estim.spice.junctions`): the model adds
+        ``C(v) - cjo`` of each to the constant ``C``."""
+        self.elements = [*net.elements, *overlap_capacitors(net),
+                         *(ch.capacitor() for ch in self.junctions)]
+        """The netlist's elements, the level-1 MOSFETs' overlap capacitors and each junction
+        capacitance at zero bias."""
         self.outputs = (self.output,) if isinstance(self.output, str) else tuple(self.output)
         if not self.outputs:
             raise NetlistError(src, 0, f"no output; expected {OUTPUTS}")
@@ -334,6 +335,17 @@ class Circuit:
             out.append((vx, node, -1.0 if node == vx.nodes[0] else 1.0))
         return out
 
+    def _static(self, text: str, name: str, terminal: int) -> tuple:
+        """A device's current as an output: its static law, refused by name for a device
+        with a junction capacitance (whose current SPICE counts with its charge's)."""
+        charged = [ch.name for ch in self.junctions if ch.device.name == name]
+        if charged:
+            raise NetlistError(self.netlist.source, 0, f"output {text!r}: {name} stores "
+                               f"charge ({charged[0]}), and estim's device current is its "
+                               "static one; measure the current of a resistor in series "
+                               "with it")
+        return ("device", name, terminal)
+
     def _summed_at(self, vx, node: str, linear: bool) -> tuple[str, str] | None:
         """``(element, why)`` of the first element at ``node`` (which voltage source ``vx``
         fixes) that keeps its current from being summed there: a capacitor (the current
@@ -416,7 +428,8 @@ class Circuit:
                 cap = caps[0]
                 own = cap in net.elements
                 device, _, what = cap.name.rpartition(".")
-                what = "the junction capacitance" if what == "cjo" else "an overlap capacitance"
+                what = ("a junction capacitance" if what in ("cjo", "cbd", "cbs") else
+                        "an overlap capacitance")
                 where = "this capacitor" if own else f"{cap.name} ({what} of {device})"
                 fix = ("in series with the capacitor" if own else
                        f"between {e.name} and node {node}")
@@ -446,7 +459,7 @@ class Circuit:
             if e is None or e.kind != want:
                 raise NetlistError(src, 0, f"output {text!r}: {m.group(1)}() of a "
                                    f"{'MOSFET' if want == 'm' else 'BJT'} of the netlist")
-            return ("device", e.name, "cbe".index(m.group(1)[1]) if want == "q" else 0)
+            return self._static(text, e.name, "cbe".index(m.group(1)[1]) if want == "q" else 0)
         m = re.fullmatch(r"\s*([vi])\(\s*([^,()\s]+)\s*(?:,\s*([^,()\s]+)\s*)?\)\s*",
                          text.lower())
         if not m:
@@ -462,11 +475,7 @@ class Circuit:
                                    "BJT, id() of a MOSFET)")
             if e.kind == "l":
                 return ("i", len(self.state_nodes) + names.index(m.group(2)))
-            if e in self.junctions:
-                raise NetlistError(src, 0, f"output {text!r}: {e.name} stores charge, and "
-                                   "estim's device current is its static one; measure the "
-                                   "current of a resistor in series with it")
-            return ("resistor", e.name) if e.kind == "r" else ("device", e.name, 0)
+            return ("resistor", e.name) if e.kind == "r" else self._static(text, e.name, 0)
         if m.group(3) is not None and (m.group(2) == m.group(3) or
                                        {m.group(2), m.group(3)} <= set(GROUND)):
             raise NetlistError(self.netlist.source, 0, f"output {text!r}: the voltage between "

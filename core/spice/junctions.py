@@ -1,18 +1,21 @@
-"""A diode's junction capacitance, as SPICE's diode model stores charge (ngspice's
-``dioload.c``, at the nominal temperature): the depletion capacitance of ``cjo vj m fc``
-and the diffusion capacitance ``tt g(v)``,
+"""Junction capacitances as SPICE stores charge (ngspice's ``dioload.c`` and
+``mos1load.c``, at the nominal temperature): a diode's depletion capacitance of ``cjo vj m
+fc`` and its diffusion capacitance ``tt g(v)``,
 
     C(v) = cjo (1 - v/vj)^-m                                   v <  fc vj
          = cjo / F2 (F3 + m v / vj)                            v >= fc vj
            + tt dI/dv,          F2 = (1 - fc)^(1 + m),  F3 = 1 - fc (1 + m),
 
-the two depletion branches meeting in value and slope at ``fc vj``. In a netlist the
-capacitance joins the nodal capacitance matrix between the diode's nodes, so the drift is
-``C(x)^-1`` times the currents (:class:`estim.spice.netlist_model.NetlistModel`). A diode
-with ``rs`` and a capacitance is refused: its capacitance sits at the junction behind
-``rs``, a node estim's closed form for ``rs`` eliminates (give ``rs`` as a resistor); so
-is ``tt`` without ``cjo`` (the capacitance would vanish in reverse bias and leave the
-node's row of ``C`` empty).
+the two depletion branches meeting in value and slope at ``fc vj``; a level-1 MOSFET's
+bulk-drain and bulk-source junctions by the same depletion law, ``cbd`` and ``cbs`` for
+``cjo``, ``pb`` for ``vj`` and ``mj`` for ``m`` (their diodes conduct nothing here, as
+estim's level 1 and the ngspice deck have ``is=0``). In a netlist each capacitance joins
+the nodal capacitance matrix between its two nodes, so the drift is ``C(x)^-1`` times the
+currents (:class:`estim.spice.netlist_model.NetlistModel`). A diode with ``rs`` and a
+capacitance is refused: its capacitance sits at the junction behind ``rs``, a node
+estim's closed form for ``rs`` eliminates (give ``rs`` as a resistor); so is ``tt``
+without ``cjo`` (the capacitance would vanish in reverse bias and leave the node's row of
+``C`` empty).
 """
 
 from __future__ import annotations
@@ -22,53 +25,80 @@ from dataclasses import dataclass
 import numpy as np
 
 from estim.spice.devices import DIODE, DIODE_VT, REVERSE_KNEE, diode, diode_reverse
+from estim.spice.level1 import LEVEL1
 from estim.spice.parser import Element, NetlistError
 
-CHARGE = ("cjo", "vj", "m", "tt", "fc")
-"""A diode ``.model``'s charge parameters (defaults in :data:`estim.spice.devices.DIODE`)."""
+
+@dataclass(frozen=True)
+class Charge:
+    """One junction capacitance of a netlist: its name (``d1.cjo``, ``m1.cbd``), its
+    device, its anode and cathode, and its law's parameters (``cjo vj m fc tt``, with the
+    diode's ``is n`` for ``tt``)."""
+
+    name: str
+    device: Element
+    nodes: tuple[str, str]
+    p: dict
+
+    def capacitor(self) -> Element:
+        """The zero-bias capacitance as a capacitor element: it makes the two nodes states
+        and stands for the junction in the constant part of ``C``."""
+        return Element("c", self.name, self.nodes, self.p["cjo"], line=self.device.line)
 
 
-def capacitive(p: dict) -> bool:
-    """Whether a diode of ``.model`` parameters ``p`` stores charge."""
-    return p.get("cjo", 0.0) > 0 or p.get("tt", 0.0) > 0
+def _checked(p: dict, keys: tuple[str, ...], netlist, model) -> None:
+    """Refuse a negative capacitance or transit time, or a grading, potential or ``fc``
+    out of the law's range, naming the ``.model`` and its keys."""
+    where = (netlist.source, model.line)
+    for key in keys[:2]:
+        if p[key] < 0:
+            raise NetlistError(*where, f".model {model.name}: {key} {p[key]:g}; "
+                               "expected 0 or more")
+    vj, m, fc = (p[k] for k in keys[2:])
+    if vj <= 0 or not 0 <= m < 1 or not 0 <= fc < 1:
+        raise NetlistError(*where, f".model {model.name}: {keys[2]} {vj:g}, {keys[3]} {m:g}, "
+                           f"fc {fc:g}; expected {keys[2]} > 0, 0 <= {keys[3]} < 1, "
+                           "0 <= fc < 1")
 
 
-def junction_capacitors(netlist) -> list[Element]:
-    """Each charge-storing diode's zero-bias capacitance ``cjo`` as a capacitor element
-    (``D1.cjo``, anode to cathode): it makes the diode's nodes states and stands for the
-    diode in the constant part of ``C``; the model adds ``C(v) - cjo`` at each point. A
-    ``.model`` whose charge parameters estim cannot take is refused by name."""
-    caps = []
+def junction_capacitors(netlist) -> list[Charge]:
+    """Every junction capacitance of the netlist's diodes and level-1 MOSFETs that is not
+    zero. A ``.model`` whose charge parameters estim cannot take is refused by name."""
+    out = []
     for e in netlist.elements:
-        model = netlist.models.get(e.ref) if e.kind == "d" else None
-        if model is None or model.type != "d":
+        model = netlist.models.get(e.ref) if e.kind in "dm" else None
+        if model is None:
             continue
-        p = {**DIODE, **model.params}
-        where = (netlist.source, model.line)
-        for key in ("cjo", "tt"):
-            if p[key] < 0:
-                raise NetlistError(*where, f".model {model.name}: {key} {p[key]:g}; "
-                                   "expected 0 or more")
-        if not capacitive(p):
-            continue
-        if p["vj"] <= 0 or not 0 <= p["m"] < 1 or not 0 <= p["fc"] < 1:
-            raise NetlistError(*where, f".model {model.name}: vj {p['vj']:g}, m {p['m']:g}, "
-                               f"fc {p['fc']:g}; expected vj > 0, 0 <= m < 1, 0 <= fc < 1")
-        if p["rs"] > 0:
-            raise NetlistError(*where, f".model {model.name}: rs with a junction "
-                               f"capacitance ({e.name}); estim eliminates the node between "
-                               "rs and the junction, where the capacitance sits: give rs as a "
-                               "resistor of its own and the .model rs=0")
-        if p["cjo"] == 0:
-            raise NetlistError(*where, f".model {model.name}: tt without cjo; the "
-                               "capacitance would vanish in reverse bias: give cjo too")
-        caps.append(Element("c", f"{e.name}.cjo", e.nodes[:2], p["cjo"], line=e.line))
-    return caps
+        if e.kind == "d" and model.type == "d":
+            p = {**DIODE, **model.params}
+            _checked(p, ("cjo", "tt", "vj", "m", "fc"), netlist, model)
+            if p["cjo"] == 0 and p["tt"] == 0:
+                continue
+            if p["rs"] > 0:
+                raise NetlistError(netlist.source, model.line, f".model {model.name}: rs "
+                                   f"with a junction capacitance ({e.name}); estim eliminates "
+                                   "the node between rs and the junction, where the "
+                                   "capacitance sits: give rs as a resistor of its own and "
+                                   "the .model rs=0")
+            if p["cjo"] == 0:
+                raise NetlistError(netlist.source, model.line, f".model {model.name}: tt "
+                                   "without cjo; the capacitance would vanish in reverse "
+                                   "bias: give cjo too")
+            out.append(Charge(f"{e.name}.cjo", e, e.nodes[:2], p))
+        elif e.kind == "m" and "level" in model.params:
+            q = {**LEVEL1, **model.params}
+            _checked(q, ("cbd", "cbs", "pb", "mj", "fc"), netlist, model)
+            law = {"vj": q["pb"], "m": q["mj"], "fc": q["fc"], "tt": 0.0}
+            drain, _, source, bulk = e.nodes
+            for key, node in (("cbd", drain), ("cbs", source)):
+                if q[key] > 0:
+                    out.append(Charge(f"{e.name}.{key}", e, (bulk, node), {**law, "cjo": q[key]}))
+    return out
 
 
 def capacitance(v, p: dict) -> tuple[np.ndarray, np.ndarray]:
     """The junction capacitance at junction voltage ``v`` and its derivative in ``v``
-    (the diode has ``rs = 0``)."""
+    (a diode's has ``rs = 0``)."""
     v = np.asarray(v, float)
     cjo, vj, m, fc, tt = p["cjo"], p["vj"], p["m"], p["fc"], p["tt"]
     below = v < fc * vj
@@ -89,8 +119,8 @@ def capacitance(v, p: dict) -> tuple[np.ndarray, np.ndarray]:
 
 @dataclass(frozen=True)
 class Junction:
-    """A charge-storing diode in a model: its anode and cathode (node numbers), its
-    ``.model`` parameters, the KCL rows its charge current leaves (``+1`` the anode's,
+    """A junction capacitance in a model: its anode and cathode (node numbers), its law's
+    parameters, the KCL rows its charge current leaves (``+1`` the anode's,
     ``-1`` the cathode's, ``(k,)``) and its voltage's gradient in the states ``(n,)``."""
 
     a: int
@@ -101,17 +131,17 @@ class Junction:
 
 
 def junction_rows(model) -> list[Junction]:
-    """The model's charge-storing diodes (:attr:`estim.spice.circuit.Circuit.junctions`);
+    """The model's junction capacitances (:attr:`estim.spice.circuit.Circuit.junctions`);
     one whose voltage follows an input or an inductor's current is refused by name (its
     charge current would need their slope)."""
     c = model.circuit
     k = len(c.state_nodes)
     out = []
-    for e in c.junctions:
-        _, p, (a, b) = model._device_of[e.name]
+    for ch in c.junctions:
+        a, b = (model._node[n] for n in ch.nodes)
         grad = model._P[a] - model._P[b]
         if np.any(grad[k:]) or np.any(model._Q[a] - model._Q[b]):
-            raise NetlistError(c.netlist.source, e.line, f"{e.name}: its junction "
+            raise NetlistError(c.netlist.source, ch.device.line, f"{ch.name}: the junction "
                                "capacitance's voltage follows an input or an inductor's "
                                "current, whose slope its charge current would need; put a "
                                "resistor between them")
@@ -119,7 +149,7 @@ def junction_rows(model) -> list[Junction]:
         for node, sign in ((a, 1.0), (b, -1.0)):
             if 0 <= model._rowmap[node] < k:
                 rows[model._rowmap[node]] += sign
-        out.append(Junction(a, b, p, rows, grad))
+        out.append(Junction(a, b, ch.p, rows, grad))
     return out
 
 

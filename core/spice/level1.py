@@ -15,7 +15,8 @@ negated voltages with ``VTO`` negated, its current negated (SPICE's ``type = -1`
 Its overlap capacitances (``cgso``, ``cgdo`` per metre of width, ``cgbo`` per metre of
 length) are linear capacitors from the gate to the source, the drain and the bulk
 (:func:`overlap_capacitors`), as ngspice's ``MOS1`` adds them; without ``tox`` its Meyer
-gate capacitances are zero, as in ngspice.
+gate capacitances are zero, as in ngspice. Its bulk junctions' capacitances ``cbd cbs``
+(``pb mj fc``) are :mod:`estim.spice.junctions`'.
 """
 
 from __future__ import annotations
@@ -25,7 +26,8 @@ import numpy as np
 from estim.spice.parser import Element, NetlistError
 
 LEVEL1 = {"level": 1.0, "vto": 0.0, "kp": 2e-5, "lambda": 0.0, "gamma": 0.0, "phi": 0.6,
-          "cgso": 0.0, "cgdo": 0.0, "cgbo": 0.0}
+          "cgso": 0.0, "cgdo": 0.0, "cgbo": 0.0, "cbd": 0.0, "cbs": 0.0, "pb": 0.8,
+          "mj": 0.5, "fc": 0.5}
 """A level-1 ``.model``'s parameters and ngspice's defaults (``level=1`` selects the law)."""
 
 OVERLAP = {"cgso": (2, "w"), "cgdo": (0, "w"), "cgbo": (3, "l")}

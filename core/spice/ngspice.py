@@ -61,7 +61,9 @@ def _models(net: Netlist) -> tuple[list[str], float | None]:
             q = {**LEVEL1, **p}          # ngspice's own MOS1, its junction diodes off
             lines.append(f".model {m.name} {m.type}(level=1 vto={q['vto']!r} kp={q['kp']!r} "
                          f"lambda={q['lambda']!r} gamma={q['gamma']!r} phi={q['phi']!r} "
-                         f"cgso={q['cgso']!r} cgdo={q['cgdo']!r} cgbo={q['cgbo']!r} is=0)")
+                         f"cgso={q['cgso']!r} cgdo={q['cgdo']!r} cgbo={q['cgbo']!r} "
+                         f"cbd={q['cbd']!r} cbs={q['cbs']!r} pb={q['pb']!r} mj={q['mj']!r} "
+                         f"fc={q['fc']!r} is=0)")
             continue
         if m.type in ("nmos", "pmos"):
             continue                    # EKV devices become B sources (:func:`_ekv_source`)

@@ -33,9 +33,9 @@ def check(config, truth, source: str) -> tuple[Parameter, ...]:
         raise ConfigError(source, "estimate", f"model {config.model.name} is hand-written: "
                           "element values as states need a netlist model (model.netlist)")
     if truth.circuit.junctions:
-        raise ConfigError(source, "estimate", f"{truth.circuit.junctions[0].name} stores "
-                          "charge (a junction capacitance): element values as states take a "
-                          "constant capacitance matrix")
+        raise ConfigError(source, "estimate", f"{truth.circuit.junctions[0].name} is a "
+                          "junction capacitance: element values as states take a constant "
+                          "capacitance matrix")
     out, seen = [], {}
     for i, entry in enumerate(config.estimate):
         path = f"estimate[{i}]"
