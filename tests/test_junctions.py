@@ -186,3 +186,73 @@ def test_a_bulk_junction_estim_cannot_take_is_refused(tmp_path, params, message)
 def test_the_drain_current_of_a_mosfet_with_a_bulk_junction_is_refused(tmp_path):
     with pytest.raises(NetlistError, match=r"m1 stores charge \(m1.cbd\)"):
         model_class(_write(tmp_path, MOS_STAGE), "VIN", "id(M1)", name="netlist:test_jm_id")()
+
+
+GP_STAGE = """a Gummel-Poon common-emitter stage, its junction capacitances and a load capacitor
+* (the junctions alone join b, c and e to each other, not to ground: C would be singular)
+VIN in 0 DC 0.8
+RB in b 10k
+Q1 c b e qn
+RE e 0 100
+RC vcc c 5k
+CL c 0 2p
+VCC vcc 0 DC 10
+.model qn npn(is=1e-15 bf=120 br=2 cje=2p vje=0.7 mje=0.35 cjc=1p vjc=0.6 mjc=0.4
++ tf=0.3n tr=10n)
+"""
+
+
+def test_a_bjts_junctions_are_the_diodes_law(tmp_path):
+    """Base to emitter ``cje vje mje`` and ``tf`` times the forward current's slope, base
+    to collector ``cjc vjc mjc`` and ``tr`` times the reverse current's: at the DC point the
+    capacitance matrix is theirs; the Jacobian against differences."""
+    from estim.spice.junctions import capacitance_matrix
+
+    model = model_class(_write(tmp_path, GP_STAGE), "VIN", "v(c)", name="netlist:test_jq")()
+    assert model.state_names == ("v(b)", "v(c)", "v(e)")
+    x, u = model.operating_point(u=[0.8]), np.array([0.8])
+    vb, vc, ve = x
+    be = capacitance(vb - ve, {**DIODE, "cjo": 2e-12, "vj": 0.7, "m": 0.35, "tt": 0.3e-9,
+                               "is": 1e-15})[0]
+    bc = capacitance(vb - vc, {**DIODE, "cjo": 1e-12, "vj": 0.6, "m": 0.4, "tt": 10e-9,
+                               "is": 1e-15})[0]
+    C = np.array([[be + bc, -bc, -be], [-bc, bc + 2e-12, 0.0], [-be, 0.0, be]])
+    np.testing.assert_allclose(capacitance_matrix(model, model._node_voltages(x, u)), C,
+                               rtol=1e-12, atol=1e-27)
+    z = x + np.array([0.01, -0.2, 0.005])
+    f, J = model.f_and_jacobian(z, u)
+    Jd = np.stack([(model.f(z + 1e-7 * e, u) - model.f(z - 1e-7 * e, u)) / 2e-7
+                   for e in np.eye(3)], axis=-1)
+    np.testing.assert_allclose(J, Jd, rtol=1e-5, atol=1e-6 * np.abs(J).max())
+
+
+@pytest.mark.slow
+@NGSPICE
+def test_the_bjt_stage_agrees_with_ngspices_own_bjt(tmp_path):
+    """ngspice's BJT with the same junction capacitances and transit times: the DC point,
+    every state over a noisy 1 MHz sine and the AC gain within estim spice's bars. Slow:
+    estim's integrator takes it at rtol 1e-10 on the numpy path."""
+    from estim.engine import ngspice_check as compare
+
+    model = model_class(_write(tmp_path, GP_STAGE), "VIN", "v(c)", name="netlist:test_jq_ng")()
+    dt = 1e-8
+    t = np.arange(201) * dt
+    rng = np.random.default_rng(6)
+    source = 0.8 + 0.01 * np.sin(2e6 * np.pi * t) + 0.001 * rng.standard_normal(t.size)
+    rows = compare._tightening("1 MHz", model, source[:, None], dt, 1e6, None, 1e-10, 1e-7, 2)
+    bad = [r for r in rows if r["difference"] > compare.BARS[r["check"]]]
+    assert not bad, bad
+    assert {r["check"] for r in rows} >= {"dc", "ac"}
+
+
+@pytest.mark.parametrize("params, message", [
+    ("tf=1n vaf=50", "tf with vaf, var, ikf or ikr"),
+    ("tr=1n", "tr without cjc"),
+    ("cjc=1p mjc=1", "expected vjc > 0, 0 <= mjc < 1, 0 <= fc < 1"),
+    ("cje=1p cjc=1p cjs=1p", "cjs: estim's Gummel-Poon is the static law and its junction "
+                             "capacitances"),
+])
+def test_a_bjt_charge_estim_cannot_take_is_refused(tmp_path, params, message):
+    text = GP_STAGE.split(".model")[0] + f".model qn npn(is=1e-15 bf=120 {params})\n"
+    with pytest.raises(NetlistError, match=message):
+        model_class(_write(tmp_path, text), "VIN", "v(c)", name="netlist:test_jq_bad")()

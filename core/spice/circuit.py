@@ -177,9 +177,11 @@ class Circuit:
                 if unknown & set(DYNAMIC) and known is GUMMEL_POON:
                     raise NetlistError(src, model.line, f".model {model.name}: "
                                        f"{', '.join(sorted(unknown & set(DYNAMIC)))}: estim's "
-                                       "Gummel-Poon is the static law (no series resistances, "
-                                       "charges or temperature terms); give the resistances "
-                                       "as elements and the nodes capacitors of their own")
+                                       "Gummel-Poon is the static law and its junction "
+                                       "capacitances (no series resistances, substrate "
+                                       "capacitance, xtf/vtf/itf or temperature terms); give "
+                                       "the resistances as elements and the nodes capacitors "
+                                       "of their own")
                 if unknown:
                     raise NetlistError(src, model.line, f".model {model.name}: unknown "
                                        f"parameter(s) {sorted(unknown)}; expected "
@@ -428,8 +430,8 @@ class Circuit:
                 cap = caps[0]
                 own = cap in net.elements
                 device, _, what = cap.name.rpartition(".")
-                what = ("a junction capacitance" if what in ("cjo", "cbd", "cbs") else
-                        "an overlap capacitance")
+                what = ("a junction capacitance" if what in ("cjo", "cbd", "cbs", "cje", "cjc")
+                        else "an overlap capacitance")
                 where = "this capacitor" if own else f"{cap.name} ({what} of {device})"
                 fix = ("in series with the capacitor" if own else
                        f"between {e.name} and node {node}")

@@ -6,7 +6,9 @@ fc`` and its diffusion capacitance ``tt g(v)``,
          = cjo / F2 (F3 + m v / vj)                            v >= fc vj
            + tt dI/dv,          F2 = (1 - fc)^(1 + m),  F3 = 1 - fc (1 + m),
 
-the two depletion branches meeting in value and slope at ``fc vj``; a level-1 MOSFET's
+the two depletion branches meeting in value and slope at ``fc vj``; a Gummel-Poon BJT's
+base-emitter (``cje vje mje tf``) and base-collector (``cjc vjc mjc tr``) junctions by the
+same law (:func:`_bjt_charges`); a level-1 MOSFET's
 bulk-drain and bulk-source junctions by the same depletion law, ``cbd`` and ``cbs`` for
 ``cjo``, ``pb`` for ``vj`` and ``mj`` for ``m`` (their diodes conduct nothing here, as
 estim's level 1 and the ngspice deck have ``is=0``). In a netlist each capacitance joins
@@ -25,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from estim.spice.devices import DIODE, DIODE_VT, REVERSE_KNEE, diode, diode_reverse
+from estim.spice.gummel_poon import GUMMEL_POON, is_gummel_poon
 from estim.spice.level1 import LEVEL1
 from estim.spice.parser import Element, NetlistError
 
@@ -66,7 +69,7 @@ def junction_capacitors(netlist) -> list[Charge]:
     zero. A ``.model`` whose charge parameters estim cannot take is refused by name."""
     out = []
     for e in netlist.elements:
-        model = netlist.models.get(e.ref) if e.kind in "dm" else None
+        model = netlist.models.get(e.ref) if e.kind in "dqm" else None
         if model is None:
             continue
         if e.kind == "d" and model.type == "d":
@@ -85,6 +88,8 @@ def junction_capacitors(netlist) -> list[Charge]:
                                    "without cjo; the capacitance would vanish in reverse "
                                    "bias: give cjo too")
             out.append(Charge(f"{e.name}.cjo", e, e.nodes[:2], p))
+        elif e.kind == "q" and model.type in ("npn", "pnp") and is_gummel_poon(model.params):
+            out += _bjt_charges(e, model, netlist)
         elif e.kind == "m" and "level" in model.params:
             q = {**LEVEL1, **model.params}
             _checked(q, ("cbd", "cbs", "pb", "mj", "fc"), netlist, model)
@@ -93,6 +98,36 @@ def junction_capacitors(netlist) -> list[Charge]:
             for key, node in (("cbd", drain), ("cbs", source)):
                 if q[key] > 0:
                     out.append(Charge(f"{e.name}.{key}", e, (bulk, node), {**law, "cjo": q[key]}))
+    return out
+
+
+def _bjt_charges(e, model, netlist) -> list[Charge]:
+    """A Gummel-Poon BJT's base-emitter (``cje vje mje``, diffusion ``tf`` of the forward
+    current ``is (exp(v_BE / (nf V_T)) - 1)``) and base-collector (``cjc vjc mjc``, ``tr`` of
+    the reverse current) junction capacitances; for a PNP the junctions point the other
+    way. ``tf`` beside ``vaf var ikf ikr`` is refused: the base charge ``q_b`` then makes the
+    forward diffusion charge depend on ``v_BC`` too (a transcapacitance)."""
+    q = {**GUMMEL_POON, **model.params}
+    c, b, em = e.nodes[:3]
+    out = []
+    for name, tt, n, node in (("cje", "tf", "nf", em), ("cjc", "tr", "nr", c)):
+        vj, m = f"v{name[1:]}", f"m{name[1:]}"
+        _checked(q, (name, tt, vj, m, "fc"), netlist, model)
+        if q[name] == 0 and q[tt] == 0:
+            continue
+        if tt == "tf" and q["tf"] > 0 and any(q[k] for k in ("vaf", "var", "ikf", "ikr")):
+            raise NetlistError(netlist.source, model.line, f".model {model.name}: tf with "
+                               "vaf, var, ikf or ikr; the base charge q_b makes the forward "
+                               "diffusion charge depend on v_BC too (a transcapacitance "
+                               "estim does not carry): give tf=0 or leave those out")
+        if q[name] == 0:
+            raise NetlistError(netlist.source, model.line, f".model {model.name}: {tt} "
+                               f"without {name}; the capacitance would vanish in reverse "
+                               f"bias: give {name} too")
+        law = {"cjo": q[name], "vj": q[vj], "m": q[m], "fc": q["fc"], "tt": q[tt],
+               "is": q["is"], "n": q[n], "rs": 0.0}
+        ends = (b, node) if model.type == "npn" else (node, b)
+        out.append(Charge(f"{e.name}.{name}", e, ends, law))
     return out
 
 

@@ -68,7 +68,7 @@ def _models(net: Netlist) -> tuple[list[str], float | None]:
         if m.type in ("nmos", "pmos"):
             continue                    # EKV devices become B sources (:func:`_ekv_source`)
         if m.type in ("npn", "pnp") and is_gummel_poon(p):
-            q = {**GUMMEL_POON, **p}     # ngspice's own BJT, its static part
+            q = {**GUMMEL_POON, **p}     # ngspice's own BJT: its static law and junctions
             vt = vt or DIODE_VT
             lines.append(f".model {m.name} {m.type}("
                          + " ".join(f"{k}={float(q[k])!r}" for k in GUMMEL_POON) + ")")
