@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from estim.spice.breakdown import breakdown, breakdown_voltage
 from estim.spice.gummel_poon import GUMMEL_POON, is_gummel_poon
 from estim.spice.level1 import LEVEL1, level1
 from estim.util import lazy
@@ -21,9 +22,19 @@ DIODE_VT = 0.025852
 
 
 DIODE = {"is": 1e-14, "n": 1.0, "rs": 0.0, "cjo": 0.0, "vj": 1.0, "m": 0.5, "tt": 0.0,
-         "fc": 0.5}
+         "fc": 0.5, "bv": 0.0, "ibv": 1e-3, "nbv": 0.0}
 """A diode ``.model``'s parameters and SPICE's defaults (the charge ones:
-:mod:`estim.spice.junctions`)."""
+:mod:`estim.spice.junctions`; ``bv`` 0 for none and ``nbv`` 0 for ``n``:
+:mod:`estim.spice.breakdown`)."""
+
+
+def diode_params(params: dict) -> dict:
+    """A diode ``.model``'s parameters with the defaults, and ``xbv``, the fitted
+    breakdown voltage, where it gives ``bv``."""
+    p = {**DIODE, **params}
+    if p["bv"] > 0:
+        p["xbv"] = breakdown_voltage(p, DIODE_VT)
+    return p
 
 
 BJT = {"ies": 1e-14, "alpha_f": 0.99, "alpha_r": 0.5, "vt": 0.025852, "ics": None}
@@ -70,8 +81,9 @@ def diode(vd, p):
     """Shockley diode with series resistance: current and conductance. With ``rs > 0`` the
     junction voltage is eliminated in closed form: ``i = a W(b e^{(v + Is rs)/a}) / rs - Is``
     with ``a = n V_T``, ``b = Is rs / a`` (Lambert W). Below the knee (a junction voltage
-    under ``-3 a``) SPICE's reverse law instead (:data:`REVERSE_KNEE`), as ngspice computes
-    a diode without breakdown."""
+    under ``-3 a``) SPICE's reverse law instead (:data:`REVERSE_KNEE`), and below ``-xbv``
+    its breakdown law where ``p`` has ``xbv`` (:func:`diode_params`,
+    :mod:`estim.spice.breakdown`)."""
     a = p["n"] * DIODE_VT
     Is, rs = p["is"], p["rs"]
     if rs <= 0:
@@ -89,6 +101,10 @@ def diode(vd, p):
     if np.any(reverse):
         ir, gr, _ = diode_reverse(np.where(reverse, vd, -REVERSE_KNEE * a - 1.0), Is, a, rs)
         i, g = np.where(reverse, ir, i), np.where(reverse, gr, g)
+    if p.get("xbv") is not None:
+        ib, gb, _, vj = breakdown(vd, p, DIODE_VT)
+        down = vj < -p["xbv"]
+        i, g = np.where(down, ib, i), np.where(down, gb, g)
     return i, g
 
 
@@ -112,6 +128,8 @@ def diode_slope(vd, cur, g, p):
     """The derivative of :func:`diode`'s conductance at ``vd`` (its current ``cur`` and
     conductance ``g``, one point)."""
     aa = p["n"] * DIODE_VT
+    if p.get("xbv") is not None and vd - p["rs"] * cur < -p["xbv"]:
+        return float(breakdown(vd, p, DIODE_VT)[2])
     if vd - p["rs"] * cur < -REVERSE_KNEE * aa:
         return float(diode_reverse(vd, p["is"], aa, p["rs"])[2])
     y = cur + p["is"]

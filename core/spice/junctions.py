@@ -26,7 +26,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estim.spice.devices import DIODE, DIODE_VT, REVERSE_KNEE, diode, diode_reverse
+from estim.spice.breakdown import breakdown
+from estim.spice.devices import (
+    DIODE,
+    DIODE_VT,
+    REVERSE_KNEE,
+    diode,
+    diode_params,
+    diode_reverse,
+)
 from estim.spice.gummel_poon import GUMMEL_POON, is_gummel_poon
 from estim.spice.level1 import LEVEL1
 from estim.spice.parser import Element, NetlistError
@@ -73,7 +81,12 @@ def junction_capacitors(netlist) -> list[Charge]:
         if model is None:
             continue
         if e.kind == "d" and model.type == "d":
-            p = {**DIODE, **model.params}
+            raw = {**DIODE, **model.params}
+            if ("bv" in model.params and raw["bv"] <= 0) or raw["ibv"] <= 0 or raw["nbv"] < 0:
+                raise NetlistError(netlist.source, model.line, f".model {model.name}: bv "
+                                   f"{raw['bv']:g}, ibv {raw['ibv']:g}, nbv {raw['nbv']:g}; "
+                                   "expected bv > 0, ibv > 0, nbv >= 0 (0: n)")
+            p = diode_params(model.params)
             _checked(p, ("cjo", "tt", "vj", "m", "fc"), netlist, model)
             if p["cjo"] == 0 and p["tt"] == 0:
                 continue
@@ -148,6 +161,9 @@ def capacitance(v, p: dict) -> tuple[np.ndarray, np.ndarray]:
         reverse = v < -REVERSE_KNEE * a
         dg = np.where(reverse, diode_reverse(np.where(reverse, v, -REVERSE_KNEE * a - 1.0),
                                              p["is"], a, 0.0)[2], g / a)
+        if p.get("xbv") is not None:                    # breakdown: ngspice's tt g there too
+            _, _, dgb, vj = breakdown(v, {**p, "rs": 0.0}, DIODE_VT)
+            dg = np.where(vj < -p["xbv"], dgb, dg)
         C, dC = C + tt * g, dC + tt * dg
     return C, dC
 

@@ -18,6 +18,7 @@ from estim.spice.devices import (
     DIODE_VT,
     collector_saturation,
     diode,
+    diode_params,
     diode_slope,
     model_defaults,
     mosfet,
@@ -148,6 +149,8 @@ class NetlistModel(Model, metaclass=NetlistClass):
             elif e.kind in "dqm":
                 model = c.netlist.models[e.ref]
                 prm = {**model_defaults(model), **model.params}
+                if e.kind == "d":
+                    prm = diode_params(model.params)
                 if e.kind == "m" and "level" in prm:
                     size = {"w": 1.0, "l": 1.0, **dict(e.size)}
                     prm = {**mirrored(model.type, prm), "w_over_l": size["w"] / size["l"]}
@@ -304,8 +307,9 @@ class NetlistModel(Model, metaclass=NetlistClass):
         n, p = self.n_states, self.n_inputs
         k, N = len(self.circuit.state_nodes), self._P.shape[0]
         rows = []
-        if any(kind == "b" for kind, _, _ in self._devices) or self._junctions:
-            return None                  # a behavioural source or C(x): the numpy path
+        if (any(kind == "b" or "xbv" in prm for kind, prm, _ in self._devices)
+                or self._junctions):
+            return None                  # a B source, a breakdown or C(x): the numpy path
         for kind, prm, idx in self._devices:
             nodes = [*idx, -1, -1, -1][:4]
             if kind == "d":

@@ -82,9 +82,10 @@ def _models(net: Netlist) -> tuple[list[str], float | None]:
                          f"bf={aF / (1 - aF)!r} br={aR / (1 - aR)!r})")
         elif m.type == "d":
             vt = vt or DIODE_VT
-            q = {**DIODE, **p}
+            q = {**DIODE, **p}          # bv only where given (ngspice: a breakdown at bv)
+            keys = [k for k in DIODE if k not in ("bv", "ibv", "nbv") or k in p]
             lines.append(f".model {m.name} d("
-                         + " ".join(f"{k}={float(q[k])!r}" for k in DIODE) + ")")
+                         + " ".join(f"{k}={float(q[k])!r}" for k in keys) + ")")
         else:
             raise NgspiceError(f".model {m.name}: type {m.type} has no ngspice translation yet")
     return lines, vt

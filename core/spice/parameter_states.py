@@ -63,7 +63,10 @@ def split(model: NetlistModel, name: str) -> tuple[str, str | None]:
 
 
 def allowed(kind: str, prm: dict) -> tuple[str, ...]:
-    """The ``.model`` parameters of a device of type ``kind`` that may be states."""
+    """The ``.model`` parameters of a device of type ``kind`` that may be states (none of
+    a diode that breaks down)."""
+    if "xbv" in prm:
+        return ()
     return (LEVEL1_ESTIMABLE if "level" in prm else
             GUMMEL_POON_ESTIMABLE if "bf" in prm else ESTIMABLE[kind])
 
@@ -103,6 +106,10 @@ def value_of(model: NetlistModel, name: str) -> float:
         raise ValueError(f"{name}: only a diode's, BJT's or MOSFET's parameter "
                          "(D1.is, Q1.ies, M1.kp) may be a state")
     kind, prm, _ = model._device_of[e.name]
+    if "xbv" in prm:
+        raise ValueError(f"{name}: {element.upper()} breaks down (bv), and its fitted "
+                         "breakdown voltage depends on is and n: its parameters cannot be "
+                         "states")
     if field not in allowed(kind, prm):
         names = ", ".join(f"{element.upper()}.{a}" for a in allowed(kind, prm))
         raise ValueError(f"{name}: expected one of {names}")
