@@ -50,6 +50,7 @@ import numpy as np
 
 from estim.spice.devices import NMOS_LAWS, model_defaults
 from estim.spice.gummel_poon import DYNAMIC, GUMMEL_POON
+from estim.spice.internal_nodes import expand
 from estim.spice.junctions import junction_capacitors
 from estim.spice.level1 import overlap_capacitors
 from estim.spice.parser import Netlist, NetlistError
@@ -77,7 +78,11 @@ class Circuit:
     """What is measured: one quantity (:data:`OUTPUTS`) or several."""
 
     def __post_init__(self) -> None:
+        given = {n for e in self.netlist.elements for n in e.nodes}
+        self.netlist = expand(self.netlist)      # series resistances to internal nodes
         net, src = self.netlist, self.netlist.source
+        self.internal = {n for e in net.elements for n in e.nodes} - given
+        """The internal nodes :func:`estim.spice.internal_nodes.expand` added."""
         self.junctions = junction_capacitors(net)
         """The junction capacitances (:mod:`estim.spice.junctions`): the model adds
         ``C(v) - cjo`` of each to the constant ``C``."""
@@ -155,10 +160,15 @@ class Circuit:
         C, B = self._set_apart_algebraic(C, B, root)
         k = len(self.state_nodes)
         if k and np.linalg.matrix_rank(C) < k:
+            group = self._floating_group(C)
+            inner = [n for n in group if n in self.internal]
+            hint = (f" ({', '.join(inner)}: internal nodes of series resistances, which no "
+                    "capacitor of the netlist reaches; leave one of the resistances out)"
+                    if inner else "")
             raise NetlistError(src, 0, "the nodal capacitance matrix is singular: node(s) "
-                               f"{', '.join(self._floating_group(C))} are joined only by "
-                               "capacitors, with no capacitor to the rest: add a shunt "
-                               "capacitor to one of them")
+                               f"{', '.join(group)} are joined only by capacitors, with no "
+                               "capacitor to the rest: add a shunt capacitor to one of "
+                               f"them{hint}")
         self.C = C
         self.C_inv = np.linalg.inv(C) if k else np.zeros((0, 0))
         self.B = B
@@ -177,11 +187,10 @@ class Circuit:
                 if unknown & set(DYNAMIC) and known is GUMMEL_POON:
                     raise NetlistError(src, model.line, f".model {model.name}: "
                                        f"{', '.join(sorted(unknown & set(DYNAMIC)))}: estim's "
-                                       "Gummel-Poon is the static law and its junction "
-                                       "capacitances (no series resistances, substrate "
-                                       "capacitance, xtf/vtf/itf or temperature terms); give "
-                                       "the resistances as elements and the nodes capacitors "
-                                       "of their own")
+                                       "Gummel-Poon is the static law, its junction "
+                                       "capacitances and series resistances (no substrate "
+                                       "capacitance, irb/rbm, xtf/vtf/itf or temperature "
+                                       "terms); give the nodes capacitors of their own")
                 if unknown:
                     raise NetlistError(src, model.line, f".model {model.name}: unknown "
                                        f"parameter(s) {sorted(unknown)}; expected "

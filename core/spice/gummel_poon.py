@@ -1,6 +1,6 @@
 """SPICE's Gummel-Poon bipolar transistor, its static law (ngspice's ``BJT``, level 1, without
-the series resistances and the temperature terms; its junction capacitances are
-:mod:`estim.spice.junctions`'): for an NPN with
+the temperature terms; its junction capacitances are :mod:`estim.spice.junctions`', its
+series resistances :mod:`estim.spice.internal_nodes`'): for an NPN with
 ``v_BE``, ``v_BC`` and ``V_T = kT/q``,
 
     I_BE = IS (exp(v_BE / (NF V_T)) - 1),      I_BC = IS (exp(v_BC / (NR V_T)) - 1),
@@ -25,16 +25,16 @@ from estim.models.devices.ebers_moll import TerminalCurrents
 GUMMEL_POON = {"is": 1e-16, "bf": 100.0, "br": 1.0, "nf": 1.0, "nr": 1.0, "vaf": 0.0,
                "var": 0.0, "ikf": 0.0, "ikr": 0.0, "ise": 0.0, "ne": 1.5, "isc": 0.0,
                "nc": 2.0, "cje": 0.0, "vje": 0.75, "mje": 0.33, "cjc": 0.0, "vjc": 0.75,
-               "mjc": 0.33, "tf": 0.0, "tr": 0.0, "fc": 0.5}
+               "mjc": 0.33, "tf": 0.0, "tr": 0.0, "fc": 0.5, "rb": 0.0, "rc": 0.0, "re": 0.0}
 """A Gummel-Poon ``.model``'s parameters and SPICE's defaults (0: infinite for ``vaf``,
 ``var``, ``ikf``, ``ikr``); the junction capacitances' (``cje`` to ``fc``) are
-:mod:`estim.spice.junctions`'."""
+:mod:`estim.spice.junctions`', the series resistances' :mod:`estim.spice.internal_nodes`'."""
 
 STATIC = ("is", "bf", "br", "nf", "nr", "vaf", "var", "ikf", "ikr", "ise", "ne", "isc", "nc")
 """The parameters of the static law (the ngspice deck's and the compiled kernel's)."""
 
-DYNAMIC = ("rb", "irb", "rbm", "re", "rc", "xcjc", "cjs", "vjs", "mjs", "xtf", "vtf", "itf",
-           "ptf", "xtb", "eg", "xti", "kf", "af", "tnom")
+DYNAMIC = ("irb", "rbm", "xcjc", "cjs", "vjs", "mjs", "xtf", "vtf", "itf", "ptf", "xtb", "eg",
+           "xti", "kf", "af", "tnom")
 """SPICE BJT parameters outside the law here: refused by name (:func:`check`)."""
 
 

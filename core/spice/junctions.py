@@ -13,11 +13,10 @@ bulk-drain and bulk-source junctions by the same depletion law, ``cbd`` and ``cb
 ``cjo``, ``pb`` for ``vj`` and ``mj`` for ``m`` (their diodes conduct nothing here, as
 estim's level 1 and the ngspice deck have ``is=0``). In a netlist each capacitance joins
 the nodal capacitance matrix between its two nodes, so the drift is ``C(x)^-1`` times the
-currents (:class:`estim.spice.netlist_model.NetlistModel`). A diode with ``rs`` and a
-capacitance is refused: its capacitance sits at the junction behind ``rs``, a node
-estim's closed form for ``rs`` eliminates (give ``rs`` as a resistor); so is ``tt``
-without ``cjo`` (the capacitance would vanish in reverse bias and leave the node's row of
-``C`` empty).
+currents (:class:`estim.spice.netlist_model.NetlistModel`). A diode's ``rs`` beside a
+capacitance is a resistor to an internal node by then (:mod:`estim.spice.internal_nodes`),
+as the capacitance sits at the junction behind it. ``tt`` without ``cjo`` is refused (the
+capacitance would vanish in reverse bias and leave the node's row of ``C`` empty).
 """
 
 from __future__ import annotations
@@ -90,12 +89,6 @@ def junction_capacitors(netlist) -> list[Charge]:
             _checked(p, ("cjo", "tt", "vj", "m", "fc"), netlist, model)
             if p["cjo"] == 0 and p["tt"] == 0:
                 continue
-            if p["rs"] > 0:
-                raise NetlistError(netlist.source, model.line, f".model {model.name}: rs "
-                                   f"with a junction capacitance ({e.name}); estim eliminates "
-                                   "the node between rs and the junction, where the "
-                                   "capacitance sits: give rs as a resistor of its own and "
-                                   "the .model rs=0")
             if p["cjo"] == 0:
                 raise NetlistError(netlist.source, model.line, f".model {model.name}: tt "
                                    "without cjo; the capacitance would vanish in reverse "
