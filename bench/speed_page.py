@@ -33,6 +33,7 @@ SECTIONS = (
     ("ekf_steps", "Where an EKF step's time goes"),
     ("simulate", "The actual signal: integrators"),
     ("newton", "The integrator's Newton iteration: full against simplified"),
+    ("rtol", "What the integrator's tolerance is worth"),
     ("letkf_sqrt", "The LETKF's symmetric inverse square root"),
     ("expansion", "Chapter 2: exact propagation of the expansion"),
     ("field", "Chapter 5: the field simulation and filter against the grid"),

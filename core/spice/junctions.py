@@ -72,8 +72,9 @@ def _checked(p: dict, keys: tuple[str, ...], netlist, model) -> None:
 
 
 def junction_capacitors(netlist) -> list[Charge]:
-    """Every junction capacitance of the netlist's diodes and level-1 MOSFETs that is not
-    zero. A ``.model`` whose charge parameters estim cannot take is refused by name."""
+    """Every junction capacitance of the netlist's diodes, Gummel-Poon BJTs and level-1
+    MOSFETs that is not zero. A ``.model`` whose charge (or a diode's breakdown)
+    parameters estim cannot take is refused by name."""
     out = []
     for e in netlist.elements:
         model = netlist.models.get(e.ref) if e.kind in "dqm" else None
