@@ -83,8 +83,8 @@ def main(argv: list[str] | None = None) -> None:
                 rows.append(row)
                 print(f"{name:<28}{rtol:>8g}{times[rtol]:>9.1f}"
                       f"{times[own] / times[rtol]:>7.2f}{move:>11.2e}", flush=True)
-    record.save("rtol", rows, __doc__, command="python bench/bench_rtol.py "
-                + " ".join(argv if argv is not None else sys.argv[1:]))
+    record.save("rtol", rows, __doc__, command=" ".join(
+        ["python bench/bench_rtol.py", *(argv if argv is not None else sys.argv[1:])]))
 
 
 if __name__ == "__main__":
