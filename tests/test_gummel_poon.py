@@ -113,7 +113,7 @@ def test_the_two_stage_amplifier_agrees_with_ngspices_own_bjt(tmp_path):
 
 @pytest.mark.parametrize("model, message", [
     ("npn(is=1e-15 bf=100 rb=100)", "rb without cje or cjc; its internal node"),
-    ("npn(is=1e-15 vtf=1 xtf=1)", "vtf, xtf: estim's Gummel-Poon"),
+    ("npn(is=1e-15 cjs=1p ptf=1)", "cjs, ptf: estim's Gummel-Poon"),
     ("npn(is=1e-15 ies=1e-14)", "unknown parameter(s) ['ies']"),
 ])
 def test_spice_parameters_outside_the_static_law_are_refused_by_name(tmp_path, model,

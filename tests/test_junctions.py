@@ -245,7 +245,6 @@ def test_the_bjt_stage_agrees_with_ngspices_own_bjt(tmp_path):
 
 
 @pytest.mark.parametrize("params, message", [
-    ("tf=1n vaf=50", "tf with vaf, var, ikf or ikr"),
     ("tr=1n", "tr without cjc"),
     ("cjc=1p mjc=1", "expected vjc > 0, 0 <= mjc < 1, 0 <= fc < 1"),
     ("cje=1p cjc=1p cjs=1p", "cjs: estim's Gummel-Poon is the static law, its junction "
@@ -327,3 +326,50 @@ def test_a_series_resistance_without_a_capacitance_at_its_node_is_refused(tmp_pa
         "+ tf=0.3n tr=10n)", "+ tr=10n re=3)")
     with pytest.raises(NetlistError, match=r"re without cje; its internal node \(q1\)"):
         model_class(_write(tmp_path, text), "VIN", "v(c)", name="netlist:test_jq_rbad")()
+
+
+TRANSIT = GP_STAGE.replace("+ tf=0.3n tr=10n)",
+                           "+ tf=0.3n tr=10n vaf=50 ikf=20m xtf=2 vtf=4 itf=0.1)")
+
+
+def test_a_transit_charge_with_the_base_charge_is_a_transcapacitance(tmp_path):
+    """Beside ``vaf ikf`` and ``xtf vtf itf`` the forward transit charge is a charge of
+    ``v_BE`` and ``v_BC`` both: at a point of forward bias its slope in ``v_BC`` is not
+    zero (its part of ``C`` in the collector's column), and the drift's Jacobian equals
+    its differences."""
+    from estim.spice.junctions import transit_charge
+
+    model = model_class(_write(tmp_path, TRANSIT), "VIN", "v(c)", name="netlist:test_jt")()
+    x, u = model.operating_point(u=[0.8]), np.array([0.8])
+    j = next(j for j in model._junctions if j.grads.shape[0] == 2)
+    V = model._node_voltages(x, u)
+    v = np.array([V[a] - V[b] for a, b in j.nodes])
+    slopes, _ = j.law(v)
+    p = model.circuit.junctions[[c.name for c in model.circuit.junctions].index("q1.tf")].p
+    for i in range(2):
+        e = np.eye(2)[i] * 1e-6
+        assert slopes[i] == pytest.approx((transit_charge(*(v + e), p)
+                                           - transit_charge(*(v - e), p)) / 2e-6, rel=1e-6)
+    assert abs(slopes[1]) > 1e-5 * abs(slopes[0]) > 0
+    z = x + np.array([0.01, -0.2, 0.005])
+    f, J = model.f_and_jacobian(z, u)
+    Jd = np.stack([(model.f(z + 1e-7 * e, u) - model.f(z - 1e-7 * e, u)) / 2e-7
+                   for e in np.eye(3)], axis=-1)
+    np.testing.assert_allclose(J, Jd, rtol=1e-5, atol=1e-6 * np.abs(J).max())
+
+
+@pytest.mark.slow
+@NGSPICE
+def test_the_transit_charge_agrees_with_ngspices_own_bjt(tmp_path):
+    """ngspice's BJT with ``tf`` beside ``vaf ikf xtf vtf itf``: the DC point, every state
+    over a noisy 1 MHz sine and the AC gain within estim spice's bars."""
+    from estim.engine import ngspice_check as compare
+
+    model = model_class(_write(tmp_path, TRANSIT), "VIN", "v(c)", name="netlist:test_jt_ng")()
+    dt = 1e-8
+    t = np.arange(201) * dt
+    rng = np.random.default_rng(9)
+    source = 0.8 + 0.01 * np.sin(2e6 * np.pi * t) + 0.001 * rng.standard_normal(t.size)
+    rows = compare._tightening("1 MHz", model, source[:, None], dt, 1e6, None, 1e-10, 1e-7, 2)
+    bad = [r for r in rows if r["difference"] > compare.BARS[r["check"]]]
+    assert not bad, bad

@@ -87,7 +87,7 @@ class Circuit:
         """The junction capacitances (:mod:`estim.spice.junctions`): the model adds
         ``C(v) - cjo`` of each to the constant ``C``."""
         self.elements = [*net.elements, *overlap_capacitors(net),
-                         *(ch.capacitor() for ch in self.junctions)]
+                         *(ch.capacitor() for ch in self.junctions if ch.p["cjo"])]
         """The netlist's elements, the level-1 MOSFETs' overlap capacitors and each junction
         capacitance at zero bias."""
         self.outputs = (self.output,) if isinstance(self.output, str) else tuple(self.output)

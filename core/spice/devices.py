@@ -22,10 +22,11 @@ DIODE_VT = 0.025852
 
 
 DIODE = {"is": 1e-14, "n": 1.0, "rs": 0.0, "cjo": 0.0, "vj": 1.0, "m": 0.5, "tt": 0.0,
-         "fc": 0.5, "bv": 0.0, "ibv": 1e-3, "nbv": 0.0}
+         "fc": 0.5, "bv": 0.0, "ibv": 1e-3, "nbv": 0.0, "eg": 1.11, "xti": 3.0}
 """A diode ``.model``'s parameters and SPICE's defaults (the charge ones:
 :mod:`estim.spice.junctions`; ``bv`` 0 for none and ``nbv`` 0 for ``n``:
-:mod:`estim.spice.breakdown`)."""
+:mod:`estim.spice.breakdown`; the temperature terms ``eg xti`` have no effect at the
+nominal temperature, where estim and its ngspice decks run)."""
 
 
 def diode_params(params: dict) -> dict:

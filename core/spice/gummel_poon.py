@@ -25,16 +25,18 @@ from estim.models.devices.ebers_moll import TerminalCurrents
 GUMMEL_POON = {"is": 1e-16, "bf": 100.0, "br": 1.0, "nf": 1.0, "nr": 1.0, "vaf": 0.0,
                "var": 0.0, "ikf": 0.0, "ikr": 0.0, "ise": 0.0, "ne": 1.5, "isc": 0.0,
                "nc": 2.0, "cje": 0.0, "vje": 0.75, "mje": 0.33, "cjc": 0.0, "vjc": 0.75,
-               "mjc": 0.33, "tf": 0.0, "tr": 0.0, "fc": 0.5, "rb": 0.0, "rc": 0.0, "re": 0.0}
+               "mjc": 0.33, "tf": 0.0, "tr": 0.0, "fc": 0.5, "rb": 0.0, "rc": 0.0, "re": 0.0,
+               "xtf": 0.0, "vtf": 0.0, "itf": 0.0, "xti": 3.0, "eg": 1.11, "xtb": 0.0}
 """A Gummel-Poon ``.model``'s parameters and SPICE's defaults (0: infinite for ``vaf``,
-``var``, ``ikf``, ``ikr``); the junction capacitances' (``cje`` to ``fc``) are
-:mod:`estim.spice.junctions`', the series resistances' :mod:`estim.spice.internal_nodes`'."""
+``var``, ``ikf``, ``ikr``, and for ``vtf``); the junction capacitances' and transit
+times' (``cje`` to ``fc``, ``xtf vtf itf``) are :mod:`estim.spice.junctions`', the series
+resistances' :mod:`estim.spice.internal_nodes`'; the temperature terms ``xti eg xtb`` have
+no effect at the nominal temperature, where estim and its ngspice decks run."""
 
 STATIC = ("is", "bf", "br", "nf", "nr", "vaf", "var", "ikf", "ikr", "ise", "ne", "isc", "nc")
 """The parameters of the static law (the ngspice deck's and the compiled kernel's)."""
 
-DYNAMIC = ("irb", "rbm", "xcjc", "cjs", "vjs", "mjs", "xtf", "vtf", "itf", "ptf", "xtb", "eg",
-           "xti", "kf", "af", "tnom")
+DYNAMIC = ("irb", "rbm", "xcjc", "cjs", "vjs", "mjs", "ptf", "kf", "af", "tnom")
 """SPICE BJT parameters outside the law here: refused by name (:func:`check`)."""
 
 
@@ -42,6 +44,18 @@ def is_gummel_poon(params: dict) -> bool:
     """Whether a ``.model npn/pnp`` gives SPICE's parameters (``is bf ...``) rather than
     estim's Ebers-Moll ones (``ies alpha_f ...``)."""
     return bool(set(params) & (set(GUMMEL_POON) | set(DYNAMIC)))
+
+
+def base_charge(v_be, v_bc, p: dict, vt: float):
+    """``q_b`` of the module's text at ``v_BE``, ``v_BC`` (complex too: the transit charge's
+    slopes are taken by the complex step, :func:`estim.spice.junctions.transit_law`)."""
+    i_be = p["is"] * (np.exp(v_be / (p["nf"] * vt)) - 1)
+    i_bc = p["is"] * (np.exp(v_bc / (p["nr"] * vt)) - 1)
+    q1 = 1.0 / (1.0 - inverse(p["vaf"]) * v_bc - inverse(p["var"]) * v_be)
+    if not (p["ikf"] or p["ikr"]):
+        return q1
+    q2 = inverse(p["ikf"]) * i_be + inverse(p["ikr"]) * i_bc
+    return q1 * (1.0 + np.sqrt(1.0 + 4.0 * q2)) / 2.0
 
 
 def inverse(value):

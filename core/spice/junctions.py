@@ -21,6 +21,7 @@ capacitance would vanish in reverse bias and leave the node's row of ``C`` empty
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,7 +35,7 @@ from estim.spice.devices import (
     diode_params,
     diode_reverse,
 )
-from estim.spice.gummel_poon import GUMMEL_POON, is_gummel_poon
+from estim.spice.gummel_poon import GUMMEL_POON, base_charge, inverse, is_gummel_poon
 from estim.spice.level1 import LEVEL1
 from estim.spice.parser import Element, NetlistError
 
@@ -112,8 +113,9 @@ def _bjt_charges(e, model, netlist) -> list[Charge]:
     """A Gummel-Poon BJT's base-emitter (``cje vje mje``, diffusion ``tf`` of the forward
     current ``is (exp(v_BE / (nf V_T)) - 1)``) and base-collector (``cjc vjc mjc``, ``tr`` of
     the reverse current) junction capacitances; for a PNP the junctions point the other
-    way. ``tf`` beside ``vaf var ikf ikr`` is refused: the base charge ``q_b`` then makes the
-    forward diffusion charge depend on ``v_BC`` too (a transcapacitance)."""
+    way. Beside ``vaf var ikf ikr`` or ``xtf`` the forward transit charge depends on
+    ``v_BC`` too (:func:`transit_charge`): a charge of its own, ``q1.tf``, of both
+    voltages (a transcapacitance)."""
     q = {**GUMMEL_POON, **model.params}
     c, b, em = e.nodes[:3]
     out = []
@@ -122,11 +124,6 @@ def _bjt_charges(e, model, netlist) -> list[Charge]:
         _checked(q, (name, tt, vj, m, "fc"), netlist, model)
         if q[name] == 0 and q[tt] == 0:
             continue
-        if tt == "tf" and q["tf"] > 0 and any(q[k] for k in ("vaf", "var", "ikf", "ikr")):
-            raise NetlistError(netlist.source, model.line, f".model {model.name}: tf with "
-                               "vaf, var, ikf or ikr; the base charge q_b makes the forward "
-                               "diffusion charge depend on v_BC too (a transcapacitance "
-                               "estim does not carry): give tf=0 or leave those out")
         if q[name] == 0:
             raise NetlistError(netlist.source, model.line, f".model {model.name}: {tt} "
                                f"without {name}; the capacitance would vanish in reverse "
@@ -134,6 +131,11 @@ def _bjt_charges(e, model, netlist) -> list[Charge]:
         law = {"cjo": q[name], "vj": q[vj], "m": q[m], "fc": q["fc"], "tt": q[tt],
                "is": q["is"], "n": q[n], "rs": 0.0}
         ends = (b, node) if model.type == "npn" else (node, b)
+        if tt == "tf" and q["tf"] and any(q[k] for k in ("vaf", "var", "ikf", "ikr", "xtf")):
+            law["tt"] = 0.0                 # the transit charge on its own: two voltages
+            controls = (ends, (b, c) if model.type == "npn" else (c, b))
+            out.append(Charge(f"{e.name}.tf", e, ends,
+                              {**q, "transit": True, "controls": controls, "cjo": 0.0}))
         out.append(Charge(f"{e.name}.{name}", e, ends, law))
     return out
 
@@ -164,63 +166,123 @@ def capacitance(v, p: dict) -> tuple[np.ndarray, np.ndarray]:
 
 @dataclass(frozen=True)
 class Junction:
-    """A junction capacitance in a model: its anode and cathode (node numbers), its law's
-    parameters, the KCL rows its charge current leaves (``+1`` the anode's,
-    ``-1`` the cathode's, ``(k,)``) and its voltage's gradient in the states ``(n,)``."""
+    """A charge in a model: its controlling voltages' node numbers (``(+, -)`` each), its
+    law (:func:`law_of`: the charge's slopes in those voltages ``(..., r)`` and its second
+    slopes ``(..., r, r)``), the capacitance the constant ``C`` holds for it on its first
+    voltage, the KCL rows its current leaves (``+1`` the anode's, ``-1`` the cathode's,
+    ``(k,)``) and its voltages' gradients in the states ``(r, n)``."""
 
-    a: int
-    b: int
-    p: dict
+    nodes: tuple
+    law: object
+    held: float
     rows: np.ndarray
-    grad: np.ndarray
+    grads: np.ndarray
+
+
+def _one_voltage(v: np.ndarray, p: dict) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`capacitance` of ``v (..., 1)`` as a slope ``(..., 1)`` and a second slope
+    ``(..., 1, 1)``."""
+    c, dc = capacitance(v[..., 0], p)
+    return c[..., None], dc[..., None, None]
+
+
+def law_of(ch: Charge):
+    """A :class:`Charge`'s law as :class:`Junction` takes it: one voltage, ``C(v)`` and
+    ``C'(v)`` (:func:`capacitance`); a BJT's transit charge, two (:func:`transit_law`)."""
+    return functools.partial(transit_law if "transit" in ch.p else _one_voltage, p=ch.p)
+
+
+def transit_charge(v_be, v_bc, p: dict):
+    """A Gummel-Poon BJT's forward transit charge (ngspice's ``bjtload.c``): for ``v_BE >
+    0``, ``tf I_F (1 + xtf (I_F / (I_F + itf))^2 exp(v_BC / (1.44 vtf))) / q_b`` with ``I_F
+    = is (exp(v_BE / (nf V_T)) - 1)`` and the base charge ``q_b``
+    (:func:`estim.spice.gummel_poon.base_charge`); ``tf I_F`` below. Complex arguments
+    too."""
+    i_f = p["is"] * (np.exp(v_be / (p["nf"] * DIODE_VT)) - 1)
+    arg = 0.0
+    if p["xtf"]:
+        arg = p["xtf"] * np.exp(v_bc * inverse(1.44 * p["vtf"]))
+        if p["itf"]:
+            arg = arg * (i_f / (i_f + p["itf"])) ** 2
+    on = np.real(v_be) > 0
+    qb = base_charge(v_be, v_bc, p, DIODE_VT)
+    return p["tf"] * np.where(on, i_f * (1 + arg) / qb, i_f)
+
+
+STEP = 1e-6
+"""The central difference's step (V) of the transit charge's second slopes."""
+
+
+def transit_law(v: np.ndarray, p: dict) -> tuple[np.ndarray, np.ndarray]:
+    """The transit charge's slopes in ``(v_BE, v_BC)`` ``(..., 2)`` by the complex step (to
+    rounding) and its second slopes ``(..., 2, 2)`` by central differences of them (the
+    step :data:`STEP`: some 1e-8 of them)."""
+    def slopes(w):
+        return np.stack([np.imag(transit_charge(*(w[..., i] + 1e-30j * (i == k)
+                                                  for i in range(2)), p)) / 1e-30
+                         for k in range(2)], axis=-1)
+
+    v = np.asarray(v, float)
+    second = np.stack([(slopes(v + STEP * e) - slopes(v - STEP * e)) / (2 * STEP)
+                       for e in np.eye(2)], axis=-1)
+    return slopes(v), second
 
 
 def junction_rows(model) -> list[Junction]:
-    """The model's junction capacitances (:attr:`estim.spice.circuit.Circuit.junctions`);
-    one whose voltage follows an input or an inductor's current is refused by name (its
-    charge current would need their slope)."""
+    """The model's charges (:attr:`estim.spice.circuit.Circuit.junctions`); one whose
+    voltage follows an input or an inductor's current is refused by name (its charge
+    current would need their slope)."""
     c = model.circuit
     k = len(c.state_nodes)
     out = []
     for ch in c.junctions:
-        a, b = (model._node[n] for n in ch.nodes)
-        grad = model._P[a] - model._P[b]
-        if np.any(grad[k:]) or np.any(model._Q[a] - model._Q[b]):
+        pairs = ch.p.get("controls", (ch.nodes,))
+        nodes = tuple(tuple(model._node[n] for n in pair) for pair in pairs)
+        grads = np.array([model._P[a] - model._P[b] for a, b in nodes])
+        if np.any(grads[:, k:]) or any(np.any(model._Q[a] - model._Q[b]) for a, b in nodes):
             raise NetlistError(c.netlist.source, ch.device.line, f"{ch.name}: the junction "
                                "capacitance's voltage follows an input or an inductor's "
                                "current, whose slope its charge current would need; put a "
                                "resistor between them")
         rows = np.zeros(k)
-        for node, sign in ((a, 1.0), (b, -1.0)):
+        for node, sign in zip((model._node[n] for n in ch.nodes), (1.0, -1.0), strict=True):
             if 0 <= model._rowmap[node] < k:
                 rows[model._rowmap[node]] += sign
-        out.append(Junction(a, b, ch.p, rows, grad))
+        out.append(Junction(nodes, law_of(ch), ch.p["cjo"], rows, grads))
     return out
+
+
+def _values(model, V: np.ndarray) -> list:
+    """Each charge's slopes and second slopes at node voltages ``V``."""
+    return [j.law(np.stack([V[..., a] - V[..., b] for a, b in j.nodes], axis=-1))
+            for j in model._junctions]
 
 
 def capacitance_matrix(model, V: np.ndarray, values: list | None = None) -> np.ndarray:
     """The nodal capacitance matrix at node voltages ``V (..., nodes)``: the circuit's
-    constant one (each junction at ``cjo``) plus ``C(v) - cjo`` of each junction
-    (``values``: each junction's :func:`capacitance` there, if known)."""
+    constant one (each charge's ``held`` capacitance) plus, for each charge, its rows times
+    ``sum_i dQ/dv_i grad_i`` less what the constant one holds (``values``: :func:`_values`,
+    if known)."""
     C = np.broadcast_to(model.circuit.C, V.shape[:-1] + model.circuit.C.shape).copy()
     k = C.shape[-1]
-    values = values or [capacitance(V[..., j.a] - V[..., j.b], j.p) for j in model._junctions]
-    for j, (cj, _) in zip(model._junctions, values, strict=True):
-        C += (cj - j.p["cjo"])[..., None, None] * np.outer(j.rows, j.grad[:k])
+    for j, (c, _) in zip(model._junctions, values or _values(model, V), strict=True):
+        row = c @ j.grads[:, :k] - j.held * j.grads[0, :k]
+        C += j.rows[:, None] * row[..., None, :]
     return C
 
 
 def charged_drift(model, out: np.ndarray, d_out: np.ndarray,
                   V: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The node states' drift ``x' = -C(x)^-1 (currents out)`` and its Jacobian
-    ``-C^-1 (d out/dx + sum_j C_j'(v_j) (grad_j . x') rows_j grad_j^T)`` (the derivative of
-    ``C(x) x' = -out``)."""
-    values = [capacitance(V[..., j.a] - V[..., j.b], j.p) for j in model._junctions]
+    ``-C^-1 (d out/dx + sum_charges rows (sum_ij d2Q/dv_i dv_j (grad_i . x') grad_j)^T)``
+    (the derivative of ``C(x) x' = -out``)."""
+    values = _values(model, V)
     C = capacitance_matrix(model, V, values)
     k = C.shape[-1]
     dxdt = -np.linalg.solve(C, out[..., None])[..., 0]
     slope = d_out.copy()
-    for j, (_, dc) in zip(model._junctions, values, strict=True):
-        s = dc * (dxdt @ j.grad[:k])
-        slope += s[..., None, None] * np.outer(j.rows, j.grad)
+    for j, (_, h) in zip(model._junctions, values, strict=True):
+        rate = dxdt @ j.grads[:, :k].T                          # (..., r): each v_i'
+        row = np.einsum("...i,...ij,jn->...n", rate, h, j.grads)
+        slope += j.rows[:, None] * row[..., None, :]
     return dxdt, -np.linalg.solve(C, slope)
