@@ -7,8 +7,8 @@ import math
 import shutil
 from pathlib import Path
 
-import numpy as np
 import pytest
+from ngspice_cases import ngspice_op, outside_bars, sine_case
 
 from estim.spice import model_class
 from estim.spice.devices import DIODE_VT, diode, diode_params, diode_slope
@@ -68,24 +68,11 @@ def test_the_law_below_the_breakdown(rs):
 def test_the_regulators_dc_point_is_ngspices_own(tmp_path):
     """ngspice's own diode with the same ``bv ibv nbv`` (its own fit, at reltol 1e-9): the
     DC point at three input levels, in and out of breakdown, to 1e-13 V."""
-    import re
-    import subprocess
-
-    from estim.spice.ngspice import K_OVER_Q
-
-    path = _write(tmp_path, REGULATOR)
-    model = model_class(path, "VIN", "v(a)", name="netlist:test_zener")()
+    model = model_class(_write(tmp_path, REGULATOR), "VIN", "v(a)", name="netlist:test_zener")()
     assert model.kernel() is None
-    temp = DIODE_VT / K_OVER_Q - 273.15
     for vin in (3.0, 8.0, 12.0):
-        deck = (REGULATOR.replace("DC 8", f"DC {vin}") + f".options temp={temp!r} "
-                f"tnom={temp!r} reltol=1e-9 abstol=1e-15 vntol=1e-12 gmin=1e-30\n.control\n"
-                "set numdgt=15\nop\nprint v(a)\n.endc\n.end\n")
-        (tmp_path / "op.cir").write_text(deck)
-        out = subprocess.run(["ngspice", "-b", str(tmp_path / "op.cir")],
-                             capture_output=True, text=True).stdout
-        theirs = float(re.search(r"v\(a\) = (\S+)", out).group(1))
-        assert model.operating_point(u=[vin])[0] == pytest.approx(theirs, abs=1e-13)
+        theirs = ngspice_op(REGULATOR.replace("DC 8", f"DC {vin}"), ("a",), tmp_path)
+        assert model.operating_point(u=[vin])[0] == pytest.approx(theirs["a"], abs=1e-13)
 
 
 @pytest.mark.slow
@@ -93,17 +80,10 @@ def test_the_regulators_dc_point_is_ngspices_own(tmp_path):
 def test_the_regulator_agrees_with_ngspice_over_time(tmp_path):
     """Every state over a noisy 1 kHz sine into breakdown and the AC gain within estim
     spice's bars (slow: estim's integrator at rtol 1e-10 on the numpy path)."""
-    from estim.engine import ngspice_check as compare
-
     model = model_class(_write(tmp_path, REGULATOR), "VIN", "v(a)",
                         name="netlist:test_zener_t")()
-    dt = 1e-5
-    t = np.arange(201) * dt
-    rng = np.random.default_rng(7)
-    source = 8.0 + 3.0 * np.sin(2e3 * np.pi * t) + 0.05 * rng.standard_normal(t.size)
-    rows = compare._tightening("1 kHz", model, source[:, None], dt, 1e3, None, 1e-10, 1e-7, 2)
-    bad = [r for r in rows if r["difference"] > compare.BARS[r["check"]]]
-    assert not bad, bad
+    rows = sine_case(model, 1e3, 1e-5, 200, 8.0, 3.0, 0.05, 7)
+    assert not outside_bars(rows), outside_bars(rows)
 
 
 @pytest.mark.parametrize("params, message", [

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from ngspice_cases import ngspice_op, outside_bars, sine_case
 
 from estim.spice import model_class
 from estim.spice.devices import DIODE
@@ -80,18 +81,11 @@ def test_the_clipper_agrees_with_ngspices_own_diode(tmp_path):
     """ngspice's diode with the same ``cjo m vj tt fc``: the DC point, the node over a
     noisy 1 MHz sine of 2 V (both diodes conduct in turn, and their diffusion capacitance,
     some picofarads, sets the clipped edges) and the AC gain within estim spice's bars."""
-    from estim.engine import ngspice_check as compare
-
     model = model_class(_write(tmp_path, CLIPPER), "VIN", "v(a)", name="netlist:test_jc_ng")()
-    dt = 1e-8
-    t = np.arange(301) * dt
-    rng = np.random.default_rng(4)
-    source = 2.0 * np.sin(2e6 * np.pi * t) + 0.01 * rng.standard_normal(t.size)
     # ngspice's truncation error shrinks with its reltol: started at 1e-9, where it is
     # within the bar (estim spice tightens to there from 1e-7)
-    rows = compare._tightening("1 MHz", model, source[:, None], dt, 1e6, None, 1e-10, 1e-9, 0)
-    bad = [r for r in rows if r["difference"] > compare.BARS[r["check"]]]
-    assert not bad, bad
+    rows = sine_case(model, 1e6, 1e-8, 300, 0.0, 2.0, 0.01, 4, reltol=1e-9, tighten=0)
+    assert not outside_bars(rows), outside_bars(rows)
     assert {r["check"] for r in rows} >= {"dc", "ac"}
 
 
@@ -159,16 +153,9 @@ def test_the_mosfet_stage_agrees_with_ngspices_own_level_1(tmp_path):
     diodes off): the DC point, every state over a noisy 10 MHz sine and the AC gain within
     estim spice's bars. Slow: the source node's time constant is some 80 ps against a 1 ns
     sample, and estim's integrator takes it at rtol 1e-10 on the numpy path."""
-    from estim.engine import ngspice_check as compare
-
     model = model_class(_write(tmp_path, MOS_STAGE), "VIN", "v(d)", name="netlist:test_jm_ng")()
-    dt = 1e-9
-    t = np.arange(201) * dt
-    rng = np.random.default_rng(5)
-    source = 0.9 + 0.03 * np.sin(2e7 * np.pi * t) + 0.002 * rng.standard_normal(t.size)
-    rows = compare._tightening("10 MHz", model, source[:, None], dt, 1e7, None, 1e-10, 1e-7, 2)
-    bad = [r for r in rows if r["difference"] > compare.BARS[r["check"]]]
-    assert not bad, bad
+    rows = sine_case(model, 1e7, 1e-9, 200, 0.9, 0.03, 0.002, 5)
+    assert not outside_bars(rows), outside_bars(rows)
     assert {r["check"] for r in rows} >= {"dc", "ac"}
 
 
@@ -231,16 +218,9 @@ def test_the_bjt_stage_agrees_with_ngspices_own_bjt(tmp_path):
     """ngspice's BJT with the same junction capacitances and transit times: the DC point,
     every state over a noisy 1 MHz sine and the AC gain within estim spice's bars. Slow:
     estim's integrator takes it at rtol 1e-10 on the numpy path."""
-    from estim.engine import ngspice_check as compare
-
     model = model_class(_write(tmp_path, GP_STAGE), "VIN", "v(c)", name="netlist:test_jq_ng")()
-    dt = 1e-8
-    t = np.arange(201) * dt
-    rng = np.random.default_rng(6)
-    source = 0.8 + 0.01 * np.sin(2e6 * np.pi * t) + 0.001 * rng.standard_normal(t.size)
-    rows = compare._tightening("1 MHz", model, source[:, None], dt, 1e6, None, 1e-10, 1e-7, 2)
-    bad = [r for r in rows if r["difference"] > compare.BARS[r["check"]]]
-    assert not bad, bad
+    rows = sine_case(model, 1e6, 1e-8, 200, 0.8, 0.01, 0.001, 6)
+    assert not outside_bars(rows), outside_bars(rows)
     assert {r["check"] for r in rows} >= {"dc", "ac"}
 
 
@@ -294,12 +274,6 @@ def test_a_bjts_series_resistances_are_ngspices_internal_nodes(tmp_path):
     input levels equals that of ngspice's own BJT (its own series resistances, the netlist
     as written) to 1e-12 V at the external nodes; with ``rc`` too the three internal nodes
     meet capacitances only among themselves, and ``C`` is singular: refused, saying so."""
-    import re
-    import subprocess
-
-    from estim.spice.devices import DIODE_VT
-    from estim.spice.ngspice import K_OVER_Q
-
     with pytest.raises(NetlistError, match=r"q1.b, q1.c, q1.e .* internal nodes"):
         model_class(_write(tmp_path, GP_STAGE.replace(
             "+ tf=0.3n tr=10n)", "+ tf=0.3n tr=10n rb=200 rc=30 re=3)")), "VIN", "v(c)",
@@ -307,18 +281,11 @@ def test_a_bjts_series_resistances_are_ngspices_internal_nodes(tmp_path):
     text = GP_STAGE.replace("+ tf=0.3n tr=10n)", "+ tf=0.3n tr=10n rb=200 re=3)")
     model = model_class(_write(tmp_path, text), "VIN", "v(c)", name="netlist:test_jq_r")()
     assert model.state_names == ("v(c)", "v(q1.b)", "v(q1.e)")   # b, e: solved (D71)
-    temp = DIODE_VT / K_OVER_Q - 273.15
     for vin in (0.8, 0.9):
-        deck = (text.replace("DC 0.8", f"DC {vin}") + f".options temp={temp!r} tnom={temp!r} "
-                "reltol=1e-9 abstol=1e-15 vntol=1e-12 gmin=1e-30\n.control\nset numdgt=15\n"
-                "op\nprint v(b) v(c) v(e)\n.endc\n.end\n")
-        (tmp_path / "op.cir").write_text(deck)
-        out = subprocess.run(["ngspice", "-b", str(tmp_path / "op.cir")],
-                             capture_output=True, text=True).stdout
+        theirs = ngspice_op(text.replace("DC 0.8", f"DC {vin}"), ("b", "c", "e"), tmp_path)
         V = model._node_voltages(model.operating_point(u=[vin]), np.array([vin]))
-        for node in ("b", "c", "e"):
-            theirs = float(re.search(rf"v\({node}\) = (\S+)", out).group(1))
-            assert V[model._node[node]] == pytest.approx(theirs, abs=1e-12)
+        for node, value in theirs.items():
+            assert V[model._node[node]] == pytest.approx(value, abs=1e-12)
 
 
 def test_a_series_resistance_without_a_capacitance_at_its_node_is_refused(tmp_path):
@@ -363,13 +330,6 @@ def test_a_transit_charge_with_the_base_charge_is_a_transcapacitance(tmp_path):
 def test_the_transit_charge_agrees_with_ngspices_own_bjt(tmp_path):
     """ngspice's BJT with ``tf`` beside ``vaf ikf xtf vtf itf``: the DC point, every state
     over a noisy 1 MHz sine and the AC gain within estim spice's bars."""
-    from estim.engine import ngspice_check as compare
-
     model = model_class(_write(tmp_path, TRANSIT), "VIN", "v(c)", name="netlist:test_jt_ng")()
-    dt = 1e-8
-    t = np.arange(201) * dt
-    rng = np.random.default_rng(9)
-    source = 0.8 + 0.01 * np.sin(2e6 * np.pi * t) + 0.001 * rng.standard_normal(t.size)
-    rows = compare._tightening("1 MHz", model, source[:, None], dt, 1e6, None, 1e-10, 1e-7, 2)
-    bad = [r for r in rows if r["difference"] > compare.BARS[r["check"]]]
-    assert not bad, bad
+    rows = sine_case(model, 1e6, 1e-8, 200, 0.8, 0.01, 0.001, 9)
+    assert not outside_bars(rows), outside_bars(rows)

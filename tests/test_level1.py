@@ -195,17 +195,12 @@ def test_overlap_capacitances_agree_with_ngspices_own_level_1(tmp_path):
     ``tox``): DC point, every state over a noisy 10 MHz sine (the gate's time constant some
     nanoseconds, the Miller capacitance among it) and the AC gain within estim spice's
     bars."""
-    from estim.engine import ngspice_check as compare
+    from ngspice_cases import outside_bars, sine_case
 
     model = model_class(_write(tmp_path, OVERLAP_STAGE), "VIN", "v(d)",
                         name="netlist:test_l1_overlap_ng")()
-    dt = 1e-9
-    t = np.arange(201) * dt
-    rng = np.random.default_rng(3)
-    source = 0.9 + 0.03 * np.sin(2e7 * np.pi * t) + 0.002 * rng.standard_normal(t.size)
-    rows = compare._tightening("10 MHz", model, source[:, None], dt, 1e7, None, 1e-10, 1e-7, 2)
-    bad = [r for r in rows if r["difference"] > compare.BARS[r["check"]]]
-    assert not bad, bad
+    rows = sine_case(model, 1e7, 1e-9, 200, 0.9, 0.03, 0.002, 3)
+    assert not outside_bars(rows), outside_bars(rows)
     assert {r["check"] for r in rows} >= {"dc", "ac"}
 
 
