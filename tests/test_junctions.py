@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from ngspice_cases import ngspice_op, outside_bars, sine_case
+from test_level1 import OVERLAP_STAGE
 
 from estim.spice import model_class
 from estim.spice.devices import DIODE
@@ -28,6 +29,14 @@ D2 0 a dj
 RL a 0 100k
 .model dj d(is=2.52n n=1.752 cjo=4p m=0.4 vj=0.75 tt=20n fc=0.5)
 """
+
+
+def _jacobian_is_its_differences(model, z: np.ndarray, u: np.ndarray) -> None:
+    """The drift's Jacobian at ``z`` against central differences of the drift."""
+    _, J = model.f_and_jacobian(z, u)
+    Jd = np.stack([(model.f(z + 1e-7 * e, u) - model.f(z - 1e-7 * e, u)) / 2e-7
+                   for e in np.eye(len(z))], axis=-1)
+    np.testing.assert_allclose(J, Jd, rtol=1e-5, atol=1e-6 * np.abs(J).max())
 
 
 def _write(tmp_path: Path, text: str) -> Path:
@@ -112,16 +121,9 @@ def test_a_junction_at_an_input_and_its_current_as_output_are_refused(tmp_path):
         model_class(_write(tmp_path, CLIPPER), "VIN", "i(D1)", name="netlist:test_jc_i")()
 
 
-MOS_STAGE = """a level-1 NMOS stage with overlap and bulk junction capacitances only
-VIN in 0 DC 0.9
-RG in g 50k
-M1 d g s 0 mn w=20u l=2u
-RS s 0 2k
-RD dd d 20k
-VDD dd 0 DC 5
-.model mn nmos(level=1 vto=0.7 kp=110u lambda=0.04 cgso=0.5n cgdo=0.4n cbd=50f cbs=30f
-+ pb=0.7 mj=0.45)
-"""
+MOS_STAGE = OVERLAP_STAGE.replace("whose only capacitances are its overlap capacitances",
+                                  "with overlap and bulk junction capacitances only").replace(
+    "cgbo=0.2n)", "cbd=50f cbs=30f\n+ pb=0.7 mj=0.45)")
 
 
 def test_a_mosfets_bulk_junctions_are_the_depletion_law(tmp_path):
@@ -140,10 +142,7 @@ def test_a_mosfets_bulk_junctions_are_the_depletion_law(tmp_path):
     C = np.array([[cgd + cbd, -cgd, 0.0], [-cgd, cgs + cgd, -cgs], [0.0, -cgs, cgs + cbs]])
     np.testing.assert_allclose(capacitance_matrix(model, model._node_voltages(x, u)), C,
                                rtol=1e-12, atol=1e-27)
-    f, J = model.f_and_jacobian(x + 0.01, u)
-    Jd = np.stack([(model.f(x + 0.01 + 1e-7 * e, u) - model.f(x + 0.01 - 1e-7 * e, u)) / 2e-7
-                   for e in np.eye(3)], axis=-1)
-    np.testing.assert_allclose(J, Jd, rtol=1e-5, atol=1e-6 * np.abs(J).max())
+    _jacobian_is_its_differences(model, x + 0.01, u)
 
 
 @pytest.mark.slow
@@ -206,10 +205,7 @@ def test_a_bjts_junctions_are_the_diodes_law(tmp_path):
     np.testing.assert_allclose(capacitance_matrix(model, model._node_voltages(x, u)), C,
                                rtol=1e-12, atol=1e-27)
     z = x + np.array([0.01, -0.2, 0.005])
-    f, J = model.f_and_jacobian(z, u)
-    Jd = np.stack([(model.f(z + 1e-7 * e, u) - model.f(z - 1e-7 * e, u)) / 2e-7
-                   for e in np.eye(3)], axis=-1)
-    np.testing.assert_allclose(J, Jd, rtol=1e-5, atol=1e-6 * np.abs(J).max())
+    _jacobian_is_its_differences(model, z, u)
 
 
 @pytest.mark.slow
@@ -319,10 +315,7 @@ def test_a_transit_charge_with_the_base_charge_is_a_transcapacitance(tmp_path):
                                            - transit_charge(*(v - e), p)) / 2e-6, rel=1e-6)
     assert abs(slopes[1]) > 1e-5 * abs(slopes[0]) > 0
     z = x + np.array([0.01, -0.2, 0.005])
-    f, J = model.f_and_jacobian(z, u)
-    Jd = np.stack([(model.f(z + 1e-7 * e, u) - model.f(z - 1e-7 * e, u)) / 2e-7
-                   for e in np.eye(3)], axis=-1)
-    np.testing.assert_allclose(J, Jd, rtol=1e-5, atol=1e-6 * np.abs(J).max())
+    _jacobian_is_its_differences(model, z, u)
 
 
 @pytest.mark.slow
