@@ -145,19 +145,6 @@ def test_a_mosfets_bulk_junctions_are_the_depletion_law(tmp_path):
     _jacobian_is_its_differences(model, x + 0.01, u)
 
 
-@pytest.mark.slow
-@NGSPICE
-def test_the_mosfet_stage_agrees_with_ngspices_own_level_1(tmp_path):
-    """ngspice's MOS1 with the same overlap and bulk junction capacitances (its junction
-    diodes off): the DC point, every state over a noisy 10 MHz sine and the AC gain within
-    estim spice's bars. Slow: the source node's time constant is some 80 ps against a 1 ns
-    sample, and estim's integrator takes it at rtol 1e-10 on the numpy path."""
-    model = model_class(_write(tmp_path, MOS_STAGE), "VIN", "v(d)", name="netlist:test_jm_ng")()
-    rows = sine_case(model, 1e7, 1e-9, 200, 0.9, 0.03, 0.002, 5)
-    assert not outside_bars(rows), outside_bars(rows)
-    assert {r["check"] for r in rows} >= {"dc", "ac"}
-
-
 @pytest.mark.parametrize("params, message", [
     ("cbd=-1f", "cbd -1e-15; expected 0 or more"),
     ("cbd=1f mj=1.2", "expected pb > 0, 0 <= mj < 1, 0 <= fc < 1"),
@@ -206,18 +193,6 @@ def test_a_bjts_junctions_are_the_diodes_law(tmp_path):
                                rtol=1e-12, atol=1e-27)
     z = x + np.array([0.01, -0.2, 0.005])
     _jacobian_is_its_differences(model, z, u)
-
-
-@pytest.mark.slow
-@NGSPICE
-def test_the_bjt_stage_agrees_with_ngspices_own_bjt(tmp_path):
-    """ngspice's BJT with the same junction capacitances and transit times: the DC point,
-    every state over a noisy 1 MHz sine and the AC gain within estim spice's bars. Slow:
-    estim's integrator takes it at rtol 1e-10 on the numpy path."""
-    model = model_class(_write(tmp_path, GP_STAGE), "VIN", "v(c)", name="netlist:test_jq_ng")()
-    rows = sine_case(model, 1e6, 1e-8, 200, 0.8, 0.01, 0.001, 6)
-    assert not outside_bars(rows), outside_bars(rows)
-    assert {r["check"] for r in rows} >= {"dc", "ac"}
 
 
 @pytest.mark.parametrize("params, message", [
@@ -320,9 +295,18 @@ def test_a_transit_charge_with_the_base_charge_is_a_transcapacitance(tmp_path):
 
 @pytest.mark.slow
 @NGSPICE
-def test_the_transit_charge_agrees_with_ngspices_own_bjt(tmp_path):
-    """ngspice's BJT with ``tf`` beside ``vaf ikf xtf vtf itf``: the DC point, every state
-    over a noisy 1 MHz sine and the AC gain within estim spice's bars."""
-    model = model_class(_write(tmp_path, TRANSIT), "VIN", "v(c)", name="netlist:test_jt_ng")()
-    rows = sine_case(model, 1e6, 1e-8, 200, 0.8, 0.01, 0.001, 9)
+@pytest.mark.parametrize("text, output, case", [
+    (MOS_STAGE, "v(d)", (1e7, 1e-9, 200, 0.9, 0.03, 0.002, 5)),
+    (GP_STAGE, "v(c)", (1e6, 1e-8, 200, 0.8, 0.01, 0.001, 6)),
+    (TRANSIT, "v(c)", (1e6, 1e-8, 200, 0.8, 0.01, 0.001, 9)),
+], ids=["mosfet bulk junctions", "bjt junctions", "bjt transit charge"])
+def test_a_stage_agrees_with_ngspices_own_device(tmp_path, text, output, case):
+    """ngspice's own MOS1 (its junction diodes off) and BJT with the same capacitances,
+    transit times and, for the transit charge, ``vaf ikf xtf vtf itf``: the DC point, every
+    state over a noisy sine (10 MHz at the MOSFET, 1 MHz at the BJT) and the AC gain within
+    estim spice's bars. Slow: the numpy path integrates time constants down to some 80 ps
+    at rtol 1e-10."""
+    model = model_class(_write(tmp_path, text), "VIN", output, name="netlist:test_j_ng")()
+    rows = sine_case(model, *case)
     assert not outside_bars(rows), outside_bars(rows)
+    assert {r["check"] for r in rows} >= {"dc", "ac"}
