@@ -17,6 +17,7 @@ from estim.spice.devices import DIODE
 from estim.spice.junctions import capacitance
 from estim.spice.parser import NetlistError
 
+ROOT_CONFIG = Path(__file__).resolve().parents[1] / "configs" / "netlist" / "diode_clipper_ekf.yaml"
 NGSPICE = pytest.mark.skipif(shutil.which("ngspice") is None,
                              reason="ngspice is not installed here (Debian: apt-get install "
                                     "ngspice); CI installs it")
@@ -119,6 +120,25 @@ def test_a_junction_at_an_input_and_its_current_as_output_are_refused(tmp_path):
         model_class(_write(tmp_path, text), "VIN", "v(a)", name="netlist:test_jc_in")()
     with pytest.raises(NetlistError, match="d1 stores charge"):
         model_class(_write(tmp_path, CLIPPER), "VIN", "i(D1)", name="netlist:test_jc_i")()
+
+
+def test_no_value_is_a_state_beside_a_junction_capacitance(tmp_path):
+    """``estim settings`` lists nothing to estimate, and a config's ``estimate`` is refused
+    at its key, where the circuit has a junction capacitance."""
+    from click.testing import CliRunner
+
+    from estim.cli.main import main
+    from estim.spice.parameter_states import estimable
+
+    model = model_class(_write(tmp_path, CLIPPER), "VIN", "v(a)", name="netlist:test_jc_e")()
+    assert estimable(model) == []
+    config = tmp_path / "c.yaml"
+    config.write_text(ROOT_CONFIG.read_text().replace(
+        "netlist: circuits/diode_clipper.cir", f"netlist: {tmp_path / 'c.cir'}")
+        + "estimate:\n  - {name: R1, start: 1.0e+4, sigma0: 0.1, drift: 0.0}\n")
+    result = CliRunner().invoke(main, ["validate", str(config)])
+    assert result.exit_code != 0
+    assert "estimate: d1.cjo is a junction capacitance" in result.output
 
 
 MOS_STAGE = OVERLAP_STAGE.replace("whose only capacitances are its overlap capacitances",

@@ -73,7 +73,10 @@ def allowed(kind: str, prm: dict) -> tuple[str, ...]:
 
 def estimable(model: NetlistModel) -> list[str]:
     """Every name ``model``'s config may give in ``estimate``: each resistor whose value can
-    be a state, each device parameter that can (``estim settings CONFIG`` lists them)."""
+    be a state, each device parameter that can (``estim settings CONFIG`` lists them); none
+    beside a junction capacitance (whose ``C(x)`` the parameter states do not carry)."""
+    if model.circuit.junctions:
+        return []
     names = []
     for e in model.circuit.netlist.elements:
         if e.kind == "l":
