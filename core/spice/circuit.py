@@ -48,6 +48,7 @@ import re
 
 import numpy as np
 
+from estim.spice.capacitance_checks import check_dc_paths, check_invertible
 from estim.spice.devices import NMOS_LAWS, model_defaults
 from estim.spice.gummel_poon import DYNAMIC, GUMMEL_POON
 from estim.spice.internal_nodes import expand
@@ -156,19 +157,10 @@ class Circuit:
                     C[this[1], other[1]] -= e.value
                 else:
                     B[this[1], other[1]] += e.value
-        self._check_dc_paths()
+        check_dc_paths(self, GROUND)
         C, B = self._set_apart_algebraic(C, B, root)
         k = len(self.state_nodes)
-        if k and np.linalg.matrix_rank(C) < k:
-            group = self._floating_group(C)
-            inner = [n for n in group if n in self.internal]
-            hint = (f" ({', '.join(inner)}: internal nodes of series resistances, which no "
-                    "capacitor of the netlist reaches; leave one of the resistances out)"
-                    if inner else "")
-            raise NetlistError(src, 0, "the nodal capacitance matrix is singular: node(s) "
-                               f"{', '.join(group)} are joined only by capacitors, with no "
-                               "capacitor to the rest: add a shunt capacitor to one of "
-                               f"them{hint}")
+        check_invertible(self, C)
         self.C = C
         self.C_inv = np.linalg.inv(C) if k else np.zeros((0, 0))
         self.B = B
@@ -374,41 +366,6 @@ class Circuit:
             if linear and x.name in self.inputs:
                 return x.name, "a model input (an H source's voltage would follow it)"
         return None
-
-    def _floating_group(self, C: np.ndarray) -> list[str]:
-        """The state nodes in the null space of the nodal capacitance matrix ``C`` (a group
-        that moves together with no capacitor to anything else)."""
-        _, s, Vt = np.linalg.svd(C)
-        null = Vt[s <= s[0] * 1e-12 * len(s)]
-        weight = np.abs(null).max(axis=0)
-        return [self.state_nodes[i] for i in np.flatnonzero(weight > 1e-9 * weight.max())]
-
-    def _check_dc_paths(self) -> None:
-        """Refuse nodes with no DC path to ground (through R, L, D, Q, M and the voltage
-        sources): a group reached only through capacitors and current sources (a cut-set of
-        current sources) has no DC point, and its voltage would drift with any current put
-        in."""
-        reached = set(GROUND)
-        edges = []
-        for e in self.netlist.elements:
-            if e.kind in "rldveh":
-                edges.append(e.nodes[:2])
-            elif e.kind == "q":
-                edges += [(e.nodes[0], e.nodes[1]), (e.nodes[1], e.nodes[2])]
-            elif e.kind == "m":
-                edges.append((e.nodes[0], e.nodes[2]))
-        grew = True
-        while grew:
-            grew = False
-            for a, b in edges:
-                if (a in reached) != (b in reached):
-                    reached |= {a, b}
-                    grew = True
-        cut = sorted(n for n in self.state_nodes if n not in reached)
-        if cut:
-            raise NetlistError(self.netlist.source, 0, f"node(s) {', '.join(cut)} have no DC "
-                               "path to ground (only capacitors and current sources reach "
-                               "them): add a resistor to ground")
 
     def _input_mode(self, root: dict) -> bool:
         """Whether the model input is the sources' slope (True) or their value. An input

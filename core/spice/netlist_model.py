@@ -148,9 +148,8 @@ class NetlistModel(Model, metaclass=NetlistClass):
                 self._device_of[e.name] = self._devices[-1]
             elif e.kind in "dqm":
                 model = c.netlist.models[e.ref]
-                prm = {**model_defaults(model), **model.params}
-                if e.kind == "d":
-                    prm = diode_params(model.params)
+                prm = (diode_params(model.params) if e.kind == "d"
+                       else {**model_defaults(model), **model.params})
                 if e.kind == "m" and "level" in prm:
                     size = {"w": 1.0, "l": 1.0, **dict(e.size)}
                     prm = {**mirrored(model.type, prm), "w_over_l": size["w"] / size["l"]}

@@ -53,25 +53,25 @@ def find(executable: str | None = None) -> str:
     return path
 
 
+def _assigned(values: dict, keys) -> str:
+    """``key=value`` for each of ``keys``, as a ``.model`` line gives them."""
+    return " ".join(f"{k}={float(values[k])!r}" for k in keys)
+
+
 def _models(net: Netlist) -> tuple[list[str], float | None]:
     lines, vt = [], None
     for m in net.models.values():
         p = m.params
         if m.type in ("nmos", "pmos") and "level" in p:
             q = {**LEVEL1, **p}          # ngspice's own MOS1, its junction diodes off
-            lines.append(f".model {m.name} {m.type}(level=1 vto={q['vto']!r} kp={q['kp']!r} "
-                         f"lambda={q['lambda']!r} gamma={q['gamma']!r} phi={q['phi']!r} "
-                         f"cgso={q['cgso']!r} cgdo={q['cgdo']!r} cgbo={q['cgbo']!r} "
-                         f"cbd={q['cbd']!r} cbs={q['cbs']!r} pb={q['pb']!r} mj={q['mj']!r} "
-                         f"fc={q['fc']!r} is=0)")
+            lines.append(f".model {m.name} {m.type}({_assigned(q, LEVEL1)} is=0)")
             continue
         if m.type in ("nmos", "pmos"):
             continue                    # EKV devices become B sources (:func:`_ekv_source`)
         if m.type in ("npn", "pnp") and is_gummel_poon(p):
             q = {**GUMMEL_POON, **p}     # ngspice's own BJT: its static law and junctions
             vt = vt or DIODE_VT
-            lines.append(f".model {m.name} {m.type}("
-                         + " ".join(f"{k}={float(q[k])!r}" for k in GUMMEL_POON) + ")")
+            lines.append(f".model {m.name} {m.type}({_assigned(q, GUMMEL_POON)})")
             continue
         if m.type in ("npn", "pnp") and p.get("ics") is not None:
             continue                    # B sources (:func:`_em_sources`)
@@ -84,8 +84,7 @@ def _models(net: Netlist) -> tuple[list[str], float | None]:
             vt = vt or DIODE_VT
             q = {**DIODE, **p}          # bv only where given (ngspice: a breakdown at bv)
             keys = [k for k in DIODE if k not in ("bv", "ibv", "nbv") or k in p]
-            lines.append(f".model {m.name} d("
-                         + " ".join(f"{k}={float(q[k])!r}" for k in keys) + ")")
+            lines.append(f".model {m.name} d({_assigned(q, keys)})")
         else:
             raise NgspiceError(f".model {m.name}: type {m.type} has no ngspice translation yet")
     return lines, vt
